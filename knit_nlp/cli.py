@@ -1,0 +1,98 @@
+"""The ``knit-nlp`` command line (spec/problem_files.md, "Command line").
+
+Exit codes: 0 success, 1 solver did not converge (results still written, ``"success": false``),
+2 bad problem file or bad arguments (one line naming file, table and key; no traceback).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .errors import ProblemError
+from .problems import named_problems, resolve
+from .tomlio import load_toml
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that exits 2 with one line (its default already uses 2; keep the message short)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        print(f"knit-nlp: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="knit-nlp", description="Mechanics of knitted fabrics as nonlinear programs.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    solve = sub.add_parser("solve", help="solve a problem file and write results")
+    solve.add_argument("problem", help="a problem file, or the name of one in problems/")
+    which = solve.add_mutually_exclusive_group()
+    which.add_argument("--reduced", action="store_true", help="weft: solve the reduced model")
+    which.add_argument("--full", action="store_true", help="weft: solve the full model")
+    solve.add_argument("--out", default="results", help="output folder (default: results)")
+    solve.add_argument("--continuation", type=int, default=None, metavar="STEPS",
+                       help="weft: always reach the clamp targets in this many warm-started steps")
+    solve.add_argument("--warm-from-reduced", action="store_true",
+                       help="weft: start the full model from the lifted reduced solution")
+    solve.add_argument("--solver", choices=["static", "explicit"], default=None,
+                       help="jacquard: override [solver] method")
+    solve.add_argument("--svg", action="store_true", help="jacquard: also write an SVG picture")
+    compare = sub.add_parser("compare", help="solve full and reduced models and compare them")
+    compare.add_argument("problem")
+    compare.add_argument("--out", default="results")
+    sub.add_parser("list", help="list the named problems")
+    return parser
+
+
+def _cmd_list() -> int:
+    rows = named_problems()
+    width = max((len(r[0]) for r in rows), default=4)
+    for name, model, description in rows:
+        print(f"{name:<{width}}  {model:<8}  {description}")
+    return 0
+
+
+def _cmd_solve(args: argparse.Namespace) -> int:
+    path = resolve(args.problem)
+    doc = load_toml(path)
+    model = doc.get("model", "weft")
+    out = Path(args.out)
+    if model == "jacquard":
+        if args.reduced or args.full or args.continuation is not None or args.warm_from_reduced:
+            raise ProblemError(path, "", "model", "--reduced/--full/--continuation/"
+                               "--warm-from-reduced apply to weft problems only")
+        from .jacquard import solve_file
+        return solve_file(path, doc, out, solver=args.solver, svg=args.svg)
+    if model != "weft":
+        raise ProblemError(path, "", "model", f"must be 'weft' or 'jacquard'; got {model!r}")
+    if args.solver is not None or args.svg:
+        raise ProblemError(path, "", "model", "--solver/--svg apply to jacquard problems only")
+    from .weft.run import solve_file as weft_solve
+    reduced = True if args.reduced else False if args.full else None
+    return weft_solve(path, doc, out, reduced=reduced, continuation=args.continuation,
+                      warm_from_reduced=args.warm_from_reduced)
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    path = resolve(args.problem)
+    doc = load_toml(path)
+    from .weft.run import compare_file
+    return compare_file(path, doc, Path(args.out))
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.command == "list":
+            return _cmd_list()
+        if args.command == "solve":
+            return _cmd_solve(args)
+        return _cmd_compare(args)
+    except ProblemError as err:
+        print(f"knit-nlp: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,41 @@
+"""Finding problem files: a path, or a name of a file in the project's ``problems/`` folder."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .errors import ProblemError
+from .tomlio import load_toml
+
+
+def problems_dir() -> Path:
+    """The named-problem folder: ``$KNIT_NLP_PROBLEMS`` or ``problems/`` beside the package."""
+    env = os.environ.get("KNIT_NLP_PROBLEMS")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parent.parent / "problems"
+
+
+def resolve(name_or_path: str) -> Path:
+    """A problem file path from a path or a bare name (``diagonal_pull`` -> problems/diagonal_pull.toml)."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists() or os.sep in name_or_path:
+        return path
+    named = problems_dir() / f"{name_or_path}.toml"
+    if named.exists():
+        return named
+    raise ProblemError(name_or_path, "", "", f"no such problem file or named problem "
+                       f"(named problems live in {problems_dir()}; see 'knit-nlp list')")
+
+
+def named_problems() -> list[tuple[str, str, str]]:
+    """(name, model, description) of every problem in the named-problem folder."""
+    rows = []
+    for path in sorted(problems_dir().glob("*.toml")):
+        try:
+            doc = load_toml(path)
+        except ProblemError as err:
+            rows.append((path.stem, "?", f"unreadable: {err.message}"))
+            continue
+        rows.append((path.stem, str(doc.get("model", "weft")), str(doc.get("description", ""))))
+    return rows

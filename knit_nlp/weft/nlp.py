@@ -1,0 +1,336 @@
+"""The equilibrium NLP of eq. (13): minimise U_spring + U_bend − W_loads subject to continuity
+(18)-(19), the chaining of eq. (1) and the clamps.
+
+Decision variables, in this order (see :class:`Layout`):
+- ``coeffs``: every loop's coefficients (2t+2 × N, loop k = (i−1)·n + (j−1)), or in the reduced
+  model the representative parameters z with coeffs = T·z (``reduction``, eqs. 22-27);
+- ``starts``: every loop's start point (2 × N); the first of each course is (x_i^0, y_i^0);
+- lifted points: the crossing-spring points B, R (upper role, courses 2..m) and E, H (lower
+  role, courses 1..m−1), and one point per clamped or loaded material point.
+Equality constraints tie each start and lifted point to its loop's start plus the per-loop
+integral of eq. (1), so every nonlinear term depends on one loop's coefficients and the
+Lagrangian Hessian is block diagonal plus the constant spring part. Clamp targets, clamp angles,
+stiffnesses and loads are NLP parameters: one build serves many solves.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .basis import continuity_rows, n_coeffs, phi
+from .energy import bending_energy, spring_pair_energy
+from .kinematics import loop_displacements
+from .problem import WeftProblem
+from .reduction import reduction_map
+
+SPRING_POINTS = ("B", "R", "E", "H")
+
+
+@dataclass
+class Layout:
+    """Where each block lives in a flat vector: name -> (start, stop) and block shape."""
+
+    blocks: dict[str, tuple[int, int, tuple[int, int]]] = field(default_factory=dict)
+    size: int = 0
+
+    def add(self, name: str, rows: int, cols: int) -> None:
+        self.blocks[name] = (self.size, self.size + rows * cols, (rows, cols))
+        self.size += rows * cols
+
+    def slice(self, name: str) -> slice:
+        start, stop, _ = self.blocks[name]
+        return slice(start, stop)
+
+    def get(self, vec: np.ndarray, name: str) -> np.ndarray:
+        """The block of ``vec`` as an array of its shape (column-major, like CasADi)."""
+        start, stop, shape = self.blocks[name]
+        return np.asarray(vec, dtype=float).ravel()[start:stop].reshape(shape, order="F")
+
+    def put(self, vec: np.ndarray, name: str, value: np.ndarray) -> None:
+        start, stop, _ = self.blocks[name]
+        vec[start:stop] = np.asarray(value, dtype=float).ravel(order="F")
+
+
+@dataclass
+class SpecialPoint:
+    """A lifted clamped or loaded material point: loop index k and s."""
+
+    k: int
+    s: float
+
+
+@dataclass
+class WeftNLP:
+    """An assembled NLP with everything needed to solve it and read its solution."""
+
+    problem: WeftProblem
+    reduced: bool
+    nlp: dict[str, ca.MX]
+    x: Layout
+    p: Layout
+    g: Layout
+    x0: np.ndarray
+    p0: np.ndarray
+    specials: list[SpecialPoint]
+    clamp_points: list[int]
+    load_points: list[int]
+    energy: ca.Function
+    coeff_map: np.ndarray | None
+    n_parameters: int
+
+    @property
+    def n_variables(self) -> int:
+        return self.x.size
+
+    @property
+    def n_constraints(self) -> int:
+        return self.g.size
+
+    def coefficients(self, xval: np.ndarray) -> np.ndarray:
+        """Loop coefficients (m, n, 2t+2) of a solution vector."""
+        pr = self.problem
+        a = self.x.get(xval, "coeffs")
+        if self.coeff_map is not None:
+            a = (self.coeff_map @ a.ravel(order="F")).reshape(n_coeffs(pr.t), -1, order="F")
+        return a.T.reshape(pr.courses, pr.wales, n_coeffs(pr.t))
+
+    def starts(self, xval: np.ndarray) -> np.ndarray:
+        """Loop start points (m, n, 2) of a solution vector."""
+        pr = self.problem
+        return self.x.get(xval, "starts").T.reshape(pr.courses, pr.wales, 2)
+
+    def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        """A full decision vector from loop coefficients (m, n, 2t+2) and starts (m, n, 2)."""
+        pr = self.problem
+        a = coeffs.reshape(pr.n_loops, -1).T
+        xval = np.zeros(self.x.size)
+        if self.coeff_map is not None:
+            z, *_ = np.linalg.lstsq(self.coeff_map, a.ravel(order="F"), rcond=None)
+            self.x.put(xval, "coeffs", z)
+        else:
+            self.x.put(xval, "coeffs", a)
+        x_st = starts.reshape(pr.n_loops, 2).T
+        self.x.put(xval, "starts", x_st)
+        pts = _point_positions(pr, a, x_st, self.specials)
+        for name, value in pts.items():
+            self.x.put(xval, name, value)
+        return xval
+
+
+def _loop_index(pr: WeftProblem, loop: tuple[int, int]) -> int:
+    return (loop[0] - 1) * pr.wales + (loop[1] - 1)
+
+
+def _eval_points(pr: WeftProblem, specials: list[SpecialPoint]) -> list[float]:
+    """The s-values each loop's Function reports: L, the spring points, then special points."""
+    pts = [pr.L]
+    if pr.crossings is not None and pr.courses > 1:
+        pts += [pr.crossings.s[k] for k in SPRING_POINTS]
+    for sp in specials:
+        if sp.s not in pts:
+            pts.append(sp.s)
+    return pts
+
+
+def _specials(pr: WeftProblem) -> tuple[list[SpecialPoint], list[int], list[int]]:
+    """Distinct clamped/loaded material points, and each clamp's and load's index among them."""
+    specials: list[SpecialPoint] = []
+
+    def index(loop: tuple[int, int], s: float) -> int:
+        k = _loop_index(pr, loop)
+        for q, sp in enumerate(specials):
+            if sp.k == k and sp.s == s:
+                return q
+        specials.append(SpecialPoint(k, s))
+        return len(specials) - 1
+
+    clamps = [index(c.loop, c.s) for c in pr.clamps]
+    loads = [index(ld.loop, ld.s) for ld in pr.loads]
+    return specials, clamps, loads
+
+
+def _point_positions(pr: WeftProblem, a: np.ndarray, starts: np.ndarray,
+                     specials: list[SpecialPoint]) -> dict[str, np.ndarray]:
+    """Numeric values of the lifted points for coefficients a (nc × N) and starts (2 × N)."""
+    disp = loop_displacements(pr.L, pr.t, np.array(_eval_points(pr, specials)),
+                              pr.quadrature_nodes).map(pr.n_loops)
+    d_all = np.asarray(disp(a))
+    n_pts = d_all.shape[1] // pr.n_loops
+    col = {s: q for q, s in enumerate(_eval_points(pr, specials))}
+    out: dict[str, np.ndarray] = {}
+    n, N = pr.wales, pr.n_loops
+    if "PB" in _point_blocks(pr):
+        for name, label, loops in (("PB", "B", range(n, N)), ("PR", "R", range(n, N)),
+                                   ("PE", "E", range(0, N - n)), ("PH", "H", range(0, N - n))):
+            c = col[pr.crossings.s[label]]
+            idx = np.array(list(loops), dtype=int)
+            out[name] = starts[:, idx] + d_all[:, idx * n_pts + c]
+    if specials:
+        ks = np.array([sp.k for sp in specials])
+        cs = np.array([col[sp.s] for sp in specials])
+        out["PC"] = starts[:, ks] + d_all[:, ks * n_pts + cs]
+    return out
+
+
+def _point_blocks(pr: WeftProblem) -> list[str]:
+    return ["PB", "PR", "PE", "PH"] if pr.courses > 1 and pr.crossings is not None else []
+
+
+def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
+    """Assemble the NLP of a problem, full or reduced (the same model, two parametrisations)."""
+    m, n, N, nc = pr.courses, pr.wales, pr.n_loops, n_coeffs(pr.t)
+    specials, clamp_pts, load_pts = _specials(pr)
+    coeff_map = reduction_map(pr) if reduced else None
+
+    xl = Layout()
+    xl.add("coeffs", nc, N) if coeff_map is None else xl.add("coeffs", coeff_map.shape[1], 1)
+    xl.add("starts", 2, N)
+    n_up = N - n
+    for name in _point_blocks(pr):
+        xl.add(name, 2, n_up)
+    if specials:
+        xl.add("PC", 2, len(specials))
+    xsym = ca.MX.sym("x", xl.size)
+    xb = {name: ca.reshape(xsym[xl.slice(name)], *shape) for name, (_, _, shape) in xl.blocks.items()}
+    A = xb["coeffs"] if coeff_map is None else ca.reshape(
+        ca.mtimes(_sparse_dm(coeff_map), xb["coeffs"]), nc, N)
+    X = xb["starts"]
+
+    pl = _param_layout(pr)
+    psym = ca.MX.sym("p", pl.size)
+    pb = {name: ca.reshape(psym[pl.slice(name)], *shape) for name, (_, _, shape) in pl.blocks.items()}
+
+    evals = _eval_points(pr, specials)
+    col = {s: q for q, s in enumerate(evals)}
+    P = len(evals)
+    D = loop_displacements(pr.L, pr.t, np.array(evals), pr.quadrature_nodes).map(N, "serial")(A)
+
+    def disp_at(s: float, loops: np.ndarray) -> ca.MX:
+        return D[:, (loops * P + col[s]).tolist()]
+
+    g, gl = [], Layout()
+
+    def add_g(name: str, expr: ca.MX) -> None:
+        if expr.numel() == 0:
+            return
+        g.append(ca.vec(expr))
+        gl.add(name, expr.numel(), 1)
+
+    left = np.array([k for k in range(N) if k % n != n - 1], dtype=int)
+    add_g("chain", X[:, (left + 1).tolist()] - X[:, left.tolist()] - disp_at(pr.L, left))
+    if _point_blocks(pr):
+        up, low = np.arange(n, N), np.arange(0, N - n)
+        for name, label, loops in (("PB", "B", up), ("PR", "R", up), ("PE", "E", low),
+                                   ("PH", "H", low)):
+            add_g(f"lift_{label}", xb[name] - X[:, loops.tolist()] - disp_at(pr.crossings.s[label], loops))
+    if specials:
+        ks = np.array([sp.k for sp in specials])
+        dsp = ca.horzcat(*[disp_at(sp.s, np.array([sp.k])) for sp in specials])
+        add_g("lift_special", xb["PC"] - X[:, ks.tolist()] - dsp)
+    if coeff_map is None and n > 1:
+        E, S = continuity_rows(pr.L, pr.t)
+        add_g("continuity", ca.mtimes(ca.DM(E), A[:, left.tolist()])
+              - ca.mtimes(ca.DM(S), A[:, (left + 1).tolist()]))
+    _clamp_constraints(pr, A, xb, pb, clamp_pts, add_g)
+
+    a0 = ca.DM(pr.natural.coeffs)
+    bend = ca.sum2(bending_energy(pr.L, pr.t).map(N)(A, a0, pb["R_f"]))
+    spring = ca.MX(0)
+    if _point_blocks(pr):
+        k = ca.vertcat(pb["k_a"], pb["k_b"])
+        pair = spring_pair_energy().map(N - n)
+        c = pr.crossings
+        spring = (ca.sum2(pair(xb["PB"], xb["PE"], ca.DM(c.rest_left), ca.DM(c.frame_left), k))
+                  + ca.sum2(pair(xb["PR"], xb["PH"], ca.DM(c.rest_right), ca.DM(c.frame_right), k)))
+    work = _load_work(pr, A, xb, pb, specials, load_pts)
+
+    nlp = {"x": xsym, "p": psym, "f": spring + bend - work, "g": ca.vertcat(*g)}
+    energy = ca.Function("energy", [xsym, psym], [spring, bend, work],
+                         ["x", "p"], ["spring", "bending", "load_work"])
+    result = WeftNLP(pr, reduced, nlp, xl, pl, gl, np.zeros(xl.size), _param_values(pr, pl),
+                     specials, clamp_pts, load_pts, energy, coeff_map, n_parameters(pr, reduced))
+    result.x0 = result.lift(np.broadcast_to(pr.natural.coeffs, (m, n, nc)).copy(),
+                            pr.natural_starts())
+    return result
+
+
+def _sparse_dm(mat: np.ndarray) -> ca.DM:
+    """A sparse CasADi matrix holding the nonzeros of ``mat``."""
+    rows, cols = np.nonzero(mat)
+    sp = ca.Sparsity.triplet(mat.shape[0], mat.shape[1], rows.tolist(), cols.tolist())
+    return ca.DM(sp, mat[rows, cols].tolist())
+
+
+def _param_layout(pr: WeftProblem) -> Layout:
+    pl = Layout()
+    pl.add("targets", 2, len(pr.clamps))
+    pl.add("angles", sum(c.angle is not None for c in pr.clamps), 1)
+    pl.add("k_a", 1, 1)
+    pl.add("k_b", 1, 1)
+    pl.add("R_f", 1, 1)
+    pl.add("forces", 2, len(pr.loads))
+    pl.add("moments", len(pr.loads), 1)
+    return pl
+
+
+def _param_values(pr: WeftProblem, pl: Layout) -> np.ndarray:
+    p = np.zeros(pl.size)
+    pl.put(p, "targets", np.array([c.target for c in pr.clamps]).T.reshape(2, -1))
+    pl.put(p, "angles", [c.angle for c in pr.clamps if c.angle is not None])
+    pl.put(p, "k_a", pr.k_a)
+    pl.put(p, "k_b", pr.k_b)
+    pl.put(p, "R_f", pr.R_f)
+    pl.put(p, "forces", np.array([ld.force for ld in pr.loads]).T.reshape(2, -1))
+    pl.put(p, "moments", [ld.moment for ld in pr.loads])
+    return p
+
+
+def _clamp_constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
+                       clamp_pts: list[int], add_g) -> None:
+    """Position rows P[dim] − target[dim] and angle rows θ(s) − angle, one block per clamp."""
+    n_angle = 0
+    for q, (c, sp) in enumerate(zip(pr.clamps, clamp_pts)):
+        dims = [d for d in range(2) if c.fix[d]]
+        if dims:
+            add_g(f"clamp{q}_pos", xb["PC"][dims, sp] - pb["targets"][dims, q])
+        if c.angle is not None:
+            row = ca.DM(phi(c.s, pr.L, pr.t))
+            add_g(f"clamp{q}_angle", ca.mtimes(row, A[:, _loop_index(pr, c.loop)])
+                  - pb["angles"][n_angle])
+            n_angle += 1
+
+
+def _load_work(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
+               specials: list[SpecialPoint], load_pts: list[int]) -> ca.MX:
+    """Work of point forces and moments from the natural state: f·(P − P0) + M·(θ(s) − θ0(s))."""
+    work = ca.MX(0)
+    for q, (ld, sp) in enumerate(zip(pr.loads, load_pts)):
+        p0 = ca.DM(pr.natural_position(ld.loop, ld.s))
+        work += ca.dot(pb["forces"][:, q], xb["PC"][:, sp] - p0)
+        row = ca.DM(phi(ld.s, pr.L, pr.t))
+        dtheta = ca.mtimes(row, A[:, _loop_index(pr, ld.loop)] - ca.DM(pr.natural.coeffs))
+        work += pb["moments"][q] * dtheta
+    return work
+
+
+def n_parameters(pr: WeftProblem, reduced: bool) -> int:
+    """Parameter count as the paper counts it (spec, "Parameter counts").
+
+    Full: m·n·(2t+2) + 2m. Reduced over p × q representatives: p·q·2t + 2p + 2m.
+    """
+    nc = n_coeffs(pr.t)
+    if not reduced:
+        return pr.courses * pr.wales * nc + 2 * pr.courses
+    red = pr.reduction or default_reduction(pr)
+    p, q = len(red.courses), len(red.wales)
+    return p * q * 2 * pr.t + 2 * p + 2 * pr.courses
+
+
+def default_reduction(pr: WeftProblem):
+    """The paper's corner form: representatives at the first and last course and wale."""
+    from .problem import Reduction
+    courses = (1, pr.courses) if pr.courses > 1 else (1,)
+    wales = (1, pr.wales) if pr.wales > 1 else (1,)
+    return Reduction(courses, wales)

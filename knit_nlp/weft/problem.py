@@ -1,0 +1,280 @@
+"""A weft-knit problem: read from TOML, checked completely before any symbolic work.
+
+The contract is spec/problem_files.md; every rule a bad file can break raises
+:class:`~knit_nlp.errors.ProblemError` naming file, table and key.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ProblemError
+from ..tomlio import Table
+from .basis import n_coeffs
+from .crossings import LABELS, CrossingError, Crossings, find_crossings
+from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
+
+TOP_KEYS = ("name", "description", "model")
+
+
+@dataclass(frozen=True)
+class Clamp:
+    """Fix the position (some coordinates) and optionally the tangent angle of a material point.
+
+    ``loop`` is 1-based (course, wale); ``target`` the absolute position (a given displacement is
+    converted); ``fix`` which of x, y are held.
+    """
+
+    loop: tuple[int, int]
+    point: str | float
+    s: float
+    target: np.ndarray
+    fix: tuple[bool, bool] = (True, True)
+    angle: float | None = None
+
+
+@dataclass(frozen=True)
+class Load:
+    """A point force and/or moment doing work on the fabric at a material point."""
+
+    loop: tuple[int, int]
+    point: str | float
+    s: float
+    force: np.ndarray
+    moment: float = 0.0
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """Representative courses and wales (1-based, increasing, first and last included)."""
+
+    courses: tuple[int, ...]
+    wales: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """IPOPT tolerance and iteration limit; continuation steps (None: only when needed)."""
+
+    tol: float = 1e-8
+    max_iter: int = 3000
+    continuation: int | None = None
+
+
+@dataclass(frozen=True)
+class WeftProblem:
+    """Everything needed to build and solve one weft-knit NLP."""
+
+    name: str
+    description: str
+    courses: int
+    wales: int
+    natural: NaturalLoop
+    crossings: Crossings | None
+    quadrature_nodes: int = 16
+    k_a: float = 1.0
+    k_b: float = 0.01
+    R_f: float = 1.0
+    clamps: tuple[Clamp, ...] = ()
+    loads: tuple[Load, ...] = ()
+    reduction: Reduction | None = None
+    solver: SolverOptions = field(default_factory=SolverOptions)
+    file: str = "<memory>"
+
+    @property
+    def t(self) -> int:
+        return self.natural.harmonics
+
+    @property
+    def L(self) -> float:
+        return self.natural.length
+
+    @property
+    def n_loops(self) -> int:
+        return self.courses * self.wales
+
+    def natural_starts(self) -> np.ndarray:
+        """Natural start point of every loop, (m, n, 2)."""
+        return natural_starts(self.natural, self.courses, self.wales)
+
+    def natural_position(self, loop: tuple[int, int], s: float) -> np.ndarray:
+        """Natural position of the material point s of a 1-based loop."""
+        i, j = loop
+        return self.natural_starts()[i - 1, j - 1] + self.natural.xy([s])[0]
+
+
+def load_problem(path: Path | str) -> WeftProblem:
+    """Read and check a weft problem file."""
+    from ..tomlio import load_toml
+    path = Path(path)
+    return parse_problem(path, load_toml(path))
+
+
+def parse_problem(path: Path | str, doc: dict[str, Any]) -> WeftProblem:
+    """Check a parsed TOML document against the contract and build a :class:`WeftProblem`."""
+    top = Table(doc, path, "")
+    name = top.string("name", Path(path).stem)
+    description = top.string("description", "")
+    top.string("model", "weft", choices=("weft",))
+    fab = top.table("fabric", required=True)
+    m, n = fab.integer("courses", minimum=1), fab.integer("wales", minimum=1)
+    fab.finish()
+    natural, nodes, geometry_key, loop_tab = _read_loop(top.table("loop"))
+    crossings = None
+    try:
+        crossings = find_crossings(natural)
+    except CrossingError as err:
+        if m >= 2:
+            raise loop_tab.error(geometry_key, f"natural geometry rejected: {err}") from None
+    mat = top.table("material")
+    k_a = mat.number("k_a", 1.0, nonnegative=True)
+    k_b = mat.number("k_b", 0.01, nonnegative=True)
+    R_f = mat.number("R_f", 1.0, nonnegative=True)
+    mat.finish()
+    points = _PointReader(m, n, natural, crossings)
+    starts = natural_starts(natural, m, n)
+    clamps = tuple(_read_clamp(t, points, natural, starts) for t in top.tables("clamp"))
+    _check_overconstraint(top, clamps, points)
+    loads = tuple(_read_load(t, points) for t in top.tables("load"))
+    reduction = _read_reduction(top, m, n) if top.has("reduction") else None
+    solver = _read_solver(top.table("solver"))
+    top.finish()
+    return WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
+                       clamps, loads, reduction, solver, str(path))
+
+
+def _read_loop(tab: Table) -> tuple[NaturalLoop, int, str, Table]:
+    preset = tab.string("preset", "jersey", choices=PRESETS)
+    L = tab.number("length", 10.0, positive=True)
+    t = tab.integer("harmonics", 3)
+    if t < 1:
+        raise tab.error("harmonics", f"must be a positive integer, got {t}")
+    key = "preset"
+    if tab.has("natural_coefficients"):
+        coeffs = np.array(tab.numbers("natural_coefficients", length=n_coeffs(t)))
+        key = "natural_coefficients"
+    else:
+        coeffs = preset_coeffs(preset, t)
+    spacing = tab.number("course_spacing", None, positive=True)
+    if tab.has("course_spacing"):
+        key = "course_spacing" if key == "preset" else key
+    nodes = tab.integer("quadrature_nodes", 16)
+    if nodes < 2:
+        raise tab.error("quadrature_nodes", f"must be at least 2, got {nodes}")
+    tab.finish()
+    return natural_loop(coeffs, L, t, spacing), nodes, key, tab
+
+
+class _PointReader:
+    """Resolves ``loop`` and ``point`` keys of clamp and load tables to (i, j) and s."""
+
+    def __init__(self, m: int, n: int, natural: NaturalLoop, crossings: Crossings | None) -> None:
+        self.m, self.n, self.natural, self.crossings = m, n, natural, crossings
+
+    def loop(self, tab: Table) -> tuple[int, int]:
+        i, j = tab.integers("loop", length=2)
+        if not (1 <= i <= self.m and 1 <= j <= self.n):
+            raise tab.error("loop", f"[{i}, {j}] is outside the {self.m} x {self.n} fabric "
+                            f"(courses 1..{self.m}, wales 1..{self.n})")
+        return i, j
+
+    def point(self, tab: Table) -> tuple[str | float, float]:
+        value = tab.value("point")
+        L = self.natural.length
+        if isinstance(value, str):
+            if value == "start":
+                return value, 0.0
+            if value == "end":
+                return value, L
+            if value not in LABELS:
+                raise tab.error("point", f"unknown point label {value!r}; use start, end, "
+                                f"{' '.join(LABELS)} or a number s in [0, {L:g}]")
+            if self.crossings is None:
+                raise tab.error("point", f"label {value!r} needs crossings, which this "
+                                "natural geometry does not have; give a number s instead")
+            return value, self.crossings.s[value]
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise tab.error("point", "expected a label string or a number s")
+        if not 0.0 <= value <= L:
+            raise tab.error("point", f"s = {value:g} is outside [0, {L:g}]")
+        return float(value), float(value)
+
+
+def _read_clamp(tab: Table, points: _PointReader, natural: NaturalLoop,
+                starts: np.ndarray) -> Clamp:
+    loop = points.loop(tab)
+    label, s = points.point(tab)
+    has_pos, has_disp = tab.has("position"), tab.has("displacement")
+    if has_pos == has_disp:
+        raise tab.error("position", "give exactly one of position and displacement")
+    if has_pos:
+        target = np.array(tab.numbers("position", length=2))
+    else:
+        nat = starts[loop[0] - 1, loop[1] - 1] + natural.xy([s])[0]
+        target = nat + np.array(tab.numbers("displacement", length=2))
+    fix = tab.strings("fix", ["x", "y"], choices=("x", "y"))
+    if len(set(fix)) != len(fix):
+        raise tab.error("fix", "lists a coordinate twice")
+    angle = tab.number("angle", None)
+    if not fix and angle is None:
+        raise tab.error("fix", "an empty fix list needs an angle, or the clamp holds nothing")
+    tab.finish()
+    return Clamp(loop, label, s, target, ("x" in fix, "y" in fix), angle)
+
+
+def _read_load(tab: Table, points: _PointReader) -> Load:
+    loop = points.loop(tab)
+    label, s = points.point(tab)
+    if not (tab.has("force") or tab.has("moment")):
+        raise tab.error("force", "a load needs force = [fx, fy] and/or moment = M")
+    force = np.array(tab.numbers("force", [0.0, 0.0], length=2))
+    moment = tab.number("moment", 0.0)
+    tab.finish()
+    return Load(loop, label, s, force, moment)
+
+
+def canonical_point(loop: tuple[int, int], s: float, L: float, n: int) -> tuple[int, int, float]:
+    """One name for one material point: the end of loop (i, j<n) is the start of (i, j+1)."""
+    i, j = loop
+    if j < n and abs(s - L) <= 1e-12 * L:
+        return i, j + 1, 0.0
+    return i, j, round(s, 12)
+
+
+def _check_overconstraint(top: Table, clamps: tuple[Clamp, ...], points: _PointReader) -> None:
+    held: dict[tuple[Any, ...], int] = {}
+    for k, c in enumerate(clamps):
+        key = canonical_point(c.loop, c.s, points.natural.length, points.n)
+        dofs = [d for d, f in zip("xy", c.fix) if f] + (["angle"] if c.angle is not None else [])
+        for dof in dofs:
+            if (key, dof) in held:
+                raise ProblemError(top.file, f"clamp[{k + 1}]", "fix" if dof != "angle" else
+                                   "angle", f"over-constrains loop {list(c.loop)} point "
+                                   f"{c.point!r}: its {dof} is already fixed by "
+                                   f"clamp[{held[(key, dof)] + 1}]")
+            held[(key, dof)] = k
+
+
+def _read_reduction(top: Table, m: int, n: int) -> Reduction:
+    tab = top.table("reduction")
+    courses = tab.integers("representative_courses", [1, m] if m > 1 else [1])
+    wales = tab.integers("representative_wales", [1, n] if n > 1 else [1])
+    for key, values, last in (("representative_courses", courses, m),
+                              ("representative_wales", wales, n)):
+        if not values or values[0] != 1 or values[-1] != last:
+            raise tab.error(key, f"must start at 1 and end at {last}")
+        if any(b <= a for a, b in zip(values[:-1], values[1:])):
+            raise tab.error(key, "must be strictly increasing")
+    tab.finish()
+    return Reduction(tuple(courses), tuple(wales))
+
+
+def _read_solver(tab: Table) -> SolverOptions:
+    tol = tab.number("tol", 1e-8, positive=True)
+    max_iter = tab.integer("max_iter", 3000, minimum=1)
+    steps = tab.integer("continuation", None, minimum=1)
+    tab.finish()
+    return SolverOptions(tol, max_iter, steps)

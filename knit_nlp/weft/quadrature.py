@@ -1,0 +1,70 @@
+"""Gauss–Legendre panels on [0, L] for the position integrals of eq. (1).
+
+The panels break at every material point whose position the model needs, so each position is
+a cumulative sum of whole-panel integrals and converges with the node count like the rule itself.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PanelRule:
+    """Nodes and weights on [0, L] and the cumulative weight matrix.
+
+    ``cumulative[p] @ f(nodes)`` is ∫₀^{points[p]} f ds for the requested ``points``.
+    """
+
+    nodes: np.ndarray
+    weights: np.ndarray
+    points: np.ndarray
+    cumulative: np.ndarray
+
+
+def panel_rule(points: np.ndarray | list[float], L: float, nodes_per_panel: int,
+               max_panel: float | None = None) -> PanelRule:
+    """A composite Gauss–Legendre rule on [0, L] with breakpoints at ``points``.
+
+    Panels longer than ``max_panel`` (default L/4) are split evenly.
+    """
+    points = np.asarray(points, dtype=float)
+    if np.any(points < 0) or np.any(points > L):
+        raise ValueError("quadrature points must lie in [0, L]")
+    max_panel = L / 4 if max_panel is None else max_panel
+    breaks = np.unique(np.concatenate([[0.0, L], points]))
+    edges = [breaks[0]]
+    for lo, hi in zip(breaks[:-1], breaks[1:]):
+        if hi - lo < 1e-12 * L:
+            continue
+        pieces = int(np.ceil((hi - lo) / max_panel - 1e-9))
+        edges.extend(np.linspace(lo, hi, pieces + 1)[1:])
+    edges = np.asarray(edges)
+    x, w = np.polynomial.legendre.leggauss(nodes_per_panel)
+    half = 0.5 * np.diff(edges)
+    mid = 0.5 * (edges[:-1] + edges[1:])
+    nodes = (mid[:, None] + half[:, None] * x[None, :]).ravel()
+    weights = (half[:, None] * w[None, :]).ravel()
+    panel_end = np.repeat(edges[1:], nodes_per_panel)
+    cumulative = (panel_end[None, :] <= points[:, None] + 1e-12 * L) * weights[None, :]
+    return PanelRule(nodes, weights, points, cumulative)
+
+
+def positions(coeffs: np.ndarray, s: np.ndarray | list[float], L: float, t: int,
+              nodes_per_panel: int = 24) -> np.ndarray:
+    """Displacements x(s) − x(0), y(s) − y(0) along loops (the integrals of eq. 1).
+
+    ``coeffs`` is one loop (2t+2,) or many (N, 2t+2); the result is (len(s), 2) or (N, len(s), 2).
+    A numpy reference with fine panels, used for natural geometry, sampling and checks.
+    """
+    from .basis import phi
+
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    many = np.ndim(coeffs) == 2
+    a = np.atleast_2d(coeffs)
+    rule = panel_rule(s, L, nodes_per_panel, max_panel=L / 16)
+    theta = phi(rule.nodes, L, t) @ a.T                      # (nodes, N)
+    xy = np.stack([rule.cumulative @ np.cos(theta), rule.cumulative @ np.sin(theta)], axis=-1)
+    xy = np.transpose(xy, (1, 0, 2))                         # (N, len(s), 2)
+    return xy if many else xy[0]
