@@ -148,6 +148,13 @@ class Table:
             raise self.error(key, "expected an array of tables ([[%s]])" % key)
         return [Table(v, self.file, f"{key}[{k + 1}]") for k, v in enumerate(value)]
 
+    def allow(self, *keys: str) -> None:
+        """Reject at once any key outside ``keys`` (so a misspelt key is named as such before it
+        can cause a confusing error about a missing one)."""
+        for key in self.data:
+            if key not in keys:
+                raise self.error(key, f"unknown key (allowed: {', '.join(keys)})")
+
     def finish(self) -> None:
         """Reject keys that were never read (the contract: unknown keys are an error)."""
         for key in self.data:

@@ -258,7 +258,7 @@ def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
 
 def _sparse_dm(mat: np.ndarray) -> ca.DM:
     """A sparse CasADi matrix holding the nonzeros of ``mat``."""
-    rows, cols = np.nonzero(mat)
+    cols, rows = np.nonzero(mat.T)            # column-major order, as CasADi stores nonzeros
     sp = ca.Sparsity.triplet(mat.shape[0], mat.shape[1], rows.tolist(), cols.tolist())
     return ca.DM(sp, mat[rows, cols].tolist())
 

@@ -205,27 +205,29 @@ class _PointReader:
 
 def _read_clamp(tab: Table, points: _PointReader, natural: NaturalLoop,
                 starts: np.ndarray) -> Clamp:
+    tab.allow("loop", "point", "position", "displacement", "fix", "angle")
     loop = points.loop(tab)
     label, s = points.point(tab)
-    has_pos, has_disp = tab.has("position"), tab.has("displacement")
-    if has_pos == has_disp:
-        raise tab.error("position", "give exactly one of position and displacement")
-    if has_pos:
-        target = np.array(tab.numbers("position", length=2))
-    else:
-        nat = starts[loop[0] - 1, loop[1] - 1] + natural.xy([s])[0]
-        target = nat + np.array(tab.numbers("displacement", length=2))
     fix = tab.strings("fix", ["x", "y"], choices=("x", "y"))
     if len(set(fix)) != len(fix):
         raise tab.error("fix", "lists a coordinate twice")
     angle = tab.number("angle", None)
     if not fix and angle is None:
         raise tab.error("fix", "an empty fix list needs an angle, or the clamp holds nothing")
+    has_pos, has_disp = tab.has("position"), tab.has("displacement")
+    if has_pos and has_disp or (fix and not (has_pos or has_disp)):
+        raise tab.error("position", "give exactly one of position and displacement")
+    natural = starts[loop[0] - 1, loop[1] - 1] + natural.xy([s])[0]
+    if has_pos:
+        target = np.array(tab.numbers("position", length=2))
+    else:
+        target = natural + np.array(tab.numbers("displacement", [0.0, 0.0], length=2))
     tab.finish()
     return Clamp(loop, label, s, target, ("x" in fix, "y" in fix), angle)
 
 
 def _read_load(tab: Table, points: _PointReader) -> Load:
+    tab.allow("loop", "point", "force", "moment")
     loop = points.loop(tab)
     label, s = points.point(tab)
     if not (tab.has("force") or tab.has("moment")):

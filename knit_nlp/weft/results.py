@@ -1,0 +1,97 @@
+"""Reading a solved NLP: the contract's result JSON and the sampled centrelines (NPZ)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..jsonio import write_json
+from .basis import n_coeffs, phi
+from .nlp import WeftNLP
+from .quadrature import positions
+from .solve import SolveReport
+
+
+def clamp_reactions(wnlp: WeftNLP, lam_g: np.ndarray) -> list[tuple[np.ndarray, float | None]]:
+    """(force, moment) the clamps apply to the fabric: minus the constraint multipliers.
+
+    CasADi's multipliers make ∇f + Jᵀλ = 0 with rows g = P − target, so the clamp's force on
+    the fabric, which balances the elastic force −∂U/∂P, is −λ.
+    """
+    out = []
+    for q, c in enumerate(wnlp.problem.clamps):
+        force = np.zeros(2)
+        name = f"clamp{q}_pos"
+        if name in wnlp.g.blocks:
+            force[[d for d in range(2) if c.fix[d]]] = -lam_g[wnlp.g.slice(name)]
+        moment = None
+        if c.angle is not None:
+            moment = float(-lam_g[wnlp.g.slice(f"clamp{q}_angle")][0])
+        out.append((force, moment))
+    return out
+
+
+def result_dict(wnlp: WeftNLP, rep: SolveReport, violation: float, build_s: float,
+                extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The contract's result JSON (spec/problem_files.md) plus documented extensions."""
+    pr = wnlp.problem
+    spring, bending, work = (float(v) for v in wnlp.energy(rep.x, wnlp.p0))
+    coeffs, starts = wnlp.coefficients(rep.x), wnlp.starts(rep.x)
+    pc = wnlp.x.get(rep.x, "PC") if wnlp.specials else np.zeros((2, 0))
+    clamps = []
+    for c, q, (force, moment) in zip(pr.clamps, wnlp.clamp_points, clamp_reactions(wnlp, rep.lam_g)):
+        entry: dict[str, Any] = {"loop": list(c.loop), "point": c.point,
+                                 "position": pc[:, q].tolist(), "reaction": force.tolist(),
+                                 "target": c.target.tolist(), "fix": [d for d, f in zip("xy", c.fix) if f]}
+        if c.angle is not None:
+            k = (c.loop[0] - 1, c.loop[1] - 1)
+            entry["angle"] = float(phi(c.s, pr.L, pr.t)[0] @ coeffs[k])
+            entry["reaction_moment"] = moment
+        clamps.append(entry)
+    result = {
+        "problem": pr.name, "model": "reduced" if wnlp.reduced else "full",
+        "success": rep.success, "status": rep.status,
+        "energy": {"total": spring + bending, "spring": spring, "bending": bending,
+                   "load_work": work},
+        "n_parameters": wnlp.n_parameters, "n_variables": wnlp.n_variables,
+        "n_constraints": wnlp.n_constraints, "iterations": rep.iterations,
+        "max_constraint_violation": violation,
+        "timings": {"build_s": build_s, "solve_s": rep.solve_s,
+                    "profile": {k.removeprefix("t_wall_"): v for k, v in sorted(rep.stats.items())}},
+        "continuation_steps": rep.continuation_steps, "attempts": rep.attempts,
+        "clamps": clamps,
+        "loads": [{"loop": list(ld.loop), "point": ld.point, "force": ld.force.tolist(),
+                   "moment": ld.moment, "position": pc[:, q].tolist()}
+                  for ld, q in zip(pr.loads, wnlp.load_points)],
+        "loops": {"course_starts": starts[:, 0].tolist(), "coefficients": coeffs.tolist()},
+    }
+    result.update(extra or {})
+    return result
+
+
+def centrelines(coeffs: np.ndarray, starts: np.ndarray, L: float, t: int,
+                samples: int = 61) -> tuple[np.ndarray, np.ndarray]:
+    """Sampled centrelines (m, n, samples, 2) of every loop and the s-values used."""
+    m, n = coeffs.shape[:2]
+    s = np.linspace(0.0, L, samples)
+    disp = positions(coeffs.reshape(m * n, n_coeffs(t)), s, L, t).reshape(m, n, samples, 2)
+    return disp + starts[:, :, None, :], s
+
+
+def write_arrays(path: Path, wnlp: WeftNLP, rep: SolveReport, samples: int = 61) -> Path:
+    """NPZ beside the JSON: s, natural and deformed centrelines, coefficients, starts."""
+    pr = wnlp.problem
+    coeffs, starts = wnlp.coefficients(rep.x), wnlp.starts(rep.x)
+    deformed, s = centrelines(coeffs, starts, pr.L, pr.t, samples)
+    nat_coeffs = np.broadcast_to(pr.natural.coeffs, coeffs.shape)
+    natural, _ = centrelines(nat_coeffs, pr.natural_starts(), pr.L, pr.t, samples)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, s=s, natural=natural, deformed=deformed, coefficients=coeffs,
+                        starts=starts)
+    return path
+
+
+def write_result(out_dir: Path, wnlp: WeftNLP, result: dict[str, Any]) -> Path:
+    """``DIR/<problem>.<model>.json``."""
+    return write_json(out_dir / f"{wnlp.problem.name}.{result['model']}.json", result)

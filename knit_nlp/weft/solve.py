@@ -1,0 +1,202 @@
+"""Solving the weft NLP with IPOPT: direct, by continuation, and from perturbed starts.
+
+- Direct: one IPOPT solve from the natural configuration (or a given start).
+- Continuation: clamp targets, clamp angles and loads are stepped from their natural values to
+  the problem's in equal steps, each solve warm-started from the last; a failed step is halved
+  (up to ``max_halvings`` times). Used when the direct solve fails, or always when asked.
+- Degenerate starts: where the natural yarn is straight, a compressive clamp leaves IPOPT at a
+  point where the end position does not depend, to first order, on the shape (the Jacobian
+  loses rank). The solve then starts from each of a few smooth perturbations of the natural
+  shape (θ ∝ cos, sin of πS/ℓ and 2πS/ℓ along each course of length ℓ) and keeps the successful
+  solution of lowest energy, which is the lowest buckling mode.
+The NLP is built once; every solve reuses the same ``casadi.nlpsol`` object.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .basis import n_coeffs, phi
+from .nlp import WeftNLP
+from .quadrature import positions
+
+SUCCESS = "Solve_Succeeded"
+
+
+@dataclass
+class SolveReport:
+    """Outcome of a solve: the solution vector, multipliers, IPOPT's status, effort and timing."""
+
+    success: bool
+    status: str
+    x: np.ndarray
+    lam_g: np.ndarray
+    objective: float
+    iterations: int
+    solve_s: float
+    continuation_steps: int = 0
+    attempts: list[str] = field(default_factory=list)
+    stats: dict[str, float] = field(default_factory=dict)
+
+
+class WeftSolver:
+    """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
+
+    def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
+                 print_level: int = 0) -> None:
+        opts = wnlp.problem.solver
+        self.wnlp = wnlp
+        t0 = time.perf_counter()
+        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, {
+            "print_time": False,
+            "ipopt": {"tol": tol or opts.tol, "max_iter": max_iter or opts.max_iter,
+                      "print_level": print_level, "sb": "yes", "linear_solver": "mumps"}})
+        self.setup_s = time.perf_counter() - t0
+        self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
+
+    def once(self, p: np.ndarray, x0: np.ndarray) -> SolveReport:
+        """A single IPOPT solve from x0."""
+        t0 = time.perf_counter()
+        sol = self.solver(x0=x0, p=p, lbg=0.0, ubg=0.0)
+        stats = self.solver.stats()
+        status = str(stats["return_status"])
+        return SolveReport(status == SUCCESS, status, np.asarray(sol["x"]).ravel(),
+                           np.asarray(sol["lam_g"]).ravel(), float(sol["f"]),
+                           int(stats["iter_count"]), time.perf_counter() - t0,
+                           stats={k: float(v) for k, v in stats.items() if k.startswith("t_wall")})
+
+    def violation(self, x: np.ndarray, p: np.ndarray) -> float:
+        """Largest absolute constraint residual |g| at x."""
+        g = np.asarray(self._g(x, p)).ravel()
+        return float(np.max(np.abs(g))) if g.size else 0.0
+
+    def continuation(self, p: np.ndarray, x0: np.ndarray, steps: int,
+                     max_halvings: int = 6) -> SolveReport:
+        """Step the parameters from their natural values to ``p``, warm-starting each solve."""
+        p_nat = natural_parameters(self.wnlp)
+        x, tau, dtau = x0, 0.0, 1.0 / steps
+        total = SolveReport(False, "", x0, np.zeros(self.wnlp.n_constraints), np.nan, 0, 0.0)
+        halvings = 0
+        while tau < 1.0 - 1e-12:
+            nxt = min(1.0, tau + dtau)
+            rep = self.once(p_nat + nxt * (p - p_nat), x)
+            total.iterations += rep.iterations
+            total.solve_s += rep.solve_s
+            total.stats = _add_stats(total.stats, rep.stats)
+            if rep.success:
+                x, tau = rep.x, nxt
+                total.continuation_steps += 1
+                total.x, total.lam_g, total.objective, total.status = rep.x, rep.lam_g, rep.objective, rep.status
+                continue
+            halvings += 1
+            if halvings > max_halvings:
+                total.status, total.x, total.lam_g = rep.status, rep.x, rep.lam_g
+                return total
+            dtau /= 2
+        total.success = True
+        return total
+
+
+def _add_stats(a: dict[str, float], b: dict[str, float]) -> dict[str, float]:
+    return {k: a.get(k, 0.0) + b.get(k, 0.0) for k in set(a) | set(b)}
+
+
+def natural_parameters(wnlp: WeftNLP) -> np.ndarray:
+    """Parameters that leave the natural configuration in equilibrium: clamp targets at the
+    natural positions, clamp angles at the natural angles, loads zero; stiffnesses unchanged."""
+    pr, pl = wnlp.problem, wnlp.p
+    p = wnlp.p0.copy()
+    pl.put(p, "targets", np.array([pr.natural_position(c.loop, c.s) for c in pr.clamps]).T.reshape(2, -1))
+    pl.put(p, "angles", [float(phi(c.s, pr.L, pr.t)[0] @ pr.natural.coeffs)
+                         for c in pr.clamps if c.angle is not None])
+    pl.put(p, "forces", np.zeros(pl.get(p, "forces").shape))
+    pl.put(p, "moments", np.zeros(pl.get(p, "moments").shape))
+    return p
+
+
+def perturbed_starts(wnlp: WeftNLP, amplitude: float = 0.05) -> list[tuple[str, np.ndarray]]:
+    """Smooth low-mode perturbations of the natural shape, as decision vectors.
+
+    Along each course (global arc length S in [0, ℓ], ℓ = n·L) θ gets + ε·f(πS/ℓ) with f one of
+    cos, sin and their second harmonics; each loop's share is fitted to the basis by least
+    squares and the loop starts are re-chained so the start is consistent.
+    """
+    pr = wnlp.problem
+    m, n, L, t = pr.courses, pr.wales, pr.L, pr.t
+    ell = n * L
+    s = np.linspace(0.0, L, 8 * n_coeffs(t))
+    basis = phi(s, L, t)
+    out = []
+    for name, f in (("cos1", lambda u: np.cos(u)), ("sin1", lambda u: np.sin(u)),
+                    ("cos2", lambda u: np.cos(2 * u)), ("sin2", lambda u: np.sin(2 * u))):
+        coeffs = np.broadcast_to(pr.natural.coeffs, (m, n, n_coeffs(t))).copy()
+        for j in range(n):
+            fit, *_ = np.linalg.lstsq(basis, amplitude * f(np.pi * (j * L + s) / ell), rcond=None)
+            coeffs[:, j] += fit
+        starts = pr.natural_starts().copy()
+        ends = positions(coeffs.reshape(-1, n_coeffs(t)), [L], L, t).reshape(m, n, 2)
+        for j in range(1, n):
+            starts[:, j] = starts[:, j - 1] + ends[:, j - 1]
+        out.append((name, wnlp.lift(coeffs, starts)))
+    return out
+
+
+def needs_perturbation(wnlp: WeftNLP) -> bool:
+    """A straight natural yarn with any clamp moved off its natural position is degenerate."""
+    pr = wnlp.problem
+    if not pr.natural.is_straight:
+        return False
+    return not np.allclose(natural_parameters(wnlp), wnlp.p0)
+
+
+def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, p: np.ndarray | None = None,
+          x0: np.ndarray | None = None, continuation: int | None = None) -> SolveReport:
+    """Solve robustly: direct, then continuation; from perturbed starts where degenerate."""
+    solver = solver or WeftSolver(wnlp)
+    p = wnlp.p0 if p is None else p
+    continuation = continuation or wnlp.problem.solver.continuation
+    if needs_perturbation(wnlp) and x0 is None:
+        return _best_of_perturbed(wnlp, solver, p, continuation)
+    return _direct_then_continuation(solver, p, wnlp.x0 if x0 is None else x0, continuation)
+
+
+def _direct_then_continuation(solver: WeftSolver, p: np.ndarray, x0: np.ndarray,
+                              continuation: int | None) -> SolveReport:
+    attempts, iters, secs = [], 0, 0.0
+    stats: dict[str, float] = {}
+    if continuation is None:
+        rep = solver.once(p, x0)
+        attempts.append(f"direct: {rep.status} ({rep.iterations} it)")
+        if rep.success:
+            rep.attempts = attempts
+            return rep
+        iters, secs, stats = rep.iterations, rep.solve_s, rep.stats
+    for steps in ([continuation] if continuation else [4, 16]):
+        rep = solver.continuation(p, x0, steps)
+        attempts.append(f"continuation x{steps}: {rep.status} ({rep.iterations} it, "
+                        f"{rep.continuation_steps} steps)")
+        rep.iterations += iters
+        rep.solve_s += secs
+        rep.stats = _add_stats(rep.stats, stats)
+        iters, secs, stats = rep.iterations, rep.solve_s, rep.stats
+        if rep.success:
+            break
+    rep.attempts = attempts
+    return rep
+
+
+def _best_of_perturbed(wnlp: WeftNLP, solver: WeftSolver, p: np.ndarray,
+                       continuation: int | None) -> SolveReport:
+    best, attempts, iters, secs = None, [], 0, 0.0
+    for name, x0 in perturbed_starts(wnlp):
+        rep = _direct_then_continuation(solver, p, x0, continuation)
+        attempts += [f"perturbed {name}: {a}" for a in rep.attempts]
+        iters, secs = iters + rep.iterations, secs + rep.solve_s
+        if rep.success and (best is None or rep.objective < best.objective - 1e-12):
+            best = rep
+    final = best or rep
+    final.attempts, final.iterations, final.solve_s = attempts, iters, secs
+    return final
