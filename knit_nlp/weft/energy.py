@@ -15,16 +15,16 @@ from .quadrature import panel_rule
 def spring_pair_energy() -> ca.Function:
     """U = ½ Δzᵀ diag(k_a, k_b) Δz for one crossing spring pair (eqs. 6-8).
 
-    Inputs: the upper loop's point (B or R), the lower loop's point (E or H), the natural vector
-    between them (B0E0 or R0H0), the frame rows (a; b) and k = (k_a, k_b).
-    Δz = F·((lower − upper) − rest), F = [aᵀ; bᵀ].
+    Inputs: the spring vector from the upper loop's point to the lower loop's point (BE or RH),
+    its natural value (B0E0 or R0H0), the frame rows (a; b) and k = (k_a, k_b).
+    Δz = F·(vector − rest), F = [aᵀ; bᵀ].
     """
-    up, low, rest = (ca.SX.sym(n, 2) for n in ("upper", "lower", "rest"))
+    vec, rest = ca.SX.sym("vector", 2), ca.SX.sym("rest", 2)
     frame, k = ca.SX.sym("frame", 2, 2), ca.SX.sym("k", 2)
-    dz = ca.mtimes(frame, (low - up) - rest)
+    dz = ca.mtimes(frame, vec - rest)
     u = 0.5 * ca.dot(k, dz ** 2)
-    return ca.Function("spring_pair_energy", [up, low, rest, frame, k], [u],
-                       ["upper", "lower", "rest", "frame", "k"], ["U"])
+    return ca.Function("spring_pair_energy", [vec, rest, frame, k], [u],
+                       ["vector", "rest", "frame", "k"], ["U"])
 
 
 def bending_energy(L: float, t: int) -> ca.Function:

@@ -5,11 +5,16 @@ Decision variables, in this order (see :class:`Layout`):
 - ``coeffs``: every loop's coefficients (2t+2 × N, loop k = (i−1)·n + (j−1)), or in the reduced
   model the representative parameters z with coeffs = T·z (``reduction``, eqs. 22-27);
 - ``starts``: every loop's start point (2 × N); the first of each course is (x_i^0, y_i^0);
-- lifted points: the crossing-spring points B, R (upper role, courses 2..m) and E, H (lower
-  role, courses 1..m−1), and one point per clamped or loaded material point.
-Equality constraints tie each start and lifted point to its loop's start plus the per-loop
-integral of eq. (1), so every nonlinear term depends on one loop's coefficients and the
-Lagrangian Hessian is block diagonal plus the constant spring part. Clamp targets, clamp angles,
+- lifted spring vectors: BE and RH of every upper loop (courses 2..m), the vectors from the upper
+  loop's B (R) to the lower loop's E (H) that eqs. (6)-(7) stretch;
+- lifted points: one per clamped or loaded material point.
+Equality constraints tie each start, spring vector and lifted point to loop starts plus per-loop
+integrals of eq. (1). Every nonlinear term is a per-loop integral of one loop's coefficients, so
+the Lagrangian Hessian is block diagonal plus the constant spring part. Lifting the spring
+vectors rather than the four points B, E, R, H keeps that and shrinks the KKT system from about
+30 to 22 rows per loop (measured: the factorizations dominate large solves); not lifting them at
+all couples vertically neighbouring loops in the Hessian and took 437 instead of 28 iterations
+on a 50 × 50 pull. Clamp targets, clamp angles,
 stiffnesses and loads are NLP parameters: one build serves many solves.
 """
 from __future__ import annotations
@@ -26,6 +31,7 @@ from .problem import WeftProblem
 from .reduction import reduction_map
 
 SPRING_POINTS = ("B", "R", "E", "H")
+SPRINGS = (("SL", "B", "E"), ("SR", "R", "H"))   # block, upper point, lower point
 
 
 @dataclass
@@ -161,12 +167,12 @@ def _point_positions(pr: WeftProblem, a: np.ndarray, starts: np.ndarray,
     col = {s: q for q, s in enumerate(_eval_points(pr, specials))}
     out: dict[str, np.ndarray] = {}
     n, N = pr.wales, pr.n_loops
-    if "PB" in _point_blocks(pr):
-        for name, label, loops in (("PB", "B", range(n, N)), ("PR", "R", range(n, N)),
-                                   ("PE", "E", range(0, N - n)), ("PH", "H", range(0, N - n))):
-            c = col[pr.crossings.s[label]]
-            idx = np.array(list(loops), dtype=int)
-            out[name] = starts[:, idx] + d_all[:, idx * n_pts + c]
+    if _spring_blocks(pr):
+        up, low = np.arange(n, N), np.arange(0, N - n)
+        for name, upper, lower in SPRINGS:
+            cu, cl = col[pr.crossings.s[upper]], col[pr.crossings.s[lower]]
+            out[name] = (starts[:, low] + d_all[:, low * n_pts + cl]
+                         - starts[:, up] - d_all[:, up * n_pts + cu])
     if specials:
         ks = np.array([sp.k for sp in specials])
         cs = np.array([col[sp.s] for sp in specials])
@@ -174,8 +180,9 @@ def _point_positions(pr: WeftProblem, a: np.ndarray, starts: np.ndarray,
     return out
 
 
-def _point_blocks(pr: WeftProblem) -> list[str]:
-    return ["PB", "PR", "PE", "PH"] if pr.courses > 1 and pr.crossings is not None else []
+def _spring_blocks(pr: WeftProblem) -> list[str]:
+    """Names of the lifted spring-vector blocks (none for a single course)."""
+    return [name for name, _, _ in SPRINGS] if pr.courses > 1 and pr.crossings is not None else []
 
 
 def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
@@ -188,7 +195,7 @@ def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
     xl.add("coeffs", nc, N) if coeff_map is None else xl.add("coeffs", coeff_map.shape[1], 1)
     xl.add("starts", 2, N)
     n_up = N - n
-    for name in _point_blocks(pr):
+    for name in _spring_blocks(pr):
         xl.add(name, 2, n_up)
     if specials:
         xl.add("PC", 2, len(specials))
@@ -220,11 +227,11 @@ def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
 
     left = np.array([k for k in range(N) if k % n != n - 1], dtype=int)
     add_g("chain", X[:, (left + 1).tolist()] - X[:, left.tolist()] - disp_at(pr.L, left))
-    if _point_blocks(pr):
+    if _spring_blocks(pr):
         up, low = np.arange(n, N), np.arange(0, N - n)
-        for name, label, loops in (("PB", "B", up), ("PR", "R", up), ("PE", "E", low),
-                                   ("PH", "H", low)):
-            add_g(f"lift_{label}", xb[name] - X[:, loops.tolist()] - disp_at(pr.crossings.s[label], loops))
+        for name, upper, lower in SPRINGS:
+            add_g(f"lift_{name}", xb[name] - (X[:, low.tolist()] + disp_at(pr.crossings.s[lower], low))
+                  + (X[:, up.tolist()] + disp_at(pr.crossings.s[upper], up)))
     if specials:
         ks = np.array([sp.k for sp in specials])
         dsp = ca.horzcat(*[disp_at(sp.s, np.array([sp.k])) for sp in specials])
@@ -238,12 +245,12 @@ def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
     a0 = ca.DM(pr.natural.coeffs)
     bend = ca.sum2(bending_energy(pr.L, pr.t).map(N)(A, a0, pb["R_f"]))
     spring = ca.MX(0)
-    if _point_blocks(pr):
+    if _spring_blocks(pr):
         k = ca.vertcat(pb["k_a"], pb["k_b"])
         pair = spring_pair_energy().map(N - n)
         c = pr.crossings
-        spring = (ca.sum2(pair(xb["PB"], xb["PE"], ca.DM(c.rest_left), ca.DM(c.frame_left), k))
-                  + ca.sum2(pair(xb["PR"], xb["PH"], ca.DM(c.rest_right), ca.DM(c.frame_right), k)))
+        spring = (ca.sum2(pair(xb["SL"], ca.DM(c.rest_left), ca.DM(c.frame_left), k))
+                  + ca.sum2(pair(xb["SR"], ca.DM(c.rest_right), ca.DM(c.frame_right), k)))
     work = _load_work(pr, A, xb, pb, specials, load_pts)
 
     nlp = {"x": xsym, "p": psym, "f": spring + bend - work, "g": ca.vertcat(*g)}
