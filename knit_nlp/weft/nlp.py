@@ -82,6 +82,7 @@ class WeftNLP:
     specials: list[SpecialPoint]
     clamp_points: list[int]
     load_points: list[int]
+    rigid_points: list[list[int]]
     energy: ca.Function
     coeff_map: np.ndarray | None
     n_parameters: int
@@ -140,8 +141,9 @@ def _eval_points(pr: WeftProblem, specials: list[SpecialPoint]) -> list[float]:
     return pts
 
 
-def _specials(pr: WeftProblem) -> tuple[list[SpecialPoint], list[int], list[int]]:
-    """Distinct clamped/loaded material points, and each clamp's and load's index among them."""
+def _specials(pr: WeftProblem) -> tuple[list[SpecialPoint], list[int], list[int], list[list[int]]]:
+    """Distinct clamped/loaded material points, and each clamp's, load's and rigid clamp's
+    point indices among them."""
     specials: list[SpecialPoint] = []
 
     def index(loop: tuple[int, int], s: float) -> int:
@@ -154,7 +156,8 @@ def _specials(pr: WeftProblem) -> tuple[list[SpecialPoint], list[int], list[int]
 
     clamps = [index(c.loop, c.s) for c in pr.clamps]
     loads = [index(ld.loop, ld.s) for ld in pr.loads]
-    return specials, clamps, loads
+    rigid = [[index(loop, s) for loop, _, s in rc.points] for rc in pr.rigid_clamps]
+    return specials, clamps, loads, rigid
 
 
 def _point_positions(pr: WeftProblem, a: np.ndarray, starts: np.ndarray,
@@ -188,7 +191,7 @@ def _spring_blocks(pr: WeftProblem) -> list[str]:
 def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
     """Assemble the NLP of a problem, full or reduced (the same model, two parametrisations)."""
     m, n, N, nc = pr.courses, pr.wales, pr.n_loops, n_coeffs(pr.t)
-    specials, clamp_pts, load_pts = _specials(pr)
+    specials, clamp_pts, load_pts, rigid_pts = _specials(pr)
     coeff_map = reduction_map(pr) if reduced else None
 
     xl = Layout()
@@ -241,6 +244,7 @@ def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
         add_g("continuity", ca.mtimes(ca.DM(E), A[:, left.tolist()])
               - ca.mtimes(ca.DM(S), A[:, (left + 1).tolist()]))
     _clamp_constraints(pr, A, xb, pb, clamp_pts, add_g)
+    _rigid_constraints(pr, xb, pb, rigid_pts, add_g)
 
     a0 = ca.DM(pr.natural.coeffs)
     bend = ca.sum2(bending_energy(pr.L, pr.t).map(N)(A, a0, pb["R_f"]))
@@ -257,7 +261,8 @@ def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
     energy = ca.Function("energy", [xsym, psym], [spring, bend, work],
                          ["x", "p"], ["spring", "bending", "load_work"])
     result = WeftNLP(pr, reduced, nlp, xl, pl, gl, np.zeros(xl.size), _param_values(pr, pl),
-                     specials, clamp_pts, load_pts, energy, coeff_map, n_parameters(pr, reduced))
+                     specials, clamp_pts, load_pts, rigid_pts, energy, coeff_map,
+                     n_parameters(pr, reduced))
     result.x0 = result.lift(np.broadcast_to(pr.natural.coeffs, (m, n, nc)).copy(),
                             pr.natural_starts())
     return result
@@ -279,6 +284,7 @@ def _param_layout(pr: WeftProblem) -> Layout:
     pl.add("R_f", 1, 1)
     pl.add("forces", 2, len(pr.loads))
     pl.add("moments", len(pr.loads), 1)
+    pl.add("rigid", 3, len(pr.rigid_clamps))          # translation x, y and rotation
     return pl
 
 
@@ -291,6 +297,7 @@ def _param_values(pr: WeftProblem, pl: Layout) -> np.ndarray:
     pl.put(p, "R_f", pr.R_f)
     pl.put(p, "forces", np.array([ld.force for ld in pr.loads]).T.reshape(2, -1))
     pl.put(p, "moments", [ld.moment for ld in pr.loads])
+    pl.put(p, "rigid", np.array([[*r.translation, r.rotation] for r in pr.rigid_clamps]).T.reshape(3, -1))
     return p
 
 
@@ -307,6 +314,23 @@ def _clamp_constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict
             add_g(f"clamp{q}_angle", ca.mtimes(row, A[:, _loop_index(pr, c.loop)])
                   - pb["angles"][n_angle])
             n_angle += 1
+
+
+def rigid_natural_points(pr: WeftProblem) -> list[np.ndarray]:
+    """Natural positions (k × 2) of each rigid clamp's points."""
+    return [np.array([pr.natural_position(loop, s) for loop, _, s in rc.points])
+            for rc in pr.rigid_clamps]
+
+
+def _rigid_constraints(pr: WeftProblem, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
+                       rigid_pts: list[list[int]], add_g) -> None:
+    """Rows P − (c + R(φ)(P0 − c) + t) for every point of every rigid clamp."""
+    for q, (rc, idx, p0) in enumerate(zip(pr.rigid_clamps, rigid_pts, rigid_natural_points(pr))):
+        tx, ty, phi_ = pb["rigid"][0, q], pb["rigid"][1, q], pb["rigid"][2, q]
+        rot = ca.vertcat(ca.horzcat(ca.cos(phi_), -ca.sin(phi_)), ca.horzcat(ca.sin(phi_), ca.cos(phi_)))
+        c = ca.DM(rc.centre)
+        target = c + ca.mtimes(rot, ca.DM((p0 - rc.centre).T)) + ca.vertcat(tx, ty)
+        add_g(f"rigid{q}", xb["PC"][:, idx] - target)
 
 
 def _load_work(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],

@@ -37,6 +37,17 @@ class Clamp:
 
 
 @dataclass(frozen=True)
+class RigidClamp:
+    """Points that move together as one rigid body: each goes to centre + R(rotation)(P0 − centre)
+    + translation, P0 its natural position (a line clamp is the usual case)."""
+
+    points: tuple[tuple[tuple[int, int], str | float, float], ...]   # (loop, label, s)
+    translation: np.ndarray
+    rotation: float
+    centre: np.ndarray
+
+
+@dataclass(frozen=True)
 class Load:
     """A point force and/or moment doing work on the fabric at a material point."""
 
@@ -80,6 +91,7 @@ class WeftProblem:
     R_f: float = 1.0
     clamps: tuple[Clamp, ...] = ()
     loads: tuple[Load, ...] = ()
+    rigid_clamps: tuple[RigidClamp, ...] = ()
     reduction: Reduction | None = None
     solver: SolverOptions = field(default_factory=SolverOptions)
     file: str = "<memory>"
@@ -137,13 +149,14 @@ def parse_problem(path: Path | str, doc: dict[str, Any]) -> WeftProblem:
     points = _PointReader(m, n, natural, crossings)
     starts = natural_starts(natural, m, n)
     clamps = tuple(_read_clamp(t, points, natural, starts) for t in top.tables("clamp"))
-    _check_overconstraint(top, clamps, points)
+    rigid = tuple(_read_rigid(t, points, natural, starts) for t in top.tables("rigid_clamp"))
+    _check_overconstraint(top, clamps, rigid, points)
     loads = tuple(_read_load(t, points) for t in top.tables("load"))
     reduction = _read_reduction(top, m, n) if top.has("reduction") else None
     solver = _read_solver(top.table("solver"))
     top.finish()
     return WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
-                       clamps, loads, reduction, solver, str(path))
+                       clamps, loads, rigid, reduction, solver, str(path))
 
 
 def _read_loop(tab: Table) -> tuple[NaturalLoop, int, str, Table]:
@@ -226,6 +239,27 @@ def _read_clamp(tab: Table, points: _PointReader, natural: NaturalLoop,
     return Clamp(loop, label, s, target, ("x" in fix, "y" in fix), angle)
 
 
+def _read_rigid(tab: Table, points: _PointReader, natural: NaturalLoop,
+                starts: np.ndarray) -> RigidClamp:
+    tab.allow("points", "translation", "rotation", "centre")
+    pts = []
+    for sub in tab.tables("points"):
+        sub.name = f"{tab.name}.{sub.name}"
+        sub.allow("loop", "point")
+        loop = points.loop(sub)
+        label, s = points.point(sub)
+        sub.finish()
+        pts.append((loop, label, s))
+    if not pts:
+        raise tab.error("points", "a rigid clamp needs at least one point")
+    p0 = np.array([starts[lp[0] - 1, lp[1] - 1] + natural.xy([s])[0] for lp, _, s in pts])
+    translation = np.array(tab.numbers("translation", [0.0, 0.0], length=2))
+    rotation = tab.number("rotation", 0.0)
+    centre = np.array(tab.numbers("centre", p0.mean(axis=0).tolist(), length=2))
+    tab.finish()
+    return RigidClamp(tuple(pts), translation, rotation, centre)
+
+
 def _read_load(tab: Table, points: _PointReader) -> Load:
     tab.allow("loop", "point", "force", "moment")
     loop = points.loop(tab)
@@ -246,18 +280,28 @@ def canonical_point(loop: tuple[int, int], s: float, L: float, n: int) -> tuple[
     return i, j, round(s, 12)
 
 
-def _check_overconstraint(top: Table, clamps: tuple[Clamp, ...], points: _PointReader) -> None:
-    held: dict[tuple[Any, ...], int] = {}
+def _check_overconstraint(top: Table, clamps: tuple[Clamp, ...], rigid: tuple[RigidClamp, ...],
+                          points: _PointReader) -> None:
+    """No coordinate or angle of one material point may be held twice."""
+    held: dict[tuple[Any, ...], str] = {}
+    L, n = points.natural.length, points.n
+
+    def hold(table: str, key: str, loop: tuple[int, int], s: float, label: Any, dof: str) -> None:
+        where = (canonical_point(loop, s, L, n), dof)
+        if where in held:
+            raise ProblemError(top.file, table, key, f"over-constrains loop {list(loop)} point "
+                               f"{label!r}: its {dof} is already held by {held[where]}")
+        held[where] = table
+
     for k, c in enumerate(clamps):
-        key = canonical_point(c.loop, c.s, points.natural.length, points.n)
-        dofs = [d for d, f in zip("xy", c.fix) if f] + (["angle"] if c.angle is not None else [])
-        for dof in dofs:
-            if (key, dof) in held:
-                raise ProblemError(top.file, f"clamp[{k + 1}]", "fix" if dof != "angle" else
-                                   "angle", f"over-constrains loop {list(c.loop)} point "
-                                   f"{c.point!r}: its {dof} is already fixed by "
-                                   f"clamp[{held[(key, dof)] + 1}]")
-            held[(key, dof)] = k
+        for dof in [d for d, f in zip("xy", c.fix) if f]:
+            hold(f"clamp[{k + 1}]", "fix", c.loop, c.s, c.point, dof)
+        if c.angle is not None:
+            hold(f"clamp[{k + 1}]", "angle", c.loop, c.s, c.point, "angle")
+    for k, r in enumerate(rigid):
+        for q, (loop, label, s) in enumerate(r.points):
+            for dof in "xy":
+                hold(f"rigid_clamp[{k + 1}]", f"points[{q + 1}]", loop, s, label, dof)
 
 
 def _read_reduction(top: Table, m: int, n: int) -> Reduction:

@@ -32,6 +32,26 @@ def clamp_reactions(wnlp: WeftNLP, lam_g: np.ndarray) -> list[tuple[np.ndarray, 
     return out
 
 
+def rigid_clamp_results(wnlp: WeftNLP, x: np.ndarray, lam_g: np.ndarray) -> list[dict[str, Any]]:
+    """Per rigid clamp: its points' positions and reactions, the total force, and the moment of
+    the reactions about the moved centre."""
+    out = []
+    pc = wnlp.x.get(x, "PC") if wnlp.specials else np.zeros((2, 0))
+    par = wnlp.p.get(wnlp.p0, "rigid")
+    for q, (rc, idx) in enumerate(zip(wnlp.problem.rigid_clamps, wnlp.rigid_points)):
+        forces = -lam_g[wnlp.g.slice(f"rigid{q}")].reshape(2, -1, order="F")
+        pos = pc[:, idx]
+        centre = rc.centre + par[:2, q]
+        arm = pos - centre[:, None]
+        out.append({"points": [{"loop": list(lp), "point": label, "position": pos[:, k].tolist(),
+                                "reaction": forces[:, k].tolist()}
+                               for k, (lp, label, _) in enumerate(rc.points)],
+                    "translation": par[:2, q].tolist(), "rotation": float(par[2, q]),
+                    "centre": rc.centre.tolist(), "force": forces.sum(axis=1).tolist(),
+                    "moment": float(np.sum(arm[0] * forces[1] - arm[1] * forces[0]))})
+    return out
+
+
 def result_dict(wnlp: WeftNLP, rep: SolveReport, violation: float, build_s: float,
                 extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """The contract's result JSON (spec/problem_files.md) plus documented extensions."""
@@ -64,6 +84,7 @@ def result_dict(wnlp: WeftNLP, rep: SolveReport, violation: float, build_s: floa
         "loads": [{"loop": list(ld.loop), "point": ld.point, "force": ld.force.tolist(),
                    "moment": ld.moment, "position": pc[:, q].tolist()}
                   for ld, q in zip(pr.loads, wnlp.load_points)],
+        "rigid_clamps": rigid_clamp_results(wnlp, rep.x, rep.lam_g),
         "loops": {"course_starts": starts[:, 0].tolist(), "coefficients": coeffs.tolist()},
     }
     result.update(extra or {})

@@ -65,6 +65,9 @@ def _summary(s: Solved, paths: list[Path]) -> str:
     for c in r["clamps"]:
         lines.append(f"  clamp {c['loop']} {c['point']}: reaction "
                      f"({c['reaction'][0]:.4g}, {c['reaction'][1]:.4g})")
+    for k, rc in enumerate(r["rigid_clamps"]):
+        lines.append(f"  rigid clamp {k + 1} ({len(rc['points'])} points): force "
+                     f"({rc['force'][0]:.4g}, {rc['force'][1]:.4g}), moment {rc['moment']:.4g}")
     if not r["success"]:
         lines.append("  NOT CONVERGED: " + "; ".join(r["attempts"]))
     lines.append("  wrote " + ", ".join(str(p) for p in paths))
@@ -80,8 +83,9 @@ def write_outputs(out: Path, s: Solved) -> list[Path]:
     data = np.load(npz)
     title = (f"{pr.name} ({s.result['model']}): E = {s.result['energy']['total']:.4g}, "
              f"{'converged' if s.report.success else 'NOT CONVERGED'}")
+    held = s.result["clamps"] + [pt for rc in s.result["rigid_clamps"] for pt in rc["points"]]
     png = plot_solution(stem.parent / f"{stem.name}.png", data["natural"], data["deformed"],
-                        s.result["clamps"], title)
+                        held, title)
     return [js, npz, png]
 
 

@@ -114,6 +114,7 @@ def natural_parameters(wnlp: WeftNLP) -> np.ndarray:
                          for c in pr.clamps if c.angle is not None])
     pl.put(p, "forces", np.zeros(pl.get(p, "forces").shape))
     pl.put(p, "moments", np.zeros(pl.get(p, "moments").shape))
+    pl.put(p, "rigid", np.zeros(pl.get(p, "rigid").shape))
     return p
 
 
