@@ -32,12 +32,13 @@ def clamp_reactions(wnlp: WeftNLP, lam_g: np.ndarray) -> list[tuple[np.ndarray, 
     return out
 
 
-def rigid_clamp_results(wnlp: WeftNLP, x: np.ndarray, lam_g: np.ndarray) -> list[dict[str, Any]]:
+def rigid_clamp_results(wnlp: WeftNLP, x: np.ndarray, lam_g: np.ndarray,
+                        p: np.ndarray) -> list[dict[str, Any]]:
     """Per rigid clamp: its points' positions and reactions, the total force, and the moment of
     the reactions about the moved centre."""
     out = []
     pc = wnlp.x.get(x, "PC") if wnlp.specials else np.zeros((2, 0))
-    par = wnlp.p.get(wnlp.p0, "rigid")
+    par = wnlp.p.get(p, "rigid")
     for q, (rc, idx) in enumerate(zip(wnlp.problem.rigid_clamps, wnlp.rigid_points)):
         forces = -lam_g[wnlp.g.slice(f"rigid{q}")].reshape(2, -1, order="F")
         pos = pc[:, idx]
@@ -53,17 +54,22 @@ def rigid_clamp_results(wnlp: WeftNLP, x: np.ndarray, lam_g: np.ndarray) -> list
 
 
 def result_dict(wnlp: WeftNLP, rep: SolveReport, violation: float, build_s: float,
-                extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The contract's result JSON (spec/problem_files.md) plus documented extensions."""
+                extra: dict[str, Any] | None = None, p: np.ndarray | None = None) -> dict[str, Any]:
+    """The contract's result JSON (spec/problem_files.md) plus documented extensions, for a
+    solution at parameters ``p`` (the problem's own by default)."""
     pr = wnlp.problem
-    spring, bending, work = (float(v) for v in wnlp.energy(rep.x, wnlp.p0))
+    p = wnlp.p0 if p is None else p
+    spring, bending, work = (float(v) for v in wnlp.energy(rep.x, p))
     coeffs, starts = wnlp.coefficients(rep.x), wnlp.starts(rep.x)
     pc = wnlp.x.get(rep.x, "PC") if wnlp.specials else np.zeros((2, 0))
     clamps = []
-    for c, q, (force, moment) in zip(pr.clamps, wnlp.clamp_points, clamp_reactions(wnlp, rep.lam_g)):
+    targets = wnlp.p.get(p, "targets")
+    for q_c, (c, q, (force, moment)) in enumerate(zip(pr.clamps, wnlp.clamp_points,
+                                                       clamp_reactions(wnlp, rep.lam_g))):
         entry: dict[str, Any] = {"loop": list(c.loop), "point": c.point,
                                  "position": pc[:, q].tolist(), "reaction": force.tolist(),
-                                 "target": c.target.tolist(), "fix": [d for d, f in zip("xy", c.fix) if f]}
+                                 "target": targets[:, q_c].tolist(),
+                                 "fix": [d for d, f in zip("xy", c.fix) if f]}
         if c.angle is not None:
             k = (c.loop[0] - 1, c.loop[1] - 1)
             entry["angle"] = float(phi(c.s, pr.L, pr.t)[0] @ coeffs[k])
@@ -84,7 +90,7 @@ def result_dict(wnlp: WeftNLP, rep: SolveReport, violation: float, build_s: floa
         "loads": [{"loop": list(ld.loop), "point": ld.point, "force": ld.force.tolist(),
                    "moment": ld.moment, "position": pc[:, q].tolist()}
                   for ld, q in zip(pr.loads, wnlp.load_points)],
-        "rigid_clamps": rigid_clamp_results(wnlp, rep.x, rep.lam_g),
+        "rigid_clamps": rigid_clamp_results(wnlp, rep.x, rep.lam_g, p),
         "loops": {"course_starts": starts[:, 0].tolist(), "coefficients": coeffs.tolist()},
     }
     result.update(extra or {})
