@@ -9,11 +9,13 @@ from .tomlio import load_toml
 
 
 def problems_dir() -> Path:
-    """The named-problem folder: ``$KNIT_NLP_PROBLEMS`` or ``problems/`` beside the package."""
+    """The named-problem folder: ``$KNIT_NLP_PROBLEMS``, else ``problems/`` of the checkout the
+    package runs from (an editable install), else ``problems/`` in the working directory."""
     env = os.environ.get("KNIT_NLP_PROBLEMS")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parent.parent / "problems"
+    beside = Path(__file__).resolve().parent.parent / "problems"
+    return beside if beside.is_dir() else Path.cwd() / "problems"
 
 
 def resolve(name_or_path: str) -> Path:
