@@ -196,3 +196,24 @@ def _diagonal_shifted(write_problem):
         point = "H"
         position = [10.0, 6.75]
         """, "shifted.toml")
+
+
+def test_continuation_fallback_reaches_the_direct_solution(tmp_path):
+    """A direct solve starved of iterations fails; continuation (with halving) gets there."""
+    base = (PROBLEMS / "wada_fig7.toml").read_text()
+    direct = solve_problem(load_problem(PROBLEMS / "wada_fig7.toml"))
+    starved = tmp_path / "starved.toml"
+    starved.write_text(base + "\n[solver]\nmax_iter = 4\n")
+    s = solve_problem(load_problem(starved))
+    assert s.report.success
+    assert s.result["attempts"][0].startswith("direct: Maximum_Iterations_Exceeded")
+    assert s.result["continuation_steps"] > 4                       # a step had to be halved
+    assert s.result["energy"]["total"] == pytest.approx(direct.result["energy"]["total"], rel=1e-7)
+
+
+def test_continuation_on_request_takes_the_asked_steps():
+    direct = solve_problem(load_problem(PROBLEMS / "wada_fig7.toml"))
+    stepped = solve_problem(load_problem(PROBLEMS / "wada_fig7.toml"), continuation=3)
+    assert stepped.report.success and stepped.result["continuation_steps"] == 3
+    assert stepped.result["energy"]["total"] == pytest.approx(direct.result["energy"]["total"], rel=1e-7)
+    np.testing.assert_allclose(stepped.lines(), direct.lines(), atol=1e-5)
