@@ -67,3 +67,31 @@ def test_panel_rule_integrates_to_every_point_exactly():
     f = rule.nodes ** 7 - 3 * rule.nodes ** 2
     exact = np.array([s ** 8 / 8 - s ** 3 for s in (1.3, 4.0, 7.7)])
     np.testing.assert_allclose(rule.cumulative @ f, exact, rtol=1e-12)
+
+
+def test_user_natural_shape_with_other_harmonics(write_problem):
+    """Own coefficients (t = 2, a flatter loop with a second harmonic) and spacing: four
+    crossings found, and the natural state solves at zero energy."""
+    from conftest import solve_text
+    path = write_problem("""
+        [fabric]
+        courses = 3
+        wales = 3
+        [loop]
+        harmonics = 2
+        length = 8.0
+        natural_coefficients = [1.8, 0.15, 0.0, 0.0, 0.0, 0.0]
+        course_spacing = 1.4
+        [[clamp]]
+        loop = [1, 1]
+        point = "R"
+        displacement = [0.0, 0.0]
+        [[clamp]]
+        loop = [3, 3]
+        point = "E"
+        displacement = [0.0, 0.0]
+        """)
+    s = solve_text(path)
+    c = s.wnlp.problem.crossings
+    assert 0 < c.s["A"] < c.s["C"] < 4.0 < c.s["Q"] < c.s["S"] < 8.0
+    assert s.report.success and s.result["energy"]["total"] == pytest.approx(0.0, abs=1e-12)
