@@ -112,6 +112,17 @@ def _key(path: LoadPath, index: int) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
+def point_files(cache: Path, path: LoadPath, index: int) -> tuple[Path, Path]:
+    """The cached result JSON and solution vector (.npy) of one point of a path."""
+    stem = f"{path.name}.{index:04d}.{_key(path, index)}"
+    return cache / f"{stem}.json", cache / f"{stem}.npy"
+
+
+def point_solution(study_dir: Path, path: LoadPath, index: int) -> np.ndarray:
+    """The solution vector of a solved point of a study written under ``study_dir``."""
+    return np.load(point_files(study_dir / "points", path, index)[1])
+
+
 def _summary_row(path: LoadPath, index: int, result: dict[str, Any]) -> dict[str, Any]:
     return {"path": path.name, "index": index,
             "label": path.labels[index] if index < len(path.labels) else index,
@@ -129,10 +140,10 @@ def run_path(path: LoadPath, cache: Path, limit: int | None = None,
     cache.mkdir(parents=True, exist_ok=True)
     rows, x_prev, study, new = [], None, None, 0
     for index in range(len(path.points)):
-        stem = cache / f"{path.name}.{index:04d}.{_key(path, index)}"
-        if stem.with_suffix(".json").exists():
-            result = json.loads(stem.with_suffix(".json").read_text())
-            x_prev = np.load(stem.with_suffix(".npy"))
+        js, npy = point_files(cache, path, index)
+        if js.exists():
+            result = json.loads(js.read_text())
+            x_prev = np.load(npy)
         else:
             if limit is not None and new >= limit:
                 break
@@ -141,8 +152,8 @@ def run_path(path: LoadPath, cache: Path, limit: int | None = None,
             p = study.params(**path.points[index])
             rep = study.solve(p, x0=x_prev)
             result = study.result(rep, p)
-            np.save(stem.with_suffix(".npy"), rep.x)
-            write_json(stem.with_suffix(".json"), result)
+            np.save(npy, rep.x)
+            write_json(js, result)
             x_prev, new = rep.x, new + 1
         rows.append(_summary_row(path, index, result))
         if tick:

@@ -54,3 +54,12 @@ def test_resumed_study_gives_the_same_summary(tmp_path, capsys):
         f = [np.linalg.norm(r["clamps"][1]["reaction"]) for r in a["points"] if r["path"] == name]
         assert f[0] < f[1] < f[2]
     assert "6/6 points" in capsys.readouterr().err
+
+
+def test_changed_settings_are_not_served_from_the_cache(tmp_path):
+    first = run_study("s", _paths(), tmp_path, workers=1)
+    moved = [LoadPath("soft", _doc(), [{"displacements": {"1": [d, 0.5 * d]}} for d in (0.5, 0.9, 1.3)])]
+    second = run_study("s", moved, tmp_path, workers=1)
+    e1 = [r["energy"]["total"] for r in first["points"] if r["path"] == "soft"]
+    e2 = [r["energy"]["total"] for r in second["points"]]
+    assert all(b > a for a, b in zip(e1, e2))
