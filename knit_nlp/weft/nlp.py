@@ -190,74 +190,16 @@ def _spring_blocks(pr: WeftProblem) -> list[str]:
 
 def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
     """Assemble the NLP of a problem, full or reduced (the same model, two parametrisations)."""
-    m, n, N, nc = pr.courses, pr.wales, pr.n_loops, n_coeffs(pr.t)
+    m, n, nc = pr.courses, pr.wales, n_coeffs(pr.t)
     specials, clamp_pts, load_pts, rigid_pts = _specials(pr)
     coeff_map = reduction_map(pr) if reduced else None
-
-    xl = Layout()
-    xl.add("coeffs", nc, N) if coeff_map is None else xl.add("coeffs", coeff_map.shape[1], 1)
-    xl.add("starts", 2, N)
-    n_up = N - n
-    for name in _spring_blocks(pr):
-        xl.add(name, 2, n_up)
-    if specials:
-        xl.add("PC", 2, len(specials))
-    xsym = ca.MX.sym("x", xl.size)
-    xb = {name: ca.reshape(xsym[xl.slice(name)], *shape) for name, (_, _, shape) in xl.blocks.items()}
-    A = xb["coeffs"] if coeff_map is None else ca.reshape(
-        ca.mtimes(_sparse_dm(coeff_map), xb["coeffs"]), nc, N)
-    X = xb["starts"]
-
+    xl, xsym, xb, A = _variables(pr, coeff_map, specials)
     pl = _param_layout(pr)
     psym = ca.MX.sym("p", pl.size)
     pb = {name: ca.reshape(psym[pl.slice(name)], *shape) for name, (_, _, shape) in pl.blocks.items()}
-
-    evals = _eval_points(pr, specials)
-    col = {s: q for q, s in enumerate(evals)}
-    P = len(evals)
-    D = loop_displacements(pr.L, pr.t, np.array(evals), pr.quadrature_nodes).map(N, "serial")(A)
-
-    def disp_at(s: float, loops: np.ndarray) -> ca.MX:
-        return D[:, (loops * P + col[s]).tolist()]
-
-    g, gl = [], Layout()
-
-    def add_g(name: str, expr: ca.MX) -> None:
-        if expr.numel() == 0:
-            return
-        g.append(ca.vec(expr))
-        gl.add(name, expr.numel(), 1)
-
-    left = np.array([k for k in range(N) if k % n != n - 1], dtype=int)
-    add_g("chain", X[:, (left + 1).tolist()] - X[:, left.tolist()] - disp_at(pr.L, left))
-    if _spring_blocks(pr):
-        up, low = np.arange(n, N), np.arange(0, N - n)
-        for name, upper, lower in SPRINGS:
-            add_g(f"lift_{name}", xb[name] - (X[:, low.tolist()] + disp_at(pr.crossings.s[lower], low))
-                  + (X[:, up.tolist()] + disp_at(pr.crossings.s[upper], up)))
-    if specials:
-        ks = np.array([sp.k for sp in specials])
-        dsp = ca.horzcat(*[disp_at(sp.s, np.array([sp.k])) for sp in specials])
-        add_g("lift_special", xb["PC"] - X[:, ks.tolist()] - dsp)
-    if coeff_map is None and n > 1:
-        E, S = continuity_rows(pr.L, pr.t)
-        add_g("continuity", ca.mtimes(ca.DM(E), A[:, left.tolist()])
-              - ca.mtimes(ca.DM(S), A[:, (left + 1).tolist()]))
-    _clamp_constraints(pr, A, xb, pb, clamp_pts, add_g)
-    _rigid_constraints(pr, xb, pb, rigid_pts, add_g)
-
-    a0 = ca.DM(pr.natural.coeffs)
-    bend = ca.sum2(bending_energy(pr.L, pr.t).map(N)(A, a0, pb["R_f"]))
-    spring = ca.MX(0)
-    if _spring_blocks(pr):
-        k = ca.vertcat(pb["k_a"], pb["k_b"])
-        pair = spring_pair_energy().map(N - n)
-        c = pr.crossings
-        spring = (ca.sum2(pair(xb["SL"], ca.DM(c.rest_left), ca.DM(c.frame_left), k))
-                  + ca.sum2(pair(xb["SR"], ca.DM(c.rest_right), ca.DM(c.frame_right), k)))
-    work = _load_work(pr, A, xb, pb, specials, load_pts)
-
-    nlp = {"x": xsym, "p": psym, "f": spring + bend - work, "g": ca.vertcat(*g)}
+    gl, g = _constraints(pr, A, xb, pb, specials, clamp_pts, rigid_pts, continuity=coeff_map is None)
+    spring, bend, work = _energy_terms(pr, A, xb, pb, specials, load_pts)
+    nlp = {"x": xsym, "p": psym, "f": spring + bend - work, "g": g}
     energy = ca.Function("energy", [xsym, psym], [spring, bend, work],
                          ["x", "p"], ["spring", "bending", "load_work"])
     result = WeftNLP(pr, reduced, nlp, xl, pl, gl, np.zeros(xl.size), _param_values(pr, pl),
@@ -266,6 +208,79 @@ def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
     result.x0 = result.lift(np.broadcast_to(pr.natural.coeffs, (m, n, nc)).copy(),
                             pr.natural_starts())
     return result
+
+
+def _variables(pr: WeftProblem, coeff_map: np.ndarray | None, specials: list[SpecialPoint],
+               ) -> tuple[Layout, ca.MX, dict[str, ca.MX], ca.MX]:
+    """Decision variables (see the module docstring) and the loop coefficients A (2t+2 × N),
+    which in the reduced model are T·z."""
+    N, nc = pr.n_loops, n_coeffs(pr.t)
+    xl = Layout()
+    xl.add("coeffs", *((nc, N) if coeff_map is None else (coeff_map.shape[1], 1)))
+    xl.add("starts", 2, N)
+    for name in _spring_blocks(pr):
+        xl.add(name, 2, N - pr.wales)
+    if specials:
+        xl.add("PC", 2, len(specials))
+    xsym = ca.MX.sym("x", xl.size)
+    xb = {name: ca.reshape(xsym[xl.slice(name)], *shape) for name, (_, _, shape) in xl.blocks.items()}
+    A = xb["coeffs"] if coeff_map is None else ca.reshape(
+        ca.mtimes(_sparse_dm(coeff_map), xb["coeffs"]), nc, N)
+    return xl, xsym, xb, A
+
+
+def _constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
+                 specials: list[SpecialPoint], clamp_pts: list[int], rigid_pts: list[list[int]],
+                 continuity: bool) -> tuple[Layout, ca.MX]:
+    """All equality constraints g = 0: chaining (eq. 1), lifted spring vectors and points,
+    continuity (18)-(19) unless the parametrisation has it built in, clamps."""
+    n, N, X = pr.wales, pr.n_loops, xb["starts"]
+    evals = _eval_points(pr, specials)
+    col, P = {s: q for q, s in enumerate(evals)}, len(evals)
+    D = loop_displacements(pr.L, pr.t, np.array(evals), pr.quadrature_nodes).map(N, "serial")(A)
+
+    def at(s: float, loops: np.ndarray) -> ca.MX:
+        """Positions of material point s on the given loops: start + per-loop integral."""
+        return X[:, loops.tolist()] + D[:, (loops * P + col[s]).tolist()]
+
+    g, gl = [], Layout()
+
+    def add_g(name: str, expr: ca.MX) -> None:
+        if expr.numel():
+            g.append(ca.vec(expr))
+            gl.add(name, expr.numel(), 1)
+
+    left = np.array([k for k in range(N) if k % n != n - 1], dtype=int)
+    add_g("chain", X[:, (left + 1).tolist()] - at(pr.L, left))
+    if _spring_blocks(pr):
+        up, low = np.arange(n, N), np.arange(0, N - n)
+        for name, upper, lower in SPRINGS:
+            add_g(f"lift_{name}", xb[name] - at(pr.crossings.s[lower], low)
+                  + at(pr.crossings.s[upper], up))
+    if specials:
+        add_g("lift_special", xb["PC"] - ca.horzcat(*[at(sp.s, np.array([sp.k])) for sp in specials]))
+    if continuity and n > 1:
+        E, S = continuity_rows(pr.L, pr.t)
+        add_g("continuity", ca.mtimes(ca.DM(E), A[:, left.tolist()])
+              - ca.mtimes(ca.DM(S), A[:, (left + 1).tolist()]))
+    _clamp_constraints(pr, A, xb, pb, clamp_pts, add_g)
+    _rigid_constraints(pr, xb, pb, rigid_pts, add_g)
+    return gl, ca.vertcat(*g)
+
+
+def _energy_terms(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
+                  specials: list[SpecialPoint], load_pts: list[int]) -> tuple[ca.MX, ca.MX, ca.MX]:
+    """U_spring (eqs. 6-10) over the lifted spring vectors, U_bend (eqs. 11-12) over all loops,
+    and the loads' work."""
+    bend = ca.sum2(bending_energy(pr.L, pr.t).map(pr.n_loops)(A, ca.DM(pr.natural.coeffs), pb["R_f"]))
+    spring = ca.MX(0)
+    if _spring_blocks(pr):
+        k = ca.vertcat(pb["k_a"], pb["k_b"])
+        pair = spring_pair_energy().map(pr.n_loops - pr.wales)
+        c = pr.crossings
+        spring = (ca.sum2(pair(xb["SL"], ca.DM(c.rest_left), ca.DM(c.frame_left), k))
+                  + ca.sum2(pair(xb["SR"], ca.DM(c.rest_right), ca.DM(c.frame_right), k)))
+    return spring, bend, _load_work(pr, A, xb, pb, specials, load_pts)
 
 
 def _sparse_dm(mat: np.ndarray) -> ca.DM:
