@@ -92,6 +92,10 @@ def main(argv: list[str] | None = None) -> int:
     except ProblemError as err:
         print(f"knit-nlp: {err}", file=sys.stderr)
         return 2
+    except BrokenPipeError:                     # output piped into e.g. `head`: stop quietly
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":
