@@ -17,7 +17,10 @@ from .basis import n_coeffs
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
 from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
 
-TOP_KEYS = ("name", "description", "model")
+# Gauss-Legendre nodes per panel. Panels break at every material point the model needs and are
+# at most L/4 long; on the 10 x 10 diagonal pull 8 nodes give energy within 7e-12 (relative) and
+# centrelines within 5e-10 of 32 nodes, while 16 nodes cost twice the function evaluations.
+DEFAULT_NODES = 8
 
 
 @dataclass(frozen=True)
@@ -85,7 +88,7 @@ class WeftProblem:
     wales: int
     natural: NaturalLoop
     crossings: Crossings | None
-    quadrature_nodes: int = 16
+    quadrature_nodes: int = 8
     k_a: float = 1.0
     k_b: float = 0.01
     R_f: float = 1.0
@@ -174,7 +177,7 @@ def _read_loop(tab: Table) -> tuple[NaturalLoop, int, str, Table]:
     spacing = tab.number("course_spacing", None, positive=True)
     if tab.has("course_spacing"):
         key = "course_spacing" if key == "preset" else key
-    nodes = tab.integer("quadrature_nodes", 16)
+    nodes = tab.integer("quadrature_nodes", DEFAULT_NODES)
     if nodes < 2:
         raise tab.error("quadrature_nodes", f"must be at least 2, got {nodes}")
     tab.finish()
