@@ -11,6 +11,7 @@
 """
 from __future__ import annotations
 
+import csv
 import hashlib
 import json
 import multiprocessing as mp
@@ -164,6 +165,17 @@ def run_path(path: LoadPath, cache: Path, limit: int | None = None,
 def _worker(args: tuple[LoadPath, Path, int | None, Any]) -> list[dict[str, Any]]:
     path, cache, limit, queue = args
     return run_path(path, cache, limit, tick=(lambda: queue.put(1)) if queue is not None else None)
+
+
+def write_csv(path: Path, rows: Sequence[Mapping[str, Any]],
+              fields: Sequence[str] | None = None) -> Path:
+    """A study table as CSV (columns ``fields``, default the first row's keys)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(fields or rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    return path
 
 
 class Progress:

@@ -25,7 +25,6 @@ per-point cache in ``points/``).
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -38,7 +37,7 @@ import numpy as np  # noqa: E402
 
 from matplotlib.collections import LineCollection  # noqa: E402
 
-from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study  # noqa: E402
+from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
 from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
 from knit_nlp.weft.results import centrelines  # noqa: E402
 
@@ -149,15 +148,6 @@ def tabulate(summary: dict[str, Any],
                              "energy_total": e["total"], "energy_spring": e["spring"],
                              "energy_bending": e["bending"], "success": bool(row["success"])})
     return tables
-
-
-def write_csv(path: Path, rows: list[dict[str, Any]]) -> Path:
-    """One CSV with the FIELDS columns."""
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=FIELDS)
-        writer.writeheader()
-        writer.writerows(rows)
-    return path
 
 
 def plot(path: Path, tables: dict[str, list[dict[str, Any]]], title: str) -> Path:
@@ -274,7 +264,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[dict[str, Any]]]:
     tables = tabulate(summary, built)
     out = args.out / STUDY
     for name, rows in tables.items():
-        write_csv(out / f"{name}.csv", rows)
+        write_csv(out / f"{name}.csv", rows, FIELDS)
     png = plot(out / f"{STUDY}.png", tables,
                f"{m} x {n} plain knit, k_a = 1, k_b = 0.01, R_f = 1: course/wale pulls with line "
                f"clamps, diagonal with point clamps (x on the axis: not converged)")

@@ -16,7 +16,6 @@ with the energy and the pulling clamp's reaction) and the table, also printed.
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -28,7 +27,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
-from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study  # noqa: E402
+from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.results import centrelines  # noqa: E402
 
@@ -130,15 +129,6 @@ def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cac
     return path
 
 
-def write_csv(path: Path, rows: list[dict[str, Any]]) -> Path:
-    """The table as CSV."""
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=FIELDS)
-        writer.writeheader()
-        writer.writerows(rows)
-    return path
-
-
 def print_table(rows: list[dict[str, Any]]) -> None:
     """The table on one screen."""
     print(f"{'kb/ka':>7}{'R_f':>7}{'U total':>9}{'U spring':>9}{'U bend':>9}{'F_x':>9}{'F_y':>9}"
@@ -171,7 +161,7 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
     summary = run_study(STUDY, paths, args.out, workers=args.workers)
     rows = tabulate(summary)
     out = args.out / STUDY
-    write_csv(out / f"{STUDY}.csv", rows)
+    write_csv(out / f"{STUDY}.csv", rows, FIELDS)
     target = paths[0].doc["clamp"][1]["position"]
     png = draw_grid(out / f"{STUDY}.png", paths, rows, out / "points",
                     f"{args.size} x {args.size} diagonal pull (eq. 28: H of loop (1, {args.size}) "

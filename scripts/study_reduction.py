@@ -10,7 +10,6 @@ centreline error against parameter count and against time.
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_weft import diagonal_pull_doc  # noqa: E402
 
+from knit_nlp.study import write_csv  # noqa: E402
 from knit_nlp.weft.natural import natural_loop, preset_coeffs  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.run import solve_problem  # noqa: E402
@@ -123,10 +123,7 @@ def main(argv: list[str] | None = None) -> None:
                       f"{'ok ' if r['success'] else 'FAIL'} energy {r['energy']:>10.5g}  "
                       f"it {r['iterations']:>4}  time {r['time_s']:>7.3f} s  "
                       f"max dist {r['max_dist']:>8.4g}  rms {r['rms_dist']:>8.4g}", flush=True)
-    with open(args.out / "study_reduction.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(args.out / "study_reduction.csv", rows)
     plot(rows, args.out / "study_reduction.png")
     print(f"wrote {args.out / 'study_reduction.csv'} and {args.out / 'study_reduction.png'}")
 
