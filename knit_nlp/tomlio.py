@@ -160,10 +160,3 @@ class Table:
         for key in self.data:
             if key not in self._read:
                 raise self.error(key, "unknown key")
-
-
-def check(table: Table, key: str, ok: bool, message: str) -> None:
-    """Raise a :class:`ProblemError` for ``table``/``key`` unless ``ok``."""
-    if not ok:
-        raise table.error(key, message)
-

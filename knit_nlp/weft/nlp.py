@@ -28,7 +28,7 @@ from .basis import continuity_rows, n_coeffs, phi
 from .energy import bending_energy, spring_pair_energy
 from .kinematics import loop_displacements
 from .problem import WeftProblem
-from .reduction import reduction_map
+from .reduction import default_reduction, reduction_map
 
 SPRING_POINTS = ("B", "R", "E", "H")
 SPRINGS = (("SL", "B", "E"), ("SR", "R", "H"))   # block, upper point, lower point
@@ -372,11 +372,3 @@ def n_parameters(pr: WeftProblem, reduced: bool) -> int:
     red = pr.reduction or default_reduction(pr)
     p, q = len(red.courses), len(red.wales)
     return p * q * 2 * pr.t + 2 * p + 2 * pr.courses
-
-
-def default_reduction(pr: WeftProblem):
-    """The paper's corner form: representatives at the first and last course and wale."""
-    from .problem import Reduction
-    courses = (1, pr.courses) if pr.courses > 1 else (1,)
-    wales = (1, pr.wales) if pr.wales > 1 else (1,)
-    return Reduction(courses, wales)

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ProblemError
-from ..tomlio import Table
+from ..tomlio import Table, load_toml
 from .basis import n_coeffs
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
 from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
@@ -123,7 +123,6 @@ class WeftProblem:
 
 def load_problem(path: Path | str) -> WeftProblem:
     """Read and check a weft problem file."""
-    from ..tomlio import load_toml
     path = Path(path)
     return parse_problem(path, load_toml(path))
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .basis import n_coeffs
+from .problem import Reduction, WeftProblem
 
 
 def hat_weights(index: int, reps: tuple[int, ...]) -> np.ndarray:
@@ -26,9 +27,15 @@ def hat_weights(index: int, reps: tuple[int, ...]) -> np.ndarray:
     return np.array([np.interp(index, reps, eye[r]) for r in range(len(reps))])
 
 
-def reduction_map(pr) -> np.ndarray:
+def default_reduction(pr: WeftProblem) -> Reduction:
+    """The paper's corner form: representatives at the first and last course and wale."""
+    courses = (1, pr.courses) if pr.courses > 1 else (1,)
+    wales = (1, pr.wales) if pr.wales > 1 else (1,)
+    return Reduction(courses, wales)
+
+
+def reduction_map(pr: WeftProblem) -> np.ndarray:
     """T with vec(coeffs) = T·z, coeffs (2t+2 × N) column-major by loop k = (i−1)·n + (j−1)."""
-    from .nlp import default_reduction
     red = pr.reduction or default_reduction(pr)
     m, n, t, L = pr.courses, pr.wales, pr.t, pr.L
     nc, p, q = n_coeffs(t), len(red.courses), len(red.wales)
