@@ -5,6 +5,8 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from scipy.optimize import brentq
+from scipy.special import ellipe, ellipk
 
 from knit_nlp.weft.problem import load_problem
 from knit_nlp.weft.run import Solved, solve_problem
@@ -25,3 +27,9 @@ def write_problem(tmp_path: Path):
 
 def solve_text(path: Path, reduced: bool = False) -> Solved:
     return solve_problem(load_problem(path), reduced=reduced)
+
+
+def elastica_force(length: float, chord: float, R_f: float) -> float:
+    """Pinned-pinned elastica, first mode: chord/ℓ = 2E(k)/K(k) − 1, P = 4K(k)² R_f / ℓ²."""
+    m = brentq(lambda m: 2 * ellipe(m) / ellipk(m) - 1 - chord / length, 1e-12, 0.999)
+    return 4 * ellipk(m) ** 2 * R_f / length ** 2

@@ -8,6 +8,8 @@ from knit_nlp.study import LoadPath, WeftStudy, run_study
 from knit_nlp.weft.problem import parse_problem
 from knit_nlp.weft.run import solve_problem
 
+from conftest import elastica_force
+
 
 def _doc(dx=0.0, k_b=0.01):
     return {"fabric": {"courses": 3, "wales": 4}, "material": {"k_b": k_b},
@@ -63,3 +65,18 @@ def test_changed_settings_are_not_served_from_the_cache(tmp_path):
     e1 = [r["energy"]["total"] for r in first["points"] if r["path"] == "soft"]
     e2 = [r["energy"]["total"] for r in second["points"]]
     assert all(b > a for a, b in zip(e1, e2))
+
+
+def test_study_of_a_straight_yarn_buckles_from_a_natural_problem():
+    """The problem file holds the rod at its natural length; the study compresses it. The
+    degenerate straight start must be detected from the parameters solved, not the file's."""
+    doc = {"fabric": {"courses": 1, "wales": 1}, "loop": {"preset": "straight", "length": 40.0,
+                                                          "harmonics": 6},
+           "clamp": [{"loop": [1, 1], "point": "start", "position": [0.0, 0.0]},
+                     {"loop": [1, 1], "point": "end", "position": [40.0, 0.0]}]}
+    study = WeftStudy(parse_problem("<rod>", doc))
+    p = study.params(targets={1: [36.0, 0.0]})
+    rep = study.solve(p)
+    assert rep.success and any(a.startswith("perturbed") for a in rep.attempts)
+    force = study.result(rep, p)["clamps"][1]["reaction"][0]
+    assert -force == pytest.approx(elastica_force(40.0, 36.0, 1.0), rel=2e-3)

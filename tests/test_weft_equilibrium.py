@@ -1,8 +1,6 @@
 """Equilibrium physics of the full weft model: invariances, closed forms, convergence."""
 import numpy as np
 import pytest
-from scipy.optimize import brentq
-from scipy.special import ellipe, ellipk
 
 from knit_nlp.weft.basis import phi
 from knit_nlp.weft.nlp import build_nlp
@@ -10,7 +8,7 @@ from knit_nlp.weft.problem import load_problem
 from knit_nlp.weft.run import solve_problem
 from knit_nlp.weft.solve import WeftSolver
 
-from conftest import PROBLEMS, solve_text
+from conftest import PROBLEMS, elastica_force, solve_text
 
 NATURAL_CLAMPS = """
 [fabric]
@@ -124,12 +122,6 @@ def test_end_moment_closes_a_straight_yarn_into_a_circle():
     assert s.result["energy"]["load_work"] == pytest.approx(4 * np.pi ** 2 * pr.R_f / pr.L, rel=1e-9)
 
 
-def _elastica_force(length: float, chord: float, R_f: float) -> float:
-    """Pinned-pinned elastica, first mode: chord/ℓ = 2E(k)/K(k) − 1, P = 4K(k)² R_f / ℓ²."""
-    m = brentq(lambda m: 2 * ellipe(m) / ellipk(m) - 1 - chord / length, 1e-12, 0.999)
-    return 4 * ellipk(m) ** 2 * R_f / length ** 2
-
-
 def _buckling(write_problem, t: int):
     return solve_text(write_problem(f"""
         [fabric]
@@ -153,7 +145,7 @@ def _buckling(write_problem, t: int):
 
 
 def test_compressed_straight_yarn_buckles_into_the_first_euler_mode(write_problem):
-    exact = _elastica_force(40.0, 36.0, 2.0)
+    exact = elastica_force(40.0, 36.0, 2.0)
     errors = []
     for t in (3, 6, 12):
         s = _buckling(write_problem, t)

@@ -148,12 +148,12 @@ def perturbed_starts(wnlp: WeftNLP, amplitude: float = 0.05) -> list[tuple[str, 
     return out
 
 
-def needs_perturbation(wnlp: WeftNLP) -> bool:
-    """A straight natural yarn with any clamp moved off its natural position is degenerate."""
-    pr = wnlp.problem
-    if not pr.natural.is_straight:
+def needs_perturbation(wnlp: WeftNLP, p: np.ndarray) -> bool:
+    """A straight natural yarn with any clamp moved off its natural position (or any load) is
+    degenerate at parameters p."""
+    if not wnlp.problem.natural.is_straight:
         return False
-    return not np.allclose(natural_parameters(wnlp), wnlp.p0)
+    return not np.allclose(natural_parameters(wnlp), p)
 
 
 def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, p: np.ndarray | None = None,
@@ -162,7 +162,7 @@ def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, p: np.ndarray | None 
     solver = solver or WeftSolver(wnlp)
     p = wnlp.p0 if p is None else p
     continuation = continuation or wnlp.problem.solver.continuation
-    if needs_perturbation(wnlp) and x0 is None:
+    if needs_perturbation(wnlp, p) and x0 is None:
         return _best_of_perturbed(wnlp, solver, p, continuation)
     return _direct_then_continuation(solver, p, wnlp.x0 if x0 is None else x0, continuation)
 
