@@ -36,6 +36,7 @@ def plot_solution(path: Path, natural: np.ndarray, deformed: np.ndarray,
             scale = 0.15 * size / fmax
             ax.quiver(pts[:, 0], pts[:, 1], forces[:, 0] * scale, forces[:, 1] * scale,
                       angles="xy", scale_units="xy", scale=1, color="crimson", width=0.006)
+            ax.update_datalim(pts + forces * scale)          # keep the arrow tips in view
             ax.plot([], [], color="crimson", label=f"reaction (largest {fmax:.3g})")
     ax.autoscale()
     ax.set_aspect("equal")
