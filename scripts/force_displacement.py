@@ -39,7 +39,7 @@ from matplotlib.collections import LineCollection  # noqa: E402
 
 from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
 from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
-from knit_nlp.weft.results import centrelines  # noqa: E402
+from knit_nlp.weft.results import natural_centrelines, solution_centrelines  # noqa: E402
 
 STUDY = "force_displacement"
 DIRECTIONS = ("course", "wale", "diagonal")
@@ -183,11 +183,8 @@ def plot(path: Path, tables: dict[str, list[dict[str, Any]]], title: str) -> Pat
 def last_lines(path: LoadPath, cache: Path) -> tuple[np.ndarray, np.ndarray, WeftStudy]:
     """Natural and deformed centrelines (m, n, S, 2) of a path's last (cached) point."""
     study = WeftStudy(parse_problem(f"<{path.name}>", path.doc))
-    pr, wnlp, k = study.problem, study.wnlp, len(path.points) - 1
-    x = point_solution(cache.parent, path, k)
-    coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, len(pr.natural.coeffs)))
-    nat = centrelines(np.array(coeffs), pr.natural_starts(), pr.L, pr.t)[0]
-    return nat, centrelines(wnlp.coefficients(x), wnlp.starts(x), pr.L, pr.t)[0], study
+    x = point_solution(cache.parent, path, len(path.points) - 1)
+    return natural_centrelines(study.problem), solution_centrelines(study.wnlp, x), study
 
 
 def held_positions(path: LoadPath, study: WeftStudy) -> np.ndarray:

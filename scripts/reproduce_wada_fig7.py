@@ -34,8 +34,8 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from knit_nlp.jsonio import write_json  # noqa: E402
 from knit_nlp.problems import resolve  # noqa: E402
 from knit_nlp.tomlio import load_toml  # noqa: E402
-from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
-from knit_nlp.weft.results import centrelines  # noqa: E402
+from knit_nlp.weft.problem import parse_problem  # noqa: E402
+from knit_nlp.weft.results import natural_centrelines  # noqa: E402
 from knit_nlp.weft.run import Solved, solve_problem  # noqa: E402
 
 STUDY = "wada_fig7"
@@ -70,12 +70,6 @@ def line_doc(doc: dict[str, Any], grip: int) -> dict[str, Any]:
 def lines(s: Solved, samples: int = 81) -> np.ndarray:
     """Deformed centrelines (m, n, S, 2)."""
     return s.lines(samples)
-
-
-def natural_lines(pr: WeftProblem, samples: int = 81) -> np.ndarray:
-    """Natural centrelines (m, n, S, 2)."""
-    coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, len(pr.natural.coeffs)))
-    return centrelines(np.array(coeffs), pr.natural_starts(), pr.L, pr.t, samples)[0]
 
 
 def held_points(s: Solved) -> tuple[np.ndarray, np.ndarray]:
@@ -198,7 +192,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     ldoc = line_doc(doc, args.grip)
     line = solve_problem(parse_problem("wada_fig7_line", ldoc))
     out = args.out / STUDY
-    png = plot(out / f"{STUDY}.png", point, line, natural_lines(point.wnlp.problem), args.grip)
+    png = plot(out / f"{STUDY}.png", point, line, natural_centrelines(point.wnlp.problem, 81), args.grip)
     comp = compare(point, line)
     comp["grip"] = args.grip
     comp["line_problem"] = ldoc

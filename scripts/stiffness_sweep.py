@@ -29,7 +29,7 @@ from matplotlib.collections import LineCollection  # noqa: E402
 
 from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
-from knit_nlp.weft.results import centrelines  # noqa: E402
+from knit_nlp.weft.results import natural_centrelines, solution_centrelines  # noqa: E402
 
 STUDY = "stiffness_sweep"
 STRETCH, TURN_DEG = 1.8830761813505632, 25.25734166917165   # eq. 28 on 5 x 5
@@ -76,28 +76,15 @@ def tabulate(summary: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-def point_lines(study: WeftStudy, cache: Path, path: LoadPath, index: int) -> np.ndarray:
-    """Deformed centrelines (m, n, S, 2) of a cached point of a path."""
-    x = point_solution(cache.parent, path, index)
-    pr, wnlp = study.problem, study.wnlp
-    return centrelines(wnlp.coefficients(x), wnlp.starts(x), pr.L, pr.t)[0]
-
-
-def natural_lines(study: WeftStudy) -> np.ndarray:
-    """Natural centrelines (m, n, S, 2)."""
-    pr = study.problem
-    coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, len(pr.natural.coeffs)))
-    return centrelines(np.array(coeffs), pr.natural_starts(), pr.L, pr.t)[0]
-
-
 def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cache: Path,
               title: str) -> Path:
     """Rows k_b/k_a, columns R_f: deformed loops (one colour per course) over grey natural ones."""
     study = WeftStudy(parse_problem("<draw>", paths[0].doc))
-    nat = natural_lines(study)
+    nat = natural_centrelines(study.problem)
     nr, nc = len(paths), len(paths[0].points)
     fig, axes = plt.subplots(nr, nc, figsize=(3.3 * nc, 3.1 * nr + 0.6), squeeze=False)
-    lines = [[point_lines(study, cache, p, k) for k in range(nc)] for p in paths]
+    lines = [[solution_centrelines(study.wnlp, point_solution(cache.parent, p, k)) for k in range(nc)]
+             for p in paths]
     every = np.concatenate([nat.reshape(-1, 2)] + [ln.reshape(-1, 2) for r in lines for ln in r])
     lo, hi = every.min(axis=0), every.max(axis=0)
     colours = plt.cm.viridis(np.linspace(0.05, 0.85, nat.shape[0]))

@@ -9,6 +9,7 @@ import numpy as np
 from ..jsonio import write_json
 from .basis import n_coeffs, phi
 from .nlp import WeftNLP
+from .problem import WeftProblem
 from .quadrature import positions
 from .solve import SolveReport
 
@@ -106,16 +107,25 @@ def centrelines(coeffs: np.ndarray, starts: np.ndarray, L: float, t: int,
     return disp + starts[:, :, None, :], s
 
 
-def write_arrays(path: Path, wnlp: WeftNLP, rep: SolveReport, samples: int = 61) -> Path:
-    """NPZ beside the JSON: s, natural and deformed centrelines, coefficients, starts."""
+def natural_centrelines(pr: WeftProblem, samples: int = 61) -> np.ndarray:
+    """Sampled centrelines (m, n, samples, 2) of the natural configuration."""
+    coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, n_coeffs(pr.t)))
+    return centrelines(coeffs, pr.natural_starts(), pr.L, pr.t, samples)[0]
+
+
+def solution_centrelines(wnlp: WeftNLP, x: np.ndarray, samples: int = 61) -> np.ndarray:
+    """Sampled centrelines (m, n, samples, 2) of a solution vector."""
     pr = wnlp.problem
-    coeffs, starts = wnlp.coefficients(rep.x), wnlp.starts(rep.x)
-    deformed, s = centrelines(coeffs, starts, pr.L, pr.t, samples)
-    nat_coeffs = np.broadcast_to(pr.natural.coeffs, coeffs.shape)
-    natural, _ = centrelines(nat_coeffs, pr.natural_starts(), pr.L, pr.t, samples)
+    return centrelines(wnlp.coefficients(x), wnlp.starts(x), pr.L, pr.t, samples)[0]
+
+
+def write_arrays(path: Path, wnlp: WeftNLP, x: np.ndarray, natural: np.ndarray,
+                 deformed: np.ndarray) -> Path:
+    """NPZ beside the JSON: s, natural and deformed centrelines, coefficients, starts."""
+    s = np.linspace(0.0, wnlp.problem.L, deformed.shape[2])
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, s=s, natural=natural, deformed=deformed, coefficients=coeffs,
-                        starts=starts)
+    np.savez_compressed(path, s=s, natural=natural, deformed=deformed,
+                        coefficients=wnlp.coefficients(x), starts=wnlp.starts(x))
     return path
 
 

@@ -12,7 +12,8 @@ from ..jsonio import write_json
 from .nlp import WeftNLP, build_nlp
 from .plot import plot_overlay, plot_solution
 from .problem import WeftProblem, parse_problem
-from .results import centrelines, result_dict, write_arrays, write_result
+from .results import (natural_centrelines, result_dict, solution_centrelines, write_arrays,
+                      write_result)
 from .solve import SolveReport, WeftSolver, solve
 
 
@@ -25,18 +26,20 @@ class Solved:
     result: dict[str, Any]
 
     def lines(self, samples: int = 61) -> np.ndarray:
-        pr = self.wnlp.problem
-        return centrelines(self.wnlp.coefficients(self.report.x), self.wnlp.starts(self.report.x),
-                           pr.L, pr.t, samples)[0]
+        """Sampled centrelines (m, n, samples, 2) of the solution."""
+        return solution_centrelines(self.wnlp, self.report.x, samples)
 
 
 def solve_problem(pr: WeftProblem, reduced: bool = False, continuation: int | None = None,
-                  x0: np.ndarray | None = None, extra: dict[str, Any] | None = None) -> Solved:
-    """Build and solve one model of a problem; time the build (assembly + solver setup)."""
+                  start: Solved | None = None, extra: dict[str, Any] | None = None) -> Solved:
+    """Build and solve one model of a problem, from the natural state or from another solved
+    model's loops (lifted into this one); time the build (assembly + solver setup)."""
     t0 = time.perf_counter()
     wnlp = build_nlp(pr, reduced=reduced)
     solver = WeftSolver(wnlp)
     build_s = time.perf_counter() - t0
+    x0 = None if start is None else wnlp.lift(start.wnlp.coefficients(start.report.x),
+                                               start.wnlp.starts(start.report.x))
     rep = solve(wnlp, solver, x0=x0, continuation=continuation)
     viol = solver.violation(rep.x, wnlp.p0)
     return Solved(wnlp, rep, result_dict(wnlp, rep, viol, build_s, extra))
@@ -45,12 +48,10 @@ def solve_problem(pr: WeftProblem, reduced: bool = False, continuation: int | No
 def solve_warm_from_reduced(pr: WeftProblem, continuation: int | None = None) -> tuple[Solved, Solved]:
     """Solve the reduced model, lift its solution, and start the full model from it."""
     red = solve_problem(pr, reduced=True, continuation=continuation)
-    full_nlp = build_nlp(pr)
-    x0 = full_nlp.lift(red.wnlp.coefficients(red.report.x), red.wnlp.starts(red.report.x))
     warm = {"warm_start": {"from": "reduced", "reduced_success": red.report.success,
                            "reduced_iterations": red.report.iterations,
                            "reduced_solve_s": red.report.solve_s}}
-    return red, solve_problem(pr, continuation=continuation, x0=x0, extra=warm)
+    return red, solve_problem(pr, continuation=continuation, start=red, extra=warm)
 
 
 def _summary(s: Solved, paths: list[Path]) -> str:
@@ -79,13 +80,12 @@ def write_outputs(out: Path, s: Solved) -> list[Path]:
     pr = s.wnlp.problem
     stem = out / f"{pr.name}.{s.result['model']}"
     js = write_result(out, s.wnlp, s.result)
-    npz = write_arrays(stem.parent / f"{stem.name}.npz", s.wnlp, s.report)
-    data = np.load(npz)
+    natural, deformed = natural_centrelines(pr), s.lines()
+    npz = write_arrays(stem.parent / f"{stem.name}.npz", s.wnlp, s.report.x, natural, deformed)
     title = (f"{pr.name} ({s.result['model']}): E = {s.result['energy']['total']:.4g}, "
              f"{'converged' if s.report.success else 'NOT CONVERGED'}")
     held = s.result["clamps"] + [pt for rc in s.result["rigid_clamps"] for pt in rc["points"]]
-    png = plot_solution(stem.parent / f"{stem.name}.png", data["natural"], data["deformed"],
-                        held, title)
+    png = plot_solution(stem.parent / f"{stem.name}.png", natural, deformed, held, title)
     return [js, npz, png]
 
 
