@@ -41,6 +41,13 @@ class SolveReport:
     attempts: list[str] = field(default_factory=list)
     stats: dict[str, float] = field(default_factory=dict)
 
+    def add_effort(self, other: "SolveReport") -> None:
+        """Count another solve's iterations, time and IPOPT profile into this report."""
+        self.iterations += other.iterations
+        self.solve_s += other.solve_s
+        self.stats = {k: self.stats.get(k, 0.0) + other.stats.get(k, 0.0)
+                      for k in set(self.stats) | set(other.stats)}
+
 
 class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
@@ -86,9 +93,7 @@ class WeftSolver:
         while tau < 1.0 - 1e-12:
             nxt = min(1.0, tau + dtau)
             rep = self.once(p_nat + nxt * (p - p_nat), x)
-            total.iterations += rep.iterations
-            total.solve_s += rep.solve_s
-            total.stats = _add_stats(total.stats, rep.stats)
+            total.add_effort(rep)
             if rep.success:
                 x, tau = rep.x, nxt
                 total.continuation_steps += 1
@@ -101,10 +106,6 @@ class WeftSolver:
             dtau /= 2
         total.success = True
         return total
-
-
-def _add_stats(a: dict[str, float], b: dict[str, float]) -> dict[str, float]:
-    return {k: a.get(k, 0.0) + b.get(k, 0.0) for k in set(a) | set(b)}
 
 
 def natural_parameters(wnlp: WeftNLP) -> np.ndarray:
@@ -169,38 +170,37 @@ def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, p: np.ndarray | None 
 
 def _direct_then_continuation(solver: WeftSolver, p: np.ndarray, x0: np.ndarray,
                               continuation: int | None) -> SolveReport:
-    attempts, iters, secs = [], 0, 0.0
-    stats: dict[str, float] = {}
+    attempts, tried = [], []
     if continuation is None:
         rep = solver.once(p, x0)
         attempts.append(f"direct: {rep.status} ({rep.iterations} it)")
-        if rep.success:
-            rep.attempts = attempts
-            return rep
-        iters, secs, stats = rep.iterations, rep.solve_s, rep.stats
-    for steps in ([continuation] if continuation else [4, 16]):
+        tried.append(rep)
+    for steps in ([] if tried and tried[-1].success else [continuation] if continuation else [4, 16]):
         rep = solver.continuation(p, x0, steps)
         attempts.append(f"continuation x{steps}: {rep.status} ({rep.iterations} it, "
                         f"{rep.continuation_steps} steps)")
-        rep.iterations += iters
-        rep.solve_s += secs
-        rep.stats = _add_stats(rep.stats, stats)
-        iters, secs, stats = rep.iterations, rep.solve_s, rep.stats
+        tried.append(rep)
         if rep.success:
             break
-    rep.attempts = attempts
-    return rep
+    return _combined(tried[-1], tried[:-1], attempts)
+
+
+def _combined(final: SolveReport, others: list[SolveReport], attempts: list[str]) -> SolveReport:
+    """``final`` carrying the effort of every other solve tried and the list of attempts."""
+    for other in others:
+        final.add_effort(other)
+    final.attempts = attempts
+    return final
 
 
 def _best_of_perturbed(wnlp: WeftNLP, solver: WeftSolver, p: np.ndarray,
                        continuation: int | None) -> SolveReport:
-    best, attempts, iters, secs = None, [], 0, 0.0
+    best, attempts, tried = None, [], []
     for name, x0 in perturbed_starts(wnlp):
         rep = _direct_then_continuation(solver, p, x0, continuation)
         attempts += [f"perturbed {name}: {a}" for a in rep.attempts]
-        iters, secs = iters + rep.iterations, secs + rep.solve_s
+        tried.append(rep)
         if rep.success and (best is None or rep.objective < best.objective - 1e-12):
             best = rep
-    final = best or rep
-    final.attempts, final.iterations, final.solve_s = attempts, iters, secs
-    return final
+    final = best or tried[-1]
+    return _combined(final, [r for r in tried if r is not final], attempts)
