@@ -23,6 +23,7 @@ class JacquardResult:
     iterations: int | None = None    # static: IPOPT iterations
     timings: dict[str, float] = field(default_factory=dict)
     energy_history: np.ndarray | None = None   # explicit, if recorded: kinetic + spring energy
+    constraints: dict[str, int] | None = None  # static: generation rounds, limits/orders in NLP
 
     @property
     def residual_force(self) -> float:

@@ -31,7 +31,7 @@ def result_dict(r: JacquardResult) -> dict[str, Any]:
         "problem": p.name, "model": "jacquard", "solver": r.solver,
         "success": r.success, "status": r.status,
         "residual_force": r.residual_force,
-        "steps": r.steps, "iterations": r.iterations,
+        "steps": r.steps, "iterations": r.iterations, "constraints": r.constraints,
         "timings": r.timings,
         "energy": r.energy,
         "max_stretch": r.max_stretch(), "lambda_max": p.lambda_max,

@@ -1,55 +1,51 @@
 """The static equilibrium as a CasADi NLP solved with IPOPT (spec "Solvers", `static`).
 
-Formulation (docs/jacquard.md, "Static NLP"): variables are all particle positions and one
-slack ``e_s`` per spring. For a rope spring
+Formulation (docs/jacquard.md, "Static NLP"): the variables are the particle positions ``x``
+only. With ``d_s = x[b_s] + shift_s - x[a_s]`` (``d = B x + c``, ``B`` the sparse incidence
+matrix) the energy is
 
-    minimise  sum_s 1/2 k_s e_s^2
-    s.t.      e_s - |x_b + shift - x_a| >= -l0_s        (e_s >= l - l0: epigraph of (l - l0)+)
-              0 <= e_s <= lambda_max l_init_s - l0_s     (the bound gives l <= lambda_max l_init)
-              X(i+1,j) - X(i,j) >= 0                     (order constraint, paper 3.4.1)
+    E(x) = sum_s 1/2 k_s (|d_s| - l0_s)+^2  (+ 1/2 eps max(k) |x - x_natural|^2)
 
-which is smooth and convex (|.| is convex), so its minimiser is the equilibrium of the rope
-springs. At the optimum e_s = (l - l0)+. Loop-width springs (extension, compression only) use
-e_s + l >= l0, e_s >= 0. Boundary particles are fixed by equal bounds; each floating component
-of the spring graph (a zero-energy mode, see springs.build_network) gets its centroid held at
-its natural centroid by two linear equalities, which is exactly what the explicit dynamics
-conserves (internal forces carry no net momentum). Springs that go slack at the equilibrium can
-leave further flat directions (e.g. a thick stripe beside net contracts until its underlaps are
-slack); a tiny regularisation ``1/2 eps max(k) |x - x_natural|^2`` (``[solver] regularization``,
-default eps = 1e-8) then selects the equilibrium nearest the natural grid.
+(loop-width springs, an extension: ``1/2 k (l0 - |d|)+^2``), which is C1 and, for rope springs,
+convex (a square of a non-negative convex function). The paper's constraints,
 
-The NLP is assembled from one small casadi Function per spring kind, mapped over the springs of
-that kind (``Function.map``), so the expression graph size does not grow with the fabric.
+    1/2 |d_s|^2 <= 1/2 (lambda_max l_init_s)^2     (length limit, paper 3.4.2; convex)
+    X(i+1,j) + offset - X(i,j) >= 0                 (order constraint, paper 3.4.1; linear)
+
+are added by constraint generation: solve with none, add every violated (or nearly active) one,
+re-solve warm, until the solution satisfies them all. Because the problem is convex, the
+minimiser of a relaxation that satisfies every constraint is the minimiser of the whole problem,
+so the loop ends at the true constrained equilibrium; at the benchmark designs no constraint is
+active and one solve suffices.
+
+Derivatives (the reason for this shape): the Hessian of the Lagrangian is
+``B^T blockdiag(H_s) B`` with one symmetric 2x2 block ``H_s`` per spring, so its nonzeros are
+a fixed sparse linear map ``A`` of the 3 distinct entries of every block. ``hess_lag`` is given
+to ``nlpsol`` in exactly that form (one small SX Function for the blocks, mapped over the
+springs, then ``A``), so CasADi never has to discover the sparsity of, or colour, a
+whole-fabric Hessian — that discovery took a minute at 500 x 500.
+
+Boundary particles are fixed by equal bounds (IPOPT ``make_parameter``); each floating
+component of the spring graph (a zero-energy mode, see springs.build_network) has its centroid
+held at its natural centroid by two linear equalities, which is what the explicit dynamics
+conserves. Springs that go slack can leave further flat directions; the tiny regularisation
+(``[solver] regularization``, default eps = 1e-8) selects the equilibrium nearest the natural
+grid.
 """
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from .problem import JacquardProblem
 from .result import JacquardResult
-from .springs import KINDS, Network, SpringSet, build_network
+from .springs import Network, SpringSet, build_network, spring_geometry
 
-
-def _spring_function(kind: str, compress: bool) -> ca.Function:
-    """g(p, q, e) for one spring: e - |q - p| (rope) or e + |q - p| (loop-width)."""
-    p, q, e = ca.SX.sym("p", 2), ca.SX.sym("q", 2), ca.SX.sym("e")
-    d = q - p
-    length = ca.sqrt(d[0] ** 2 + d[1] ** 2)
-    return ca.Function(f"spring_{kind}", [p, q, e], [e + length if compress else e - length])
-
-
-def _centroid_rows(net: Network, nvar: int) -> ca.DM:
-    """Sparse rows holding the mean x and mean y of each floating component."""
-    rows, cols, vals = [], [], []
-    for c, idx in enumerate(net.floating):
-        for ax in (0, 1):
-            rows += [2 * c + ax] * idx.size
-            cols += (2 * idx + ax).tolist()
-            vals += [1.0 / idx.size] * idx.size
-    return ca.DM.triplet(rows, cols, ca.DM(vals), 2 * len(net.floating), nvar)
+MAX_ROUNDS = 20          # constraint-generation rounds before giving up
+NEAR_LIMIT = 1e-3        # also add length limits within this relative margin of binding
 
 
 def merge_parallel(s: SpringSet) -> SpringSet:
@@ -65,51 +61,208 @@ def merge_parallel(s: SpringSet) -> SpringSet:
                      s.limit[first], s.compress[first], s.kind[first])
 
 
-def build_nlp(problem: JacquardProblem, net: Network) -> tuple[dict, dict]:
-    """The NLP dict for ``nlpsol`` and its bounds / initial guess (numpy arrays)."""
-    s, npart = merge_parallel(net.springs), net.natural.shape[0]
-    nx, ns = 2 * npart, s.n
-    z = ca.MX.sym("z", nx + ns)
-    pos = ca.reshape(z[:nx], 2, npart)
-    slack = z[nx:]
-    g_parts, lbg, ubg, order_idx = [], [], [], np.zeros(0, dtype=int)
-    perm = []
-    for kind_id, kind in enumerate(KINDS):
-        sel = np.flatnonzero(s.kind == kind_id)
-        if sel.size == 0:
-            continue
-        perm.append(sel)
-        fn = _spring_function(kind, bool(s.compress[sel[0]])).map(int(sel.size))
-        q = pos[:, s.b[sel].tolist()] + ca.DM(s.shift[sel].T)
-        g_parts.append(fn(pos[:, s.a[sel].tolist()], q, slack[sel.tolist()].T).T)
-        lo = np.where(s.compress[sel], s.l0[sel], -s.l0[sel])
-        lbg.append(lo)
-        ubg.append(np.full(sel.size, np.inf))
-    if net.order_left.size:
-        gap = pos[0, net.order_right.tolist()] + ca.DM(net.order_offset).T \
-            - pos[0, net.order_left.tolist()]
-        g_parts.append(gap.T)
-        lbg.append(np.zeros(net.order_left.size))
-        ubg.append(np.full(net.order_left.size, np.inf))
-        order_idx = np.arange(net.order_left.size)
+def _ccs(keys: np.ndarray, shape: tuple[int, int]) -> ca.Sparsity:
+    """The casadi sparsity of sorted unique column-major keys ``col * nrow + row``."""
+    nrow, ncol = shape
+    colind = np.concatenate([[0], np.cumsum(np.bincount(keys // nrow, minlength=ncol))])
+    return ca.Sparsity(nrow, ncol, colind.tolist(), (keys % nrow).tolist())
+
+
+def _sparse(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int],
+            ) -> ca.DM:
+    """A casadi DM from triplets, duplicates summed and exact zeros dropped."""
+    key = cols.astype(np.int64) * shape[0] + rows          # column-major, as casadi stores
+    uniq, inv = np.unique(key, return_inverse=True)
+    v = np.bincount(inv.ravel(), vals, uniq.size)
+    keep = v != 0.0
+    return ca.DM(_ccs(uniq[keep], shape), v[keep])
+
+
+def _spring_law() -> ca.Function:
+    """Energy of one spring and the 3 entries (xx, xy, yy) of its Hessian in d.
+
+    ``sign = +1``: rope, 1/2 k (|d| - l0)+^2; ``sign = -1``: loop-width, 1/2 k (l0 - |d|)+^2.
+    """
+    d, k, l0, sign = ca.SX.sym("d", 2), ca.SX.sym("k"), ca.SX.sym("l0"), ca.SX.sym("sign")
+    stretch = ca.fmax(sign * (ca.norm_2(d) - l0), 0)
+    energy = 0.5 * k * stretch ** 2
+    hess = ca.hessian(energy, d)[0]
+    return ca.Function("spring_law", [d, k, l0, sign],
+                       [energy, ca.vertcat(hess[0, 0], hess[0, 1], hess[1, 1])],
+                       ["d", "k", "l0", "sign"], ["energy", "hess"])
+
+
+def pairwise_sum(row: ca.MX) -> ca.MX:
+    """Sum of a 1 x n row by pairwise (tree) summation: rounding error O(eps log n) instead of
+    O(eps n), so that IPOPT's line search can still see the energy decrease near the solution
+    of a fabric with a million springs (a plain sum left it backtracking on rounding noise)."""
+    n = row.size2()
+    while n > 1:
+        if n % 2:
+            row, n = ca.horzcat(row, ca.MX.zeros(1, 1)), n + 1
+        row, n = ca.sum1(ca.reshape(row, 2, n // 2)), n // 2
+    return row
+
+
+@dataclass(frozen=True)
+class Incidence:
+    """d = B x + c for every spring (rows 2s, 2s+1), and the Hessian's assembly map.
+
+    ``hess_sparsity`` is the upper triangle of B^T blockdiag(H_s) B plus the diagonal;
+    ``assemble`` (nnz x 3S+1) maps the stacked block entries ``[h_xx, h_xy, h_yy]_s`` and a
+    final diagonal weight to its nonzeros.
+    """
+
+    B: ca.DM
+    c: np.ndarray
+    hess_sparsity: ca.Sparsity
+    assemble: ca.DM
+
+
+def incidence(s: SpringSet, n_particles: int) -> Incidence:
+    """Build B, c and the Hessian assembly map for the springs ``s``."""
+    nx, ns = 2 * n_particles, s.n
+    srow = np.arange(ns)
+    rows = np.concatenate([2 * srow, 2 * srow + 1] * 2)
+    cols = np.concatenate([2 * s.b, 2 * s.b + 1, 2 * s.a, 2 * s.a + 1])
+    vals = np.concatenate([np.ones(2 * ns), -np.ones(2 * ns)])
+    B = _sparse(rows, cols, vals, (2 * ns, nx))
+    # Hessian: block (r, c) of spring s is sigma_r sigma_c H_s, sigma_a = -1, sigma_b = +1.
+    hr, hc, hcol, hval = [], [], [], []
+    for end_r, sig_r in ((s.a, -1.0), (s.b, 1.0)):
+        for end_c, sig_c in ((s.a, -1.0), (s.b, 1.0)):
+            for al, be, m in ((0, 0, 0), (0, 1, 1), (1, 0, 1), (1, 1, 2)):
+                hr.append(2 * end_r + al)
+                hc.append(2 * end_c + be)
+                hcol.append(3 * srow + m)
+                hval.append(np.full(ns, sig_r * sig_c))
+    hr, hc = np.concatenate(hr + [np.arange(nx)]), np.concatenate(hc + [np.arange(nx)])
+    hcol = np.concatenate(hcol + [np.full(nx, 3 * ns)])
+    hval = np.concatenate(hval + [np.ones(nx)])
+    upper = hr <= hc
+    hr, hc, hcol, hval = hr[upper], hc[upper], hcol[upper], hval[upper]
+    uniq, nz = np.unique(hc.astype(np.int64) * nx + hr, return_inverse=True)
+    sp = _ccs(uniq, (nx, nx))
+    A = _sparse(nz.ravel(), hcol, hval, (uniq.size, 3 * ns + 1))
+    c = s.shift.ravel().astype(float)
+    return Incidence(B, c, sp, A)
+
+
+@dataclass(frozen=True)
+class WorkingSet:
+    """The constraints currently in the NLP: spring indices with a length limit, order pairs."""
+
+    limits: np.ndarray
+    orders: np.ndarray
+
+
+def _centroid_rows(net: Network, nx: int) -> ca.DM:
+    """Sparse rows holding the mean x and mean y of each floating component."""
+    rows, cols, vals = [], [], []
+    for c, idx in enumerate(net.floating):
+        for ax in (0, 1):
+            rows.append(np.full(idx.size, 2 * c + ax))
+            cols.append(2 * idx + ax)
+            vals.append(np.full(idx.size, 1.0 / idx.size))
+    return _sparse(np.concatenate(rows), np.concatenate(cols), np.concatenate(vals),
+                   (2 * len(net.floating), nx))
+
+
+def _linear_rows(net: Network, work: WorkingSet, nx: int) -> tuple[ca.DM, np.ndarray,
+                                                                   np.ndarray]:
+    """Order constraints in the working set and centroid equalities: L x in [lo, hi]."""
+    parts, lo, hi = [], [], []
+    if work.orders.size:
+        o = work.orders
+        r = np.arange(o.size)
+        parts.append(_sparse(np.concatenate([r, r]),
+                             np.concatenate([2 * net.order_right[o], 2 * net.order_left[o]]),
+                             np.concatenate([np.ones(o.size), -np.ones(o.size)]),
+                             (o.size, nx)))
+        lo.append(-net.order_offset[o])
+        hi.append(np.full(o.size, np.inf))
     if net.floating:
-        c = _centroid_rows(net, nx + ns)
-        g_parts.append(ca.mtimes(c, z))
+        parts.append(_centroid_rows(net, nx))
         target = np.concatenate([net.natural[idx].mean(axis=0) for idx in net.floating])
-        lbg.append(target)
-        ubg.append(target)
-    f = 0.5 * ca.dot(ca.DM(s.k), slack ** 2)
-    nat = net.natural.ravel()
-    eps = problem.solver.regularization * float(np.max(s.k)) if s.n else 0.0
-    if eps > 0:
-        f = f + 0.5 * eps * ca.sumsqr(z[:nx] - ca.DM(nat))
-    lbx = np.concatenate([np.where(np.repeat(net.fixed, 2), nat, -np.inf), np.zeros(ns)])
-    ubx = np.concatenate([np.where(np.repeat(net.fixed, 2), nat, np.inf),
-                          np.where(s.compress, np.inf, s.limit - s.l0)])
-    e0 = np.where(s.compress, 0.0, np.maximum(s.l_init - s.l0, 0.0))
-    data = {"x0": np.concatenate([nat, e0]), "lbx": lbx, "ubx": ubx,
-            "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg), "n_order": order_idx.size}
-    return {"x": z, "f": f, "g": ca.vertcat(*g_parts)}, data
+        lo.append(target)
+        hi.append(target)
+    if not parts:
+        return ca.DM(0, nx), np.zeros(0), np.zeros(0)
+    return ca.vertcat(*parts), np.concatenate(lo), np.concatenate(hi)
+
+
+def build_nlp(problem: JacquardProblem, net: Network, s: SpringSet, inc: Incidence,
+              work: WorkingSet) -> tuple[dict, dict, dict]:
+    """The NLP dict, its ``hess_lag`` option and bounds for the springs ``s`` and working set."""
+    npart = net.natural.shape[0]
+    nx, ns, nl = 2 * npart, s.n, work.limits.size
+    x = ca.MX.sym("x", nx)
+    law = _spring_law().map(ns)
+    sign = ca.DM(np.where(s.compress, -1.0, 1.0)).T
+    k, l0 = ca.DM(s.k).T, ca.DM(s.l0).T
+
+    def blocks(xv: ca.MX) -> tuple[ca.MX, ca.MX]:
+        d = ca.reshape(ca.mtimes(inc.B, xv) + ca.DM(inc.c), 2, ns)
+        return law(d, k, l0, sign)
+
+    nat = ca.DM(net.natural.ravel())
+    eps = problem.solver.regularization * float(np.max(s.k)) if ns else 0.0
+    energy, _ = blocks(x)
+    f = pairwise_sum(energy) + 0.5 * eps * ca.sumsqr(x - nat)
+    L, lin_lo, lin_hi = _linear_rows(net, work, nx)
+    g_parts, lbg, ubg = [ca.mtimes(L, x)], [lin_lo], [lin_hi]
+    if nl:
+        r = np.arange(nl)
+        sel = _sparse(np.concatenate([2 * r, 2 * r + 1]),
+                      np.concatenate([2 * work.limits, 2 * work.limits + 1]),
+                      np.ones(2 * nl), (2 * nl, 2 * ns))
+        d_lim = ca.reshape(ca.mtimes(sel, ca.mtimes(inc.B, x) + ca.DM(inc.c)), 2, nl)
+        g_parts.append(0.5 * ca.sum1(d_lim ** 2).T)
+        lbg.append(np.full(nl, -np.inf))
+        ubg.append(0.5 * s.limit[work.limits] ** 2)
+    g = ca.vertcat(*g_parts)
+
+    # hess_lag = lam_f (sum_s B_s^T H_s B_s + eps I) + sum_limits lam_i B_i^T I B_i
+    lam_f, lam_g, p = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel()), ca.MX.sym("p", 0)
+    _, h = blocks(x)
+    h = lam_f * h
+    if nl:
+        mu = ca.mtimes(_sparse(work.limits, L.size1() + np.arange(nl), np.ones(nl),
+                               (ns, g.numel())), lam_g).T
+        h = h + ca.vertcat(mu, ca.DM.zeros(1, ns), mu)
+    hnz = ca.mtimes(inc.assemble, ca.vertcat(ca.vec(h), lam_f * eps))
+    hess_lag = ca.Function("hess_lag", [x, p, lam_f, lam_g], [ca.MX(inc.hess_sparsity, hnz)],
+                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+    fixed = np.repeat(net.fixed, 2)
+    flat = net.natural.ravel()
+    bounds = {"lbx": np.where(fixed, flat, -np.inf), "ubx": np.where(fixed, flat, np.inf),
+              "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg)}
+    return {"x": x, "f": f, "g": g}, {"hess_lag": hess_lag}, bounds
+
+
+def violations(x: np.ndarray, net: Network, s: SpringSet, work: WorkingSet,
+               ) -> WorkingSet:
+    """Constraints outside the working set that ``x`` violates; when there are any, the
+    length limits within ``NEAR_LIMIT`` of binding join them (fewer rounds)."""
+    _, length = spring_geometry(x, s)
+    outside = np.ones(s.n, dtype=bool)
+    outside[work.limits] = False
+    gap = x[net.order_right, 0] + net.order_offset - x[net.order_left, 0]
+    orders = np.setdiff1d(np.flatnonzero(gap < 0), work.orders)
+    if not (outside & (length > s.limit)).any() and not orders.size:
+        return WorkingSet(work.limits[:0], orders)
+    return WorkingSet(np.flatnonzero(outside & (length > (1 - NEAR_LIMIT) * s.limit)), orders)
+
+
+def _ipopt_options(problem: JacquardProblem, print_level: int, extra: dict | None) -> dict:
+    opts = problem.solver
+    ipopt = {"tol": opts.tol, "max_iter": opts.max_iter, "print_level": print_level,
+             "sb": "yes", "linear_solver": "mumps",
+             "mumps_pivot_order": 5,             # METIS (see docs/jacquard.md)
+             "hessian_approximation": opts.hessian,
+             "fixed_variable_treatment": "make_parameter", "mu_strategy": "adaptive"}
+    ipopt.update(extra or {})
+    return ipopt
 
 
 def solve_static(problem: JacquardProblem, network: Network | None = None, *,
@@ -117,23 +270,34 @@ def solve_static(problem: JacquardProblem, network: Network | None = None, *,
     """Minimise the rope-spring energy under the order and length-limit constraints (IPOPT)."""
     t0 = time.perf_counter()
     net = network or build_network(problem)
-    nlp, data = build_nlp(problem, net)
-    opts = problem.solver
-    ipopt = {"tol": opts.tol, "max_iter": opts.max_iter, "print_level": print_level,
-             "sb": "yes",
-             "linear_solver": "mumps", "mumps_pivot_order": 5,   # METIS: 8 % faster, 100 x 100
-             "hessian_approximation": opts.hessian,
-             "fixed_variable_treatment": "make_parameter", "mu_strategy": "adaptive",
-             "acceptable_iter": 0}
-    ipopt.update(extra_options or {})
-    solver = ca.nlpsol("jacquard_static", "ipopt", nlp,
-                       {"ipopt": ipopt, "print_time": False, "expand": False})
-    t1 = time.perf_counter()
-    sol = solver(x0=data["x0"], lbx=data["lbx"], ubx=data["ubx"], lbg=data["lbg"],
-                 ubg=data["ubg"])
-    t2 = time.perf_counter()
-    stats = solver.stats()
-    x = np.array(sol["x"]).ravel()[: 2 * net.natural.shape[0]].reshape(-1, 2)
-    return JacquardResult(problem, net, "static", x, bool(stats["success"]),
-                          str(stats["return_status"]), iterations=int(stats["iter_count"]),
-                          timings={"build_s": t1 - t0, "solve_s": t2 - t1})
+    s = merge_parallel(net.springs)
+    inc = incidence(s, net.natural.shape[0])
+    ipopt = _ipopt_options(problem, print_level, extra_options)
+    work = WorkingSet(np.zeros(0, dtype=int), np.zeros(0, dtype=int))
+    x = net.natural.ravel().copy()
+    timings = {"build_s": time.perf_counter() - t0, "solve_s": 0.0}
+    iterations, status, success = 0, "", False
+    for rounds in range(1, MAX_ROUNDS + 1):
+        tb = time.perf_counter()
+        nlp, custom, bounds = build_nlp(problem, net, s, inc, work)
+        solver = ca.nlpsol("jacquard_static", "ipopt", nlp,
+                           {**custom, "ipopt": ipopt, "print_time": False})
+        ts = time.perf_counter()
+        sol = solver(x0=x, **bounds)
+        timings["build_s"] += ts - tb
+        timings["solve_s"] += time.perf_counter() - ts
+        stats = solver.stats()
+        iterations += int(stats["iter_count"])
+        status, success = str(stats["return_status"]), bool(stats["success"])
+        x = np.array(sol["x"]).ravel()
+        new = violations(x.reshape(-1, 2), net, s, work)
+        if not success or (new.limits.size == 0 and new.orders.size == 0):
+            break
+        work = WorkingSet(np.union1d(work.limits, new.limits),
+                          np.union1d(work.orders, new.orders))
+    else:
+        status, success = f"constraints still violated after {MAX_ROUNDS} rounds", False
+    return JacquardResult(problem, net, "static", x.reshape(-1, 2), success, status,
+                          iterations=iterations, timings=timings,
+                          constraints={"rounds": rounds, "length_limits": int(work.limits.size),
+                                       "order": int(work.orders.size)})
