@@ -118,19 +118,91 @@ def parse_design(text: str, table: Table, key: str) -> np.ndarray:
     return grid[::-1].copy()  # top line of the text is the top course
 
 
-def _read_design(t: Table, base: Path) -> tuple[str, str]:
-    """The design text from ``design`` (inline) or ``design_file`` (beside the TOML file)."""
-    has_inline, has_file = t.has("design"), t.has("design_file")
-    if has_inline == has_file:
-        raise t.error("design", "give exactly one of 'design' (inline text) or 'design_file'")
-    if has_inline:
-        return t.string("design"), "design"
-    rel = t.string("design_file")
-    path = (base / rel) if not Path(rel).is_absolute() else Path(rel)
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+LUMINANCE = np.array([0.299, 0.587, 0.114])
+
+
+def _load_png(path: Path, table: Table, key: str) -> np.ndarray:
+    """The pixels of a PNG file as floats in [0, 1], shape (rows, cols) or (rows, cols, 3|4)."""
+    import matplotlib.image as mpimg  # deferred: only image designs need it
+
     try:
-        return path.read_text(encoding="utf-8"), "design_file"
+        with open(path, "rb") as fh:
+            if fh.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
+                raise table.error(key, f"{path} is not a PNG image")
+        pixels = np.asarray(mpimg.imread(path, format="png"))
+    except (OSError, ValueError, SyntaxError) as err:  # Pillow's errors for broken files
+        reason = " ".join(str(err).split())           # keep the message on one line
+        raise table.error(key, f"cannot read design image {path} ({reason})") from None
+    if np.issubdtype(pixels.dtype, np.integer):
+        pixels = pixels / np.iinfo(pixels.dtype).max
+    return pixels.astype(np.float64)
+
+
+def _opaque_colours(pixels: np.ndarray, table: Table, key: str) -> np.ndarray:
+    """Greyscale or RGB(A) pixels as RGB rows x cols x 3; any pixel with alpha < 1 is an error."""
+    if pixels.ndim == 2:
+        return np.repeat(pixels[:, :, None], 3, axis=2)
+    if pixels.ndim != 3 or pixels.shape[2] not in (3, 4):
+        raise table.error(key, f"unsupported image layout {pixels.shape} "
+                          "(use greyscale, RGB or RGBA)")
+    if pixels.shape[2] == 4:
+        see_through = np.argwhere(pixels[:, :, 3] < 1.0)
+        if len(see_through):
+            row, col = see_through[0]
+            raise table.error(key, f"pixel (x={col}, y={row} from the top left) has alpha "
+                              f"{pixels[row, col, 3]:.3g} < 1: a transparent cell is ambiguous")
+    return pixels[:, :, :3]
+
+
+def read_design_image(path: Path, table: Table, key: str) -> np.ndarray:
+    """A three-colour PNG design as codes[j, i] (0 net, 1 thin, 2 thick; j = 0 bottom course).
+
+    One pixel per cell; the top pixel row is the top course (as in text designs). Greyscale,
+    RGB and RGBA PNGs, 8/16-bit or float, are accepted. Colour rule: black = thick, mid grey =
+    thin, white = net, classified by luminance ``Y = 0.299 R + 0.587 G + 0.114 B`` in [0, 1]:
+    ``Y < 1/3`` thick, ``1/3 <= Y < 2/3`` thin, ``Y >= 2/3`` net. Errors (naming ``key``): a
+    missing, unreadable or non-PNG file, any pixel with alpha < 1, more than three distinct
+    colours.
+    """
+    rgb = _opaque_colours(_load_png(path, table, key), table, key)
+    n_colours = len(np.unique(rgb.reshape(-1, 3), axis=0))
+    if n_colours > 3:
+        raise table.error(key, f"design image {path} has {n_colours} distinct colours; use at "
+                          "most three (black = thick, mid grey = thin, white = net)")
+    luminance = rgb @ LUMINANCE
+    grid = np.where(luminance < 1 / 3, 2, np.where(luminance < 2 / 3, 1, 0)).astype(np.int8)
+    return grid[::-1].copy()  # top pixel row is the top course
+
+
+DESIGN_KEYS = ("design", "design_file", "design_image")
+
+
+def _resolve(base: Path, rel: str) -> Path:
+    """A path from the problem file, relative to the TOML file's folder unless absolute."""
+    return Path(rel) if Path(rel).is_absolute() else base / rel
+
+
+def _read_design(t: Table, base: Path) -> tuple[np.ndarray, str]:
+    """The design codes and the key they came from: ``design`` (inline text), ``design_file``
+    (text file) or ``design_image`` (PNG), files relative to the TOML file; exactly one."""
+    given = [k for k in DESIGN_KEYS if t.has(k)]
+    if len(given) != 1:
+        which = f"got {', '.join(given)}" if given else "got none"
+        raise t.error(given[1] if len(given) > 1 else "design",
+                      "give exactly one of 'design' (inline text), 'design_file' (text file) "
+                      f"or 'design_image' (PNG); {which}")
+    key = given[0]
+    if key == "design":
+        return parse_design(t.string("design"), t, key), key
+    path = _resolve(base, t.string(key))
+    if key == "design_image":
+        return read_design_image(path, t, key), key
+    try:
+        text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
-        raise t.error("design_file", f"cannot read design file {path} ({err})") from None
+        raise t.error(key, f"cannot read design file {path} ({err})") from None
+    return parse_design(text, t, key), key
 
 
 def _ratio(t: Table, key: str, default: float) -> float:
@@ -142,8 +214,7 @@ def _ratio(t: Table, key: str, default: float) -> float:
 
 def _read_system(parent: Table, name: str, base: Path, shape: tuple[int, int]) -> JacquardSystem:
     t = parent.table(name, required=True)
-    text, key = _read_design(t, base)
-    codes = parse_design(text, t, key)
+    codes, key = _read_design(t, base)
     n, m = shape
     if codes.shape != (n, m):
         raise t.error(key, f"design is {codes.shape[1]} wales x {codes.shape[0]} courses; "
