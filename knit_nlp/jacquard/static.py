@@ -13,10 +13,10 @@ convex (a square of a non-negative convex function). The paper's constraints,
     X(i+1,j) + offset - X(i,j) >= 0                 (order constraint, paper 3.4.1; linear)
 
 are added by constraint generation: solve with none, add every violated (or nearly active) one,
-re-solve warm, until the solution satisfies them all. Because the problem is convex, the
-minimiser of a relaxation that satisfies every constraint is the minimiser of the whole problem,
-so the loop ends at the true constrained equilibrium; at the benchmark designs no constraint is
-active and one solve suffices.
+re-solve warm, until the solution satisfies them all. A minimiser of a relaxation that
+satisfies every constraint is a minimiser of the whole problem (globally, as the rope problem is
+convex; locally in any case), so the loop ends at the constrained equilibrium; at the benchmark
+designs no constraint is active and one solve suffices.
 
 Derivatives (the reason for this shape): the Hessian of the Lagrangian is
 ``B^T blockdiag(H_s) B`` with one symmetric 2x2 block ``H_s`` per spring, so its nonzeros are
