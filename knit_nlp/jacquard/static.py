@@ -260,7 +260,8 @@ def _ipopt_options(problem: JacquardProblem, print_level: int, extra: dict | Non
              "sb": "yes", "linear_solver": "mumps",
              "mumps_pivot_order": 5,             # METIS (see docs/jacquard.md)
              "hessian_approximation": opts.hessian,
-             "fixed_variable_treatment": "make_parameter", "mu_strategy": "adaptive"}
+             "fixed_variable_treatment": "make_parameter", "mu_strategy": "adaptive",
+             "acceptable_iter": 0}               # success means Solve_Succeeded, nothing less
     ipopt.update(extra or {})
     return ipopt
 
