@@ -78,3 +78,17 @@ def test_line_clamps_change_the_fig7_solution(tmp_path):
     assert same["centreline_distance"]["max"] < 1e-5
     assert same["line_clamps"]["energy"]["total"] == pytest.approx(
         same["point_clamps"]["energy"]["total"], rel=1e-7)
+
+
+def test_condensed_reduced_model_reaches_the_lifted_reduced_minimum():
+    """bench_reduction_bound's condensed form (z and course starts only, loop starts chained)
+    and the shipped lifted reduced model are independent transcriptions of one model: same
+    energy at the solution, and the condensed one has the paper's parameter count."""
+    bound = _script("bench_reduction_bound")
+    pr = bound.parse_problem("d.toml", bound.diagonal_pull_doc(4))
+    _, _, _, e_lifted, status_lifted = bound.lifted(pr, True)()
+    _, _, _, e_condensed, status_condensed = bound.condensed(pr, "exact")()
+    assert status_lifted == status_condensed == "Solve_Succeeded"
+    assert abs(e_condensed - e_lifted) < 1e-7 * abs(e_lifted)
+    nlp, _ = bound.condensed_nlp(pr)
+    assert nlp["x"].numel() == bound.build_nlp(pr, reduced=True).n_parameters
