@@ -197,17 +197,11 @@ def build_nlp(problem: JacquardProblem, net: Network, s: SpringSet, inc: Inciden
     npart = net.natural.shape[0]
     nx, ns, nl = 2 * npart, s.n, work.limits.size
     x = ca.MX.sym("x", nx)
-    law = _spring_law().map(ns)
+    d = ca.mtimes(inc.B, x) + ca.DM(inc.c)                   # every spring vector, stacked
     sign = ca.DM(np.where(s.compress, -1.0, 1.0)).T
-    k, l0 = ca.DM(s.k).T, ca.DM(s.l0).T
-
-    def blocks(xv: ca.MX) -> tuple[ca.MX, ca.MX]:
-        d = ca.reshape(ca.mtimes(inc.B, xv) + ca.DM(inc.c), 2, ns)
-        return law(d, k, l0, sign)
-
+    energy, h = _spring_law().map(ns)(ca.reshape(d, 2, ns), ca.DM(s.k).T, ca.DM(s.l0).T, sign)
     nat = ca.DM(net.natural.ravel())
     eps = problem.solver.regularization * float(np.max(s.k)) if ns else 0.0
-    energy, _ = blocks(x)
     f = pairwise_sum(energy) + 0.5 * eps * ca.sumsqr(x - nat)
     L, lin_lo, lin_hi = _linear_rows(net, work, nx)
     g_parts, lbg, ubg = [ca.mtimes(L, x)], [lin_lo], [lin_hi]
@@ -216,7 +210,7 @@ def build_nlp(problem: JacquardProblem, net: Network, s: SpringSet, inc: Inciden
         sel = _sparse(np.concatenate([2 * r, 2 * r + 1]),
                       np.concatenate([2 * work.limits, 2 * work.limits + 1]),
                       np.ones(2 * nl), (2 * nl, 2 * ns))
-        d_lim = ca.reshape(ca.mtimes(sel, ca.mtimes(inc.B, x) + ca.DM(inc.c)), 2, nl)
+        d_lim = ca.reshape(ca.mtimes(sel, d), 2, nl)
         g_parts.append(0.5 * ca.sum1(d_lim ** 2).T)
         lbg.append(np.full(nl, -np.inf))
         ubg.append(0.5 * s.limit[work.limits] ** 2)
@@ -224,7 +218,6 @@ def build_nlp(problem: JacquardProblem, net: Network, s: SpringSet, inc: Inciden
 
     # hess_lag = lam_f (sum_s B_s^T H_s B_s + eps I) + sum_limits lam_i B_i^T I B_i
     lam_f, lam_g, p = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel()), ca.MX.sym("p", 0)
-    _, h = blocks(x)
     h = lam_f * h
     if nl:
         mu = ca.mtimes(_sparse(work.limits, L.size1() + np.arange(nl), np.ones(nl),
