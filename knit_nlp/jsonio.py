@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from .atomic import write_text
+
 
 def _plain(obj: Any) -> Any:
     if isinstance(obj, dict):
@@ -23,7 +25,6 @@ def _plain(obj: Any) -> Any:
 
 
 def write_json(path: Path, data: dict[str, Any]) -> Path:
-    """Write ``data`` as indented JSON (non-finite numbers become null), creating the folder."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(_plain(data), indent=1) + "\n")
-    return path
+    """Write ``data`` as indented JSON (non-finite numbers become null), creating the folder;
+    atomically (:mod:`knit_nlp.atomic`)."""
+    return write_text(path, json.dumps(_plain(data), indent=1) + "\n")

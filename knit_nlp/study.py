@@ -25,7 +25,10 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from .atomic import atomic_file
+from .errors import ProblemError, quoted
 from .jsonio import write_json
+from .tomlio import finite_number
 from .weft.nlp import build_nlp
 from .weft.problem import WeftProblem, parse_problem
 from .weft.results import result_dict
@@ -59,28 +62,58 @@ class WeftStudy:
         p = self.wnlp.p0.copy()
         tgt = pl.get(p, "targets")
         for k, v in (targets or {}).items():
-            tgt[:, int(k)] = v
+            tgt[:, self._index(k, pr.clamps, "clamp")] = self._values(v, 2, "clamp", "position")
         for k, v in (displacements or {}).items():
-            c = pr.clamps[int(k)]
-            tgt[:, int(k)] = pr.natural_position(c.loop, c.s) + np.asarray(v, dtype=float)
+            c = pr.clamps[self._index(k, pr.clamps, "clamp")]
+            tgt[:, int(k)] = (pr.natural_position(c.loop, c.s)
+                              + self._values(v, 2, "clamp", "displacement"))
         pl.put(p, "targets", tgt)
         rig = pl.get(p, "rigid")
         for k, v in (rigid or {}).items():
-            rig[:, int(k)] = v
+            rig[:, self._index(k, pr.rigid_clamps, "rigid_clamp")] = self._values(
+                v, 3, "rigid_clamp", "translation, rotation")
         pl.put(p, "rigid", rig)
         for name, v in (material or {}).items():
             if name not in ("k_a", "k_b", "R_f"):
-                raise KeyError(f"unknown material value {name!r}")
-            pl.put(p, name, v)
+                raise self._error("material", str(name), "unknown material value (allowed: "
+                                  "k_a, k_b, R_f)")
+            value = self._values([v], 1, "material", name)[0]
+            if value < 0:
+                raise self._error("material", name, f"must not be negative, got {value:g}")
+            pl.put(p, name, value)
         f = pl.get(p, "forces")
         for k, v in (forces or {}).items():
-            f[:, int(k)] = v
+            f[:, self._index(k, pr.loads, "load")] = self._values(v, 2, "load", "force")
         pl.put(p, "forces", f)
         mo = pl.get(p, "moments").ravel()
         for k, v in (moments or {}).items():
-            mo[int(k)] = v
+            mo[self._index(k, pr.loads, "load")] = self._values([v], 1, "load", "moment")[0]
         pl.put(p, "moments", mo)
         return p
+
+    def _error(self, table: str, key: str, message: str) -> ProblemError:
+        return ProblemError(self.problem.file, table, key, message)
+
+    def _index(self, k: Any, items: Sequence[Any], table: str) -> int:
+        """A 0-based index into the problem's clamps, rigid clamps or loads (an integer, or
+        its decimal string as JSON keys are)."""
+        if isinstance(k, str) and k.isdecimal() and len(k) < 10:
+            k = int(k)
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k < len(items):
+            raise self._error(table, "", f"no {table} with index {quoted(k)} (the problem has "
+                              f"{len(items)}, indexed from 0)")
+        return int(k)
+
+    def _values(self, v: Any, length: int, table: str, key: str) -> np.ndarray:
+        """``length`` finite numbers, as the file reader accepts them (tomlio.finite_number)."""
+        values = np.atleast_1d(np.asarray(v, dtype=object)).ravel()
+        if values.size != length:
+            raise self._error(table, key, f"expected {length} numbers, got {values.size}")
+        try:
+            return np.array([finite_number(x.item() if isinstance(x, np.generic) else x)
+                             for x in values])
+        except ValueError as err:
+            raise self._error(table, key, str(err)) from None
 
     def solve(self, p: np.ndarray, x0: np.ndarray | None = None) -> SolveReport:
         """Solve at parameters ``p`` from ``x0`` (the natural state if None); falls back to
@@ -135,6 +168,22 @@ def _summary_row(path: LoadPath, index: int, result: dict[str, Any]) -> dict[str
                              for r in result["rigid_clamps"]]}
 
 
+def _read_cached(js: Path, npy: Path) -> tuple[dict[str, Any], np.ndarray] | None:
+    """A cached point's result and solution vector, or None if missing or damaged (a study
+    killed by an older version mid-write, a disk error): such a point is solved again."""
+    try:
+        result = json.loads(js.read_text(encoding="utf-8"))
+        x = np.load(npy, allow_pickle=False)
+    except (OSError, ValueError, EOFError):      # JSONDecodeError and numpy's errors are ValueErrors
+        return None
+    if not isinstance(result, dict) or not {"success", "status", "energy", "iterations",
+                                            "clamps", "rigid_clamps"} <= set(result):
+        return None
+    if x.dtype != np.float64 or x.ndim != 1:
+        return None
+    return result, x
+
+
 def run_path(path: LoadPath, cache: Path, limit: int | None = None,
              tick: Callable[[], None] | None = None) -> list[dict[str, Any]]:
     """Solve one path in order with caching; at most ``limit`` new solves (None: all)."""
@@ -142,9 +191,9 @@ def run_path(path: LoadPath, cache: Path, limit: int | None = None,
     rows, x_prev, study, new = [], None, None, 0
     for index in range(len(path.points)):
         js, npy = point_files(cache, path, index)
-        if js.exists():
-            result = json.loads(js.read_text())
-            x_prev = np.load(npy)
+        cached = _read_cached(js, npy)
+        if cached is not None:
+            result, x_prev = cached
         else:
             if limit is not None and new >= limit:
                 break
@@ -153,8 +202,9 @@ def run_path(path: LoadPath, cache: Path, limit: int | None = None,
             p = study.params(**path.points[index])
             rep = study.solve(p, x0=x_prev)
             result = study.result(rep, p)
-            np.save(npy, rep.x)
-            write_json(js, result)
+            with atomic_file(npy) as fh:
+                np.save(fh, rep.x)
+            write_json(js, result)          # last: a point counts as cached once its JSON exists
             x_prev, new = rep.x, new + 1
         rows.append(_summary_row(path, index, result))
         if tick:
@@ -170,8 +220,7 @@ def _worker(args: tuple[LoadPath, Path, int | None, Any]) -> list[dict[str, Any]
 def write_csv(path: Path, rows: Sequence[Mapping[str, Any]],
               fields: Sequence[str] | None = None) -> Path:
     """A study table as CSV (columns ``fields``, default the first row's keys)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
+    with atomic_file(path, "w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(fields or rows[0]))
         writer.writeheader()
         writer.writerows(rows)

@@ -6,26 +6,90 @@ value's type, and rejects keys nobody asked for. Nothing in a problem file is ev
 from __future__ import annotations
 
 import math
+import os
+import re
+import stat
 import tomllib
 from pathlib import Path
 from typing import Any, Iterable
 
-from .errors import ProblemError
+from .errors import ProblemError, quoted
 
 _MISSING = object()
 
+MAX_PROBLEM_BYTES = 1 << 20      # a problem file is at most 1 MiB (README, "Limits")
+MAX_MAGNITUDE = 1e9              # every number in a problem file has |value| <= 1e9
+MAX_INTEGER = 10 ** 9            # and every integer, unless its key says less
 
-def load_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; unreadable or malformed files raise :class:`ProblemError`."""
+
+def read_regular_file(path: Path, limit: int) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes, or :class:`ProblemError`.
+
+    Devices, FIFOs, sockets and folders are refused from their ``stat`` before anything is
+    opened (so nothing blocks or streams for ever), and at most ``limit + 1`` bytes are read.
+    """
     try:
+        info = os.stat(path)
+        if not stat.S_ISREG(info.st_mode):
+            raise ProblemError(path, "", "", "not a regular file (a folder, device or FIFO)")
+        if info.st_size > limit:
+            raise ProblemError(path, "", "", f"{info.st_size} bytes; the limit is {limit} bytes")
         with open(path, "rb") as fh:
-            return tomllib.load(fh)
+            data = fh.read(limit + 1)
     except FileNotFoundError:
         raise ProblemError(path, "", "", "no such file") from None
+    except (OSError, ValueError) as err:     # ValueError: a NUL in the path
+        reason = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
+        raise ProblemError(path, "", "", f"cannot read it ({reason})") from None
+    if len(data) > limit:
+        raise ProblemError(path, "", "", f"more than {limit} bytes")
+    return data
+
+
+def load_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; unreadable, oversized or malformed files raise :class:`ProblemError`."""
+    data = read_regular_file(path, MAX_PROBLEM_BYTES)
+    try:
+        return tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as err:
+        raise ProblemError(path, "", "", f"not UTF-8 text (byte {err.start})") from None
     except tomllib.TOMLDecodeError as err:
         raise ProblemError(path, "", "", f"not valid TOML ({err})") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ProblemError(path, "", "", f"cannot read file ({err})") from None
+    except (ValueError, RecursionError) as err:  # e.g. an integer of more than 4300 digits
+        raise ProblemError(path, "", "", f"not a usable TOML document ({type(err).__name__}: "
+                           f"{str(err)[:80]})") from None
+
+
+def finite_number(value: Any, limit: float = MAX_MAGNITUDE) -> float:
+    """``value`` as a float if it is a (non-boolean) finite number with |value| <= ``limit``;
+    else ``ValueError`` with the one-line reason (also used to check Python API arguments)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"expected a number, got {_type_name(value)}")
+    if isinstance(value, int) and abs(value) > limit:     # before float(): no OverflowError
+        raise ValueError(f"must have magnitude <= {limit:g}; got an integer of "
+                         f"{len(str(abs(value)))} digits")
+    if not math.isfinite(value):
+        raise ValueError(f"must be finite, got {value}")
+    if abs(value) > limit:
+        raise ValueError(f"must have magnitude <= {limit:g}, got {value:g}")
+    return float(value)
+
+
+STEM = re.compile(r"\w[\w .+-]{0,99}")
+STEM_RULE = ("a plain file stem: up to 100 letters, digits, '_', '-', '+', '.' or spaces, "
+             "starting with a letter, digit or '_', without '..' or a trailing space")
+
+
+def is_plain_stem(name: str) -> bool:
+    """True when ``name`` can name output files inside ``--out`` and nowhere else."""
+    return bool(STEM.fullmatch(name)) and ".." not in name and not name.endswith(" ")
+
+
+def derived_stem(path: Path | str) -> str:
+    """A plain stem from a file name: characters outside the stem rule become ``_``."""
+    text = re.sub(r"[^\w .+-]", "_", Path(str(path)).stem)[:100].replace("..", "__").rstrip(" ")
+    text = text if text and re.match(r"\w", text) else "_" + text
+    return text[:100]
 
 
 def _type_name(value: Any) -> str:
@@ -58,7 +122,8 @@ class Table:
             return default
         return self.data[key]
 
-    def integer(self, key: str, default: Any = _MISSING, minimum: int | None = None) -> int:
+    def integer(self, key: str, default: Any = _MISSING, minimum: int | None = None,
+                maximum: int = MAX_INTEGER) -> int:
         value = self._raw(key, default)
         if value is default and key not in self.data:
             return value
@@ -66,6 +131,8 @@ class Table:
             raise self.error(key, f"expected an integer, got {_type_name(value)}")
         if minimum is not None and value < minimum:
             raise self.error(key, f"must be >= {minimum}, got {value}")
+        if value > maximum:
+            raise self.error(key, f"must be <= {maximum}, got {value}")
         return value
 
     def number(self, key: str, default: Any = _MISSING, *, positive: bool = False,
@@ -81,11 +148,10 @@ class Table:
         return value
 
     def _as_float(self, key: str, value: Any) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(key, f"expected a number, got {_type_name(value)}")
-        if not math.isfinite(value):
-            raise self.error(key, f"must be finite, got {value}")
-        return float(value)
+        try:
+            return finite_number(value)
+        except ValueError as err:
+            raise self.error(key, str(err)) from None
 
     def string(self, key: str, default: Any = _MISSING, choices: Iterable[str] | None = None) -> str:
         value = self._raw(key, default)
@@ -94,7 +160,18 @@ class Table:
         if not isinstance(value, str):
             raise self.error(key, f"expected a string, got {_type_name(value)}")
         if choices is not None and value not in choices:
-            raise self.error(key, f"must be one of {', '.join(sorted(choices))}; got {value!r}")
+            raise self.error(key, f"must be one of {', '.join(sorted(choices))}; got {quoted(value)}")
+        return value
+
+    def stem(self, key: str) -> str:
+        """A name for output files (``name``): given, it must be a plain stem
+        (:data:`STEM_RULE`); missing, it is derived from the file name."""
+        if not self.has(key):
+            self._read.add(key)
+            return derived_stem(self.file)
+        value = self.string(key)
+        if not is_plain_stem(value):
+            raise self.error(key, f"must be {STEM_RULE}; got {quoted(value)}")
         return value
 
     def numbers(self, key: str, default: Any = _MISSING, length: int | None = None) -> list[float]:
@@ -117,6 +194,8 @@ class Table:
             raise self.error(key, "expected an array of integers")
         if length is not None and len(value) != length:
             raise self.error(key, f"expected {length} integers, got {len(value)}")
+        if any(abs(v) > MAX_INTEGER for v in value):
+            raise self.error(key, f"entries must lie in [-{MAX_INTEGER}, {MAX_INTEGER}]")
         return list(value)
 
     def strings(self, key: str, default: Any = _MISSING, choices: Iterable[str] | None = None) -> list[str]:
@@ -128,7 +207,7 @@ class Table:
         if choices is not None:
             bad = [v for v in value if v not in choices]
             if bad:
-                raise self.error(key, f"unknown entry {bad[0]!r}; allowed: {', '.join(choices)}")
+                raise self.error(key, f"unknown entry {quoted(bad[0])}; allowed: {', '.join(choices)}")
         return list(value)
 
     def value(self, key: str, default: Any = _MISSING) -> Any:

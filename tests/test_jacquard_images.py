@@ -144,7 +144,7 @@ def _write_bad(tmp_path: Path, case: str) -> Path:
 @pytest.mark.parametrize("case, words", [
     ("four colours", "4 distinct colours"),
     ("transparent", "(x=3, y=2 from the top left) has alpha 0"),
-    ("wrong size", "design is 5 wales x 6 courses; [fabric] declares 6 x 6"),
+    ("wrong size", "design image is 5 x 6 pixels; [fabric] declares 6 wales x 6 courses"),
     ("not an image", "is not a PNG image"),
     ("jpeg", "is not a PNG image"),
     ("missing", "cannot read design image"),

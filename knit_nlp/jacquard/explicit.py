@@ -14,6 +14,8 @@ from .result import JacquardResult
 from .springs import (Network, build_network, residual_force, spring_energy, spring_forces,
                       spring_geometry)
 
+CLOCK_EVERY = 64      # steps between checks of the wall-clock budget ([solver] max_time)
+
 
 def _order_groups(net: Network, wales: int) -> list[np.ndarray]:
     """Split the order pairs into groups sharing no particle (even wales, odd wales, the seam)."""
@@ -105,27 +107,33 @@ def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
     if history is not None:
         history.append(spring_energy(x, net.springs))
     t1 = time.perf_counter()
-    converged, steps, move = False, 0, np.inf
-    for steps in range(1, max_steps + 1):
-        a1 = accel(x, v)
-        xh, vh = x + 0.5 * dt * v, v + 0.5 * dt * a1      # first Euler half step (eq. 10)
-        a2 = accel(xh, vh)
-        x_new, v_new = x + dt * vh, v + dt * a2           # second, from the midpoint (eq. 11)
-        enforce_order(x_new, v_new, net, groups, mobile)
-        limit_springs(x_new, v_new, net, mobile)
-        move = float(np.max(np.abs(x_new - x)))
-        x, v = x_new, v_new
-        if history is not None:
-            history.append(spring_energy(x, net.springs) + 0.5 * m * float(np.sum(v * v)))
-        if not np.isfinite(move):
-            break
-        if force_tol is None and move < tol:
-            converged = True
-            break
-        if force_tol is not None and steps % check_every == 0 \
-                and residual_force(x, net) < force_tol:
-            converged = True
-            break
+    converged, steps, move, out_of_time = False, 0, np.inf, False
+    deadline = t0 + opts.max_time
+    # a diverging run overflows before its positions turn NaN; the status reports it
+    with np.errstate(over="ignore", invalid="ignore"):
+        for steps in range(1, max_steps + 1):
+            if steps % CLOCK_EVERY == 0 and time.perf_counter() > deadline:
+                out_of_time, steps = True, steps - 1
+                break
+            a1 = accel(x, v)
+            xh, vh = x + 0.5 * dt * v, v + 0.5 * dt * a1      # first Euler half step (eq. 10)
+            a2 = accel(xh, vh)
+            x_new, v_new = x + dt * vh, v + dt * a2           # second, from the midpoint (eq. 11)
+            enforce_order(x_new, v_new, net, groups, mobile)
+            limit_springs(x_new, v_new, net, mobile)
+            move = float(np.max(np.abs(x_new - x)))
+            x, v = x_new, v_new
+            if history is not None:
+                history.append(spring_energy(x, net.springs) + 0.5 * m * float(np.sum(v * v)))
+            if not np.isfinite(move):
+                break
+            if force_tol is None and move < tol:
+                converged = True
+                break
+            if force_tol is not None and steps % check_every == 0 \
+                    and residual_force(x, net) < force_tol:
+                converged = True
+                break
     if np.isfinite(move):   # final projection: end with every spring within its limit
         enforce_order(x, v, net, groups, mobile, sweeps=100)
         limit_springs(x, v, net, mobile, sweeps=2000)
@@ -133,6 +141,7 @@ def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
     status = (f"converged: residual force < {force_tol:.3g}" if converged and force_tol else
               f"converged: largest move {move:.3g} mm < {tol:.3g} mm" if converged else
               "diverged (non-finite positions)" if not np.isfinite(move) else
+              f"max_time {opts.max_time:g} s exceeded after {steps} steps" if out_of_time else
               f"step limit {max_steps} reached; largest move {move:.3g} mm")
     return JacquardResult(problem, net, "explicit", x, converged, status, steps=steps,
                           timings={"build_s": t1 - t0, "solve_s": t2 - t1},

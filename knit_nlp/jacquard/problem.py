@@ -6,13 +6,16 @@ The model itself is spec/jacquard_mass_spring.md; docs/jacquard.md is the key re
 """
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..tomlio import Table, load_toml
+from ..errors import ProblemError, quoted
+from ..limits import check_memory, jacquard_bytes
+from ..tomlio import Table, load_toml, read_regular_file
 
 SYMBOLS = {"#": "thick", "+": "thin", ".": "net"}
 STRUCTURES = ("thick", "thin", "net")
@@ -54,6 +57,7 @@ class SolverOptions:
     move_tol: float = 1e-10         # explicit: stop when max move in a step < move_tol * w
     max_steps: int = 200_000        # explicit step limit
     regularization: float = 1e-8    # static: eps * max(k) * 1/2 |x - x_natural|^2 (0 = off)
+    max_time: float = 3600.0        # wall-clock budget of the solve, seconds
 
 
 @dataclass(frozen=True)
@@ -109,7 +113,7 @@ def parse_design(text: str, table: Table, key: str) -> np.ndarray:
     for row, line in enumerate(lines):
         bad = [c for c in line if c not in SYMBOLS]
         if bad:
-            raise table.error(key, f"unknown design symbol {bad[0]!r} in line {row + 1} "
+            raise table.error(key, f"unknown design symbol {quoted(bad[0])} in line {row + 1} "
                               "(use '#' thick, '+' thin, '.' net)")
         if len(line) != width:
             raise table.error(key, f"design line {row + 1} has {len(line)} cells, line 1 has {width}")
@@ -120,20 +124,37 @@ def parse_design(text: str, table: Table, key: str) -> np.ndarray:
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 LUMINANCE = np.array([0.299, 0.587, 0.114])
+MAX_DESIGN_BYTES = 8 * 2 ** 20      # design files and images (README, "Limits")
 
 
-def _load_png(path: Path, table: Table, key: str) -> np.ndarray:
-    """The pixels of a PNG file as floats in [0, 1], shape (rows, cols) or (rows, cols, 3|4)."""
+def png_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) from a PNG's IHDR chunk, or None if ``data`` does not start like a PNG."""
+    if len(data) < 24 or data[:8] != PNG_SIGNATURE or data[12:16] != b"IHDR":
+        return None
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+
+
+def _load_png(path: Path, table: Table, key: str, shape: tuple[int, int]) -> np.ndarray:
+    """The pixels of a PNG file as floats in [0, 1], shape (rows, cols) or (rows, cols, 3|4).
+
+    The header's width x height must be the fabric's wales x courses (``shape`` = (n, m)) and
+    is checked before anything is decoded, so an image can never decode into more pixels than
+    the size limits allow."""
     import matplotlib.image as mpimg  # deferred: only image designs need it
 
+    data = _read_design_bytes(path, table, key)
+    size = png_size(data)
+    if size is None:
+        raise table.error(key, f"{quoted(path)} is not a PNG image")
+    n, m = shape
+    if size != (m, n):
+        raise table.error(key, f"design image is {size[0]} x {size[1]} pixels; [fabric] "
+                          f"declares {m} wales x {n} courses (one pixel per cell)")
     try:
-        with open(path, "rb") as fh:
-            if fh.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
-                raise table.error(key, f"{path} is not a PNG image")
-        pixels = np.asarray(mpimg.imread(path, format="png"))
-    except (OSError, ValueError, SyntaxError) as err:  # Pillow's errors for broken files
-        reason = " ".join(str(err).split())           # keep the message on one line
-        raise table.error(key, f"cannot read design image {path} ({reason})") from None
+        pixels = np.asarray(mpimg.imread(io.BytesIO(data), format="png"))
+    except (OSError, ValueError, SyntaxError, EOFError) as err:  # Pillow's errors
+        raise table.error(key, f"cannot read design image {quoted(path)} "
+                          f"({quoted(err)})") from None
     if np.issubdtype(pixels.dtype, np.integer):
         pixels = pixels / np.iinfo(pixels.dtype).max
     return pixels.astype(np.float64)
@@ -155,7 +176,7 @@ def _opaque_colours(pixels: np.ndarray, table: Table, key: str) -> np.ndarray:
     return pixels[:, :, :3]
 
 
-def read_design_image(path: Path, table: Table, key: str) -> np.ndarray:
+def read_design_image(path: Path, table: Table, key: str, shape: tuple[int, int]) -> np.ndarray:
     """A three-colour PNG design as codes[j, i] (0 net, 1 thin, 2 thick; j = 0 bottom course).
 
     One pixel per cell; the top pixel row is the top course (as in text designs). Greyscale,
@@ -165,10 +186,10 @@ def read_design_image(path: Path, table: Table, key: str) -> np.ndarray:
     missing, unreadable or non-PNG file, any pixel with alpha < 1, more than three distinct
     colours.
     """
-    rgb = _opaque_colours(_load_png(path, table, key), table, key)
+    rgb = _opaque_colours(_load_png(path, table, key, shape), table, key)
     n_colours = len(np.unique(rgb.reshape(-1, 3), axis=0))
     if n_colours > 3:
-        raise table.error(key, f"design image {path} has {n_colours} distinct colours; use at "
+        raise table.error(key, f"design image {quoted(path)} has {n_colours} distinct colours; use at "
                           "most three (black = thick, mid grey = thin, white = net)")
     luminance = rgb @ LUMINANCE
     grid = np.where(luminance < 1 / 3, 2, np.where(luminance < 2 / 3, 1, 0)).astype(np.int8)
@@ -178,12 +199,34 @@ def read_design_image(path: Path, table: Table, key: str) -> np.ndarray:
 DESIGN_KEYS = ("design", "design_file", "design_image")
 
 
-def _resolve(base: Path, rel: str) -> Path:
-    """A path from the problem file, relative to the TOML file's folder unless absolute."""
-    return Path(rel) if Path(rel).is_absolute() else base / rel
+def _resolve(base: Path, rel: str, t: Table, key: str) -> Path:
+    """A design file named in the problem file: a relative path, resolved (symbolic links
+    followed) inside the problem file's folder; anything else is refused."""
+    if "\0" in rel or not rel or Path(rel).is_absolute():
+        raise t.error(key, f"must be a relative path inside the problem file's folder; "
+                      f"got {quoted(rel)}")
+    try:
+        folder = base.resolve()
+        path = (folder / rel).resolve()
+    except (OSError, RuntimeError) as err:       # RuntimeError: a symbolic-link loop
+        raise t.error(key, f"cannot resolve {quoted(rel)} ({quoted(err)})") from None
+    if not path.is_relative_to(folder):
+        raise t.error(key, f"{quoted(rel)} leads outside the problem file's folder; design "
+                      "files must lie in it or below it")
+    return path
 
 
-def _read_design(t: Table, base: Path) -> tuple[np.ndarray, str]:
+def _read_design_bytes(path: Path, t: Table, key: str) -> bytes:
+    """A design file's bytes: a regular file of at most :data:`MAX_DESIGN_BYTES`."""
+    try:
+        return read_regular_file(path, MAX_DESIGN_BYTES)
+    except ProblemError as err:
+        what = "image" if key == "design_image" else "file"
+        raise t.error(key, f"cannot read design {what} {quoted(path.name)}: "
+                      f"{err.message}") from None
+
+
+def _read_design(t: Table, base: Path, shape: tuple[int, int]) -> tuple[np.ndarray, str]:
     """The design codes and the key they came from: ``design`` (inline text), ``design_file``
     (text file) or ``design_image`` (PNG), files relative to the TOML file; exactly one."""
     given = [k for k in DESIGN_KEYS if t.has(k)]
@@ -195,13 +238,14 @@ def _read_design(t: Table, base: Path) -> tuple[np.ndarray, str]:
     key = given[0]
     if key == "design":
         return parse_design(t.string("design"), t, key), key
-    path = _resolve(base, t.string(key))
+    path = _resolve(base, t.string(key), t, key)
     if key == "design_image":
-        return read_design_image(path, t, key), key
+        return read_design_image(path, t, key, shape), key
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
-        raise t.error(key, f"cannot read design file {path} ({err})") from None
+        text = _read_design_bytes(path, t, key).decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise t.error(key, f"design file {quoted(path.name)} is not UTF-8 text "
+                      f"(byte {err.start})") from None
     return parse_design(text, t, key), key
 
 
@@ -214,7 +258,7 @@ def _ratio(t: Table, key: str, default: float) -> float:
 
 def _read_system(parent: Table, name: str, base: Path, shape: tuple[int, int]) -> JacquardSystem:
     t = parent.table(name, required=True)
-    codes, key = _read_design(t, base)
+    codes, key = _read_design(t, base, shape)
     n, m = shape
     if codes.shape != (n, m):
         raise t.error(key, f"design is {codes.shape[1]} wales x {codes.shape[0]} courses; "
@@ -249,6 +293,7 @@ def _read_solver(top: Table) -> SolverOptions:
         move_tol=t.number("move_tol", d.move_tol, positive=True),
         max_steps=t.integer("max_steps", d.max_steps, minimum=1),
         regularization=t.number("regularization", d.regularization, nonnegative=True),
+        max_time=t.number("max_time", d.max_time, positive=True),
     )
     t.finish()
     return opts
@@ -258,14 +303,15 @@ def parse_problem(doc: dict[str, Any], path: Path | str) -> JacquardProblem:
     """Validate a parsed TOML document into a :class:`JacquardProblem` (no numerics)."""
     path = Path(path)
     top = Table(doc, path, "")
-    name = top.string("name", path.stem)
+    name = top.stem("name")
     description = top.string("description", "")
     model = top.string("model", "jacquard")
     if model != "jacquard":
-        raise top.error("model", f"expected 'jacquard', got {model!r}")
+        raise top.error("model", f"expected 'jacquard', got {quoted(model)}")
     fab = top.table("fabric", required=True)
     m = fab.integer("wales", minimum=1)
     n = fab.integer("courses", minimum=2)
+    check_memory(fab, "courses", jacquard_bytes(m, n), f"a {m} x {n} repeat")
     dz = fab.number("dz", positive=True)
     dh = fab.number("dh", positive=True)
     mass = fab.number("mass", 1.0, positive=True)

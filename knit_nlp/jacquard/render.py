@@ -10,15 +10,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.collections import LineCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
-
-from .problem import JacquardProblem  # noqa: E402
-from .springs import zigzag_direction  # noqa: E402
+from ..figures import new_figure, save_figure
+from .problem import JacquardProblem
+from .springs import zigzag_direction
 
 # Local stitch points (u in units of w to the right, v in units of the loop's height).
 PILLAR = np.array([[0.06, 0.0], [-0.22, 0.30], [-0.20, 0.95], [0.20, 0.95], [0.22, 0.30],
@@ -125,7 +122,13 @@ def _underlaps(t: _Tiling, sys, i, j) -> dict[str, np.ndarray]:
 
 
 def draw_fabric(ax, p: JacquardProblem, x: np.ndarray, title: str) -> None:
-    """Tiled repeats of the fabric with particle positions ``x`` ((M*N, 2), row j*M + i)."""
+    """Tiled repeats of the fabric with particle positions ``x`` ((M*N, 2), row j*M + i);
+    positions that are not all finite (a diverged run) are not drawn, and the panel says so."""
+    if not np.isfinite(x).all():
+        ax.set_title(title, fontsize=10)
+        ax.text(0.5, 0.5, "not drawn: the positions are not finite", ha="center",
+                va="center", transform=ax.transAxes)
+        return
     t = _Tiling(p, x)
     jj, ii = np.meshgrid(np.arange(t.nc), np.arange(t.nw), indexing="ij")
     i, j = ii.ravel(), jj.ravel()
@@ -155,17 +158,14 @@ def render(p: JacquardProblem, natural: np.ndarray, final: np.ndarray, path: Pat
     """Natural and simulated fabric side by side: ``path`` (PNG) and, if asked, the SVG."""
     t = _Tiling(p, natural)
     aspect = (t.nc * p.h + 2 * p.h) / (t.nw * p.w + 3 * p.w)
-    fig, axes = plt.subplots(1, 2, figsize=(12, max(3.5, min(12, 6 * aspect + 1))), dpi=110)
+    fig = new_figure(figsize=(12, max(3.5, min(12, 6 * aspect + 1))), dpi=110)
+    axes = fig.subplots(1, 2)
     reps = (f"{t.nw // p.wales} x {t.nc // p.courses} repeats" if t.nw >= p.wales and
             t.nc >= p.courses else f"{t.nw} x {t.nc} window of the {p.wales} x {p.courses} repeat")
     draw_fabric(axes[0], p, natural, f"{p.name}: natural ({reps})")
     draw_fabric(axes[1], p, final, f"simulated ({solver})")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    written = [path]
+    written = [save_figure(fig, path)]
     if svg:
-        fig.savefig(path.with_suffix(".svg"))
-        written.append(path.with_suffix(".svg"))
-    plt.close(fig)
+        written.append(save_figure(fig, path.with_suffix(".svg")))
     return written

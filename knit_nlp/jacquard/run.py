@@ -4,6 +4,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from ..errors import ProblemError, quoted
 from ..jsonio import write_json
 from .explicit import solve_explicit
 from .problem import JacquardProblem, parse_problem
@@ -11,13 +14,17 @@ from .render import render
 from .result import JacquardResult
 from .static import solve_static
 
+SOLVERS = ("static", "explicit")
 ZERO_MODE_TREATMENT = ("each floating component of the spring graph has its centroid held at "
                        "its natural centroid (what the explicit dynamics conserves)")
 
 
 def solve(problem: JacquardProblem, solver: str | None = None) -> JacquardResult:
     """Solve with ``solver`` (``static`` | ``explicit``), default the problem's own method."""
-    method = solver or problem.solver.method
+    method = problem.solver.method if solver is None else solver
+    if method not in SOLVERS:
+        raise ProblemError(problem.source or "<api>", "solver", "method",
+                           f"must be one of {', '.join(SOLVERS)}; got {quoted(method)}")
     if method == "explicit":
         return solve_explicit(problem)
     return solve_static(problem)
@@ -68,8 +75,10 @@ def solve_file(path: Path, doc: dict, out_dir: Path, *, solver: str | None = Non
     """The CLI entry: 0 on success, 1 if the solver did not converge (results still written)."""
     problem = parse_problem(doc, path)
     result = solve(problem, solver)
-    json_path = write_json(Path(out_dir) / f"{problem.name}.jacquard.json", result_dict(result))
-    render(problem, result.network.natural, result.positions,
-           Path(out_dir) / f"{problem.name}.jacquard.png", result.solver, svg=svg)
-    print(summary(result, json_path))
+    with np.errstate(over="ignore", invalid="ignore"):   # a diverged run: NaN summaries (null)
+        json_path = write_json(Path(out_dir) / f"{problem.name}.jacquard.json",
+                               result_dict(result))
+        render(problem, result.network.natural, result.positions,
+               Path(out_dir) / f"{problem.name}.jacquard.png", result.solver, svg=svg)
+        print(summary(result, json_path))
     return 0 if result.success else 1

@@ -250,6 +250,7 @@ def violations(x: np.ndarray, net: Network, s: SpringSet, work: WorkingSet,
 def _ipopt_options(problem: JacquardProblem, print_level: int, extra: dict | None) -> dict:
     opts = problem.solver
     ipopt = {"tol": opts.tol, "max_iter": opts.max_iter, "print_level": print_level,
+             "max_wall_time": opts.max_time,
              "sb": "yes", "linear_solver": "mumps",
              "mumps_pivot_order": 5,             # METIS (see docs/jacquard.md)
              "hessian_approximation": opts.hessian,
@@ -271,8 +272,13 @@ def solve_static(problem: JacquardProblem, network: Network | None = None, *,
     x = net.natural.ravel().copy()
     timings = {"build_s": time.perf_counter() - t0, "solve_s": 0.0}
     iterations, status, success = 0, "", False
+    deadline = t0 + problem.solver.max_time
     for rounds in range(1, MAX_ROUNDS + 1):
         tb = time.perf_counter()
+        if tb >= deadline:
+            status, success = f"max_time {problem.solver.max_time:g} s exceeded", False
+            break
+        ipopt["max_wall_time"] = min(ipopt["max_wall_time"], deadline - tb)
         nlp, custom, bounds = build_nlp(problem, net, s, inc, work)
         solver = ca.nlpsol("jacquard_static", "ipopt", nlp,
                            {**custom, "ipopt": ipopt, "print_time": False})

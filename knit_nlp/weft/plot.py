@@ -5,11 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import numpy as np
+from matplotlib.collections import LineCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
+from ..figures import new_figure, save_figure
 
 
 def _course_lines(lines: np.ndarray) -> list[np.ndarray]:
@@ -20,10 +19,11 @@ def _course_lines(lines: np.ndarray) -> list[np.ndarray]:
 def plot_solution(path: Path, natural: np.ndarray, deformed: np.ndarray,
                   clamps: list[dict], title: str) -> Path:
     """PNG of natural (grey) vs deformed loops with clamps (squares) and reactions (arrows)."""
-    fig, ax = plt.subplots(figsize=(7, 7))
+    fig = new_figure(figsize=(7, 7))
+    ax = fig.subplots()
     ax.add_collection(LineCollection(_course_lines(natural), colors="0.75", linewidths=1.0,
                                      label="natural"))
-    colours = plt.cm.viridis(np.linspace(0.05, 0.85, max(len(deformed), 1)))
+    colours = matplotlib.colormaps["viridis"](np.linspace(0.05, 0.85, max(len(deformed), 1)))
     ax.add_collection(LineCollection(_course_lines(deformed), colors=colours, linewidths=1.6,
                                      label="deformed"))
     pts = np.array([c["position"] for c in clamps]) if clamps else np.zeros((0, 2))
@@ -44,16 +44,14 @@ def plot_solution(path: Path, natural: np.ndarray, deformed: np.ndarray,
     ax.set_title(title, fontsize=10)
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_overlay(path: Path, full: np.ndarray, reduced: np.ndarray, title: str) -> Path:
     """PNG of full (thin black) and reduced loops, the reduced ones coloured by the distance
     between corresponding centreline points."""
-    fig, ax = plt.subplots(figsize=(7.5, 7))
+    fig = new_figure(figsize=(7.5, 7))
+    ax = fig.subplots()
     ax.add_collection(LineCollection(_course_lines(full), colors="k", linewidths=0.8))
     segs = np.stack([reduced[..., :-1, :], reduced[..., 1:, :]], axis=-2).reshape(-1, 2, 2)
     err = np.linalg.norm(full - reduced, axis=-1)
@@ -66,7 +64,4 @@ def plot_overlay(path: Path, full: np.ndarray, reduced: np.ndarray, title: str) 
     ax.margins(0.05)
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

@@ -11,8 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ProblemError
-from ..tomlio import Table, load_toml
+from ..errors import ProblemError, quoted
+from ..limits import check_memory, weft_bytes
+from ..tomlio import Table, finite_number, load_toml
 from .basis import n_coeffs
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
 from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
@@ -21,6 +22,9 @@ from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_
 # at most L/4 long; on the 10 x 10 diagonal pull 8 nodes give energy within 7e-12 (relative) and
 # centrelines within 5e-10 of 32 nodes, while 16 nodes cost twice the function evaluations.
 DEFAULT_NODES = 8
+MAX_NODES = 64            # README, "Limits"
+MAX_HARMONICS = 30
+MAX_CONTINUATION = 1000
 
 
 @dataclass(frozen=True)
@@ -71,11 +75,13 @@ class Reduction:
 
 @dataclass(frozen=True)
 class SolverOptions:
-    """IPOPT tolerance and iteration limit; continuation steps (None: only when needed)."""
+    """IPOPT tolerance and iteration limit; continuation steps (None: only when needed);
+    ``max_time``: wall-clock budget in seconds of one solve (all its IPOPT calls together)."""
 
     tol: float = 1e-8
     max_iter: int = 3000
     continuation: int | None = None
+    max_time: float = 3600.0
 
 
 @dataclass(frozen=True)
@@ -130,13 +136,13 @@ def load_problem(path: Path | str) -> WeftProblem:
 def parse_problem(path: Path | str, doc: dict[str, Any]) -> WeftProblem:
     """Check a parsed TOML document against the contract and build a :class:`WeftProblem`."""
     top = Table(doc, path, "")
-    name = top.string("name", Path(path).stem)
+    name = top.stem("name")
     description = top.string("description", "")
     top.string("model", "weft", choices=("weft",))
     fab = top.table("fabric", required=True)
     m, n = fab.integer("courses", minimum=1), fab.integer("wales", minimum=1)
     fab.finish()
-    natural, nodes, geometry_key, loop_tab = _read_loop(top.table("loop"))
+    natural, nodes, geometry_key, loop_tab = _read_loop(top.table("loop"), fab, m, n)
     crossings = None
     try:
         crossings = find_crossings(natural)
@@ -161,12 +167,18 @@ def parse_problem(path: Path | str, doc: dict[str, Any]) -> WeftProblem:
                        clamps, loads, rigid, reduction, solver, str(path))
 
 
-def _read_loop(tab: Table) -> tuple[NaturalLoop, int, str, Table]:
+def _read_loop(tab: Table, fab: Table, m: int, n: int) -> tuple[NaturalLoop, int, str, Table]:
+    """The natural loop; the size of the NLP it implies is checked before it is measured."""
     preset = tab.string("preset", "jersey", choices=PRESETS)
     L = tab.number("length", 10.0, positive=True)
-    t = tab.integer("harmonics", 3)
+    t = tab.integer("harmonics", 3, maximum=MAX_HARMONICS)
     if t < 1:
         raise tab.error("harmonics", f"must be a positive integer, got {t}")
+    nodes = tab.integer("quadrature_nodes", DEFAULT_NODES, maximum=MAX_NODES)
+    if nodes < 2:
+        raise tab.error("quadrature_nodes", f"must be at least 2, got {nodes}")
+    check_memory(fab, "courses", weft_bytes(m, n, t, nodes),
+                 f"a {m} x {n} fabric with {t} harmonics and {nodes} quadrature nodes")
     key = "preset"
     if tab.has("natural_coefficients"):
         coeffs = np.array(tab.numbers("natural_coefficients", length=n_coeffs(t)))
@@ -176,9 +188,6 @@ def _read_loop(tab: Table) -> tuple[NaturalLoop, int, str, Table]:
     spacing = tab.number("course_spacing", None, positive=True)
     if tab.has("course_spacing"):
         key = "course_spacing" if key == "preset" else key
-    nodes = tab.integer("quadrature_nodes", DEFAULT_NODES)
-    if nodes < 2:
-        raise tab.error("quadrature_nodes", f"must be at least 2, got {nodes}")
     tab.finish()
     return natural_loop(coeffs, L, t, spacing), nodes, key, tab
 
@@ -205,14 +214,16 @@ class _PointReader:
             if value == "end":
                 return value, L
             if value not in LABELS:
-                raise tab.error("point", f"unknown point label {value!r}; use start, end, "
+                raise tab.error("point", f"unknown point label {quoted(value)}; use start, end, "
                                 f"{' '.join(LABELS)} or a number s in [0, {L:g}]")
             if self.crossings is None:
-                raise tab.error("point", f"label {value!r} needs crossings, which this "
+                raise tab.error("point", f"label {quoted(value)} needs crossings, which this "
                                 "natural geometry does not have; give a number s instead")
             return value, self.crossings.s[value]
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise tab.error("point", "expected a label string or a number s")
+        try:
+            value = finite_number(value)
+        except ValueError:
+            raise tab.error("point", "expected a label string or a finite number s") from None
         if not 0.0 <= value <= L:
             raise tab.error("point", f"s = {value:g} is outside [0, {L:g}]")
         return float(value), float(value)
@@ -323,6 +334,7 @@ def _read_reduction(top: Table, m: int, n: int) -> Reduction:
 def _read_solver(tab: Table) -> SolverOptions:
     tol = tab.number("tol", 1e-8, positive=True)
     max_iter = tab.integer("max_iter", 3000, minimum=1)
-    steps = tab.integer("continuation", None, minimum=1)
+    steps = tab.integer("continuation", None, minimum=1, maximum=MAX_CONTINUATION)
+    max_time = tab.number("max_time", 3600.0, positive=True)
     tab.finish()
-    return SolverOptions(tol, max_iter, steps)
+    return SolverOptions(tol, max_iter, steps, max_time)

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import atomic_file
 from ..jsonio import write_json
 from .basis import n_coeffs, phi
 from .nlp import WeftNLP
@@ -123,9 +124,9 @@ def write_arrays(path: Path, wnlp: WeftNLP, x: np.ndarray, natural: np.ndarray,
                  deformed: np.ndarray) -> Path:
     """NPZ beside the JSON: s, natural and deformed centrelines, coefficients, starts."""
     s = np.linspace(0.0, wnlp.problem.L, deformed.shape[2])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, s=s, natural=natural, deformed=deformed,
-                        coefficients=wnlp.coefficients(x), starts=wnlp.starts(x))
+    with atomic_file(path) as fh:
+        np.savez_compressed(fh, s=s, natural=natural, deformed=deformed,
+                            coefficients=wnlp.coefficients(x), starts=wnlp.starts(x))
     return path
 
 

@@ -24,6 +24,7 @@ from .nlp import WeftNLP
 from .quadrature import positions
 
 SUCCESS = "Solve_Succeeded"
+OUT_OF_TIME = "Maximum_WallTime_Exceeded"      # IPOPT's own name, also used between solves
 
 
 @dataclass
@@ -61,15 +62,25 @@ class WeftSolver:
             "print_time": False,
             "ipopt": {"tol": tol or opts.tol, "max_iter": max_iter or opts.max_iter,
                       "print_level": print_level, "sb": "yes", "linear_solver": "mumps",
+                      "max_wall_time": opts.max_time,
                       # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of
                       # IPOPT's own time and the KKT systems here are well scaled without them
                       "mumps_scaling": 0, "mumps_permuting_scaling": 0}})
         self.setup_s = time.perf_counter() - t0
+        self.start_clock()
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
 
+    def start_clock(self) -> None:
+        """Start the wall-clock budget ``[solver] max_time`` shared by the solves that follow
+        (each IPOPT call also stops itself at ``max_wall_time`` = max_time)."""
+        self.deadline = time.perf_counter() + self.wnlp.problem.solver.max_time
+
     def once(self, p: np.ndarray, x0: np.ndarray) -> SolveReport:
-        """A single IPOPT solve from x0."""
+        """A single IPOPT solve from x0 (none once the time budget is spent)."""
         t0 = time.perf_counter()
+        if t0 >= self.deadline:
+            return SolveReport(False, OUT_OF_TIME, x0, np.zeros(self.wnlp.n_constraints),
+                               np.nan, 0, 0.0)
         sol = self.solver(x0=x0, p=p, lbg=0.0, ubg=0.0)
         stats = self.solver.stats()
         status = str(stats["return_status"])
@@ -91,6 +102,9 @@ class WeftSolver:
         total = SolveReport(False, "", x0, np.zeros(self.wnlp.n_constraints), np.nan, 0, 0.0)
         halvings = 0
         while tau < 1.0 - 1e-12:
+            if time.perf_counter() >= self.deadline:
+                total.status = OUT_OF_TIME
+                return total
             nxt = min(1.0, tau + dtau)
             rep = self.once(p_nat + nxt * (p - p_nat), x)
             total.add_effort(rep)
@@ -161,6 +175,7 @@ def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, p: np.ndarray | None 
           x0: np.ndarray | None = None, continuation: int | None = None) -> SolveReport:
     """Solve robustly: direct, then continuation; from perturbed starts where degenerate."""
     solver = solver or WeftSolver(wnlp)
+    solver.start_clock()
     p = wnlp.p0 if p is None else p
     continuation = continuation or wnlp.problem.solver.continuation
     if needs_perturbation(wnlp, p) and x0 is None:

@@ -1,0 +1,40 @@
+"""Size limits: problems whose estimated peak memory exceeds a documented limit are refused
+before anything is built (README, "Limits").
+
+The estimates are linear fits to measured peak memory (README "Measured performance" and
+docs/jacquard.md, one process each on the 2-core, 24 GiB development machine):
+
+- weft, t = 3, 8 quadrature nodes: 5 × 5 109 MB, 50 × 50 259 MB, 100 × 100 758 MB, i.e. about
+  110 MB of Python, CasADi and IPOPT plus 65 kB per loop. Per loop the Hessian block grows with
+  the square of the 2t + 2 loop parameters and the quadrature work with the nodes per panel, so
+  the per-loop figure is scaled by ((2t + 2)/8)² · max(1, nodes/8) (an extrapolation: only
+  t = 3, 8 nodes was measured at scale).
+- jacquard, static solver: 500 × 500 (250 000 particles) 1.9 GB, i.e. about 110 MB plus
+  7.2 kB per particle. The explicit solver needs less; the same estimate bounds both.
+"""
+from __future__ import annotations
+
+from .tomlio import Table
+
+MEMORY_LIMIT_BYTES = 8 * 2 ** 30      # a third of the development machine's 24 GiB
+BASE_BYTES = 110e6
+WEFT_LOOP_BYTES = 65e3                # t = 3, 8 nodes per panel
+JACQUARD_PARTICLE_BYTES = 7.2e3
+
+
+def weft_bytes(courses: int, wales: int, harmonics: int, nodes: int) -> float:
+    """Estimated peak memory of a weft solve (module docstring)."""
+    per_loop = WEFT_LOOP_BYTES * ((2 * harmonics + 2) / 8) ** 2 * max(1.0, nodes / 8)
+    return BASE_BYTES + float(courses) * float(wales) * per_loop
+
+
+def jacquard_bytes(wales: int, courses: int) -> float:
+    """Estimated peak memory of a jacquard solve (module docstring)."""
+    return BASE_BYTES + float(wales) * float(courses) * JACQUARD_PARTICLE_BYTES
+
+
+def check_memory(table: Table, key: str, estimate: float, what: str) -> None:
+    """Refuse, naming ``key`` of ``table``, a problem estimated above the memory limit."""
+    if estimate > MEMORY_LIMIT_BYTES:
+        raise table.error(key, f"{what} needs an estimated {estimate / 2 ** 30:.3g} GiB; the "
+                          f"limit is {MEMORY_LIMIT_BYTES / 2 ** 30:g} GiB (README, \"Limits\")")
