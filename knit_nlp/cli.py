@@ -140,7 +140,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as stop:              # --help (0) or a bad argument (2, one line)
+        return int(stop.code or 0)
     try:
         if args.command == "list":
             return _cmd_list()

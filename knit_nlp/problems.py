@@ -13,17 +13,14 @@ from pathlib import Path
 from .errors import ProblemError
 from .tomlio import load_toml
 
-DATA_PACKAGE = "knit_nlp.problem_data"
+DATA_FOLDER = "problem_data"
 
 
-def packaged_problems() -> Path | None:
-    """The named problems shipped as package data, if this is an installed package."""
-    try:
-        folder = resources.files(DATA_PACKAGE)
-    except ModuleNotFoundError:
-        return None
-    path = Path(str(folder))
-    return path if path.is_dir() else None
+def packaged_problems(package: str = "knit_nlp") -> Path | None:
+    """The named problems shipped as package data (``<package>/problem_data``, a folder of
+    data files, no Python), if this is an installed package; None otherwise."""
+    folder = resources.files(package).joinpath(DATA_FOLDER)
+    return Path(str(folder)) if folder.is_dir() else None
 
 
 def problems_dir() -> Path:

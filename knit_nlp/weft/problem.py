@@ -5,6 +5,7 @@ The contract is spec/problem_files.md; every rule a bad file can break raises
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -142,13 +143,10 @@ def parse_problem(path: Path | str, doc: dict[str, Any]) -> WeftProblem:
     fab = top.table("fabric", required=True)
     m, n = fab.integer("courses", minimum=1), fab.integer("wales", minimum=1)
     fab.finish()
-    natural, nodes, geometry_key, loop_tab = _read_loop(top.table("loop"), fab, m, n)
-    crossings = None
-    try:
-        crossings = find_crossings(natural)
-    except CrossingError as err:
-        if m >= 2:
-            raise loop_tab.error(geometry_key, f"natural geometry rejected: {err}") from None
+    natural, crossings, rejected, nodes, geometry_key, loop_tab = _read_loop(top.table("loop"),
+                                                                              fab, m, n)
+    if rejected and m >= 2:
+        raise loop_tab.error(geometry_key, f"natural geometry rejected: {rejected}")
     mat = top.table("material")
     k_a = mat.number("k_a", 1.0, nonnegative=True)
     k_b = mat.number("k_b", 0.01, nonnegative=True)
@@ -167,7 +165,8 @@ def parse_problem(path: Path | str, doc: dict[str, Any]) -> WeftProblem:
                        clamps, loads, rigid, reduction, solver, str(path))
 
 
-def _read_loop(tab: Table, fab: Table, m: int, n: int) -> tuple[NaturalLoop, int, str, Table]:
+def _read_loop(tab: Table, fab: Table, m: int,
+               n: int) -> tuple[NaturalLoop, Crossings | None, str, int, str, Table]:
     """The natural loop; the size of the NLP it implies is checked before it is measured."""
     preset = tab.string("preset", "jersey", choices=PRESETS)
     L = tab.number("length", 10.0, positive=True)
@@ -189,7 +188,21 @@ def _read_loop(tab: Table, fab: Table, m: int, n: int) -> tuple[NaturalLoop, int
     if tab.has("course_spacing"):
         key = "course_spacing" if key == "preset" else key
     tab.finish()
-    return natural_loop(coeffs, L, t, spacing), nodes, key, tab
+    natural, crossings, rejected = _measured(np.asarray(coeffs, dtype=float).tobytes(), L, t,
+                                             spacing)
+    return natural, crossings, rejected, nodes, key, tab
+
+
+@functools.lru_cache(maxsize=64)
+def _measured(coeffs: bytes, L: float, t: int,
+              spacing: float | None) -> tuple[NaturalLoop, Crossings | None, str]:
+    """The natural loop, its crossings (None and the reason if it has none), memoised: measuring
+    them takes a few tenths of a second, and studies and tests read the same loop many times."""
+    natural = natural_loop(np.frombuffer(coeffs), L, t, spacing)
+    try:
+        return natural, find_crossings(natural), ""
+    except CrossingError as err:
+        return natural, None, str(err)
 
 
 class _PointReader:
