@@ -37,6 +37,7 @@ import numpy as np  # noqa: E402
 
 from matplotlib.collections import LineCollection  # noqa: E402
 
+from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
 from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
 from knit_nlp.weft.results import natural_centrelines, solution_centrelines  # noqa: E402
@@ -175,7 +176,7 @@ def plot(path: Path, tables: dict[str, list[dict[str, Any]]], title: str) -> Pat
         ax.legend(fontsize=8)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -221,7 +222,7 @@ def plot_shapes(path: Path, paths: list[LoadPath], cache: Path, strain: float,
         ax.set_title(f"{lp.name.split('-')[0]} pull, strain {strain:g}{flag} "
                      "(squares: held points)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
     return path
 

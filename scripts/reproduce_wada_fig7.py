@@ -31,6 +31,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
+from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.jsonio import write_json  # noqa: E402
 from knit_nlp.problems import resolve  # noqa: E402
 from knit_nlp.tomlio import load_toml  # noqa: E402
@@ -133,7 +134,7 @@ def plot(path: Path, point: Solved, line: Solved, nat: np.ndarray, grip: int) ->
                  fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 

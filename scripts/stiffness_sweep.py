@@ -27,6 +27,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
+from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.results import natural_centrelines, solution_centrelines  # noqa: E402
@@ -111,7 +112,7 @@ def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cac
                 ax.set_xlabel(f"R_f = {row['R_f']:g}", fontsize=10)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 

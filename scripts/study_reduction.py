@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_weft import diagonal_pull_doc  # noqa: E402
 
+from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.study import write_csv  # noqa: E402
 from knit_nlp.weft.natural import natural_loop, preset_coeffs  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
@@ -103,7 +104,7 @@ def plot(rows: list[dict], path: Path) -> None:
     axes[0].legend(fontsize=8)
     fig.suptitle("Interpolation reduction: error against size and time")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

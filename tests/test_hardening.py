@@ -325,7 +325,7 @@ def test_jacquard_max_time_ends_in_exit_1_with_the_status(tmp_path, capsys, meth
     text = (JACQUARD.replace("wales = 4", "wales = 40").replace("courses = 4", "courses = 40")
             .replace('"##++\\n##++\\n++##\\n++##"', json.dumps("\n".join(["#+" * 20] * 40)))
             .replace('"+..+\\n+..+\\n.++.\\n.++."', json.dumps("\n".join(["+." * 20] * 40)))
-            + f'[solver]\nmethod = "{method}"\nmax_time = 0.01\n')
+            + f'[solver]\nmethod = "{method}"\nmax_time = 0.01\nmax_steps = 3000\n')
     assert main(solve_args(write(tmp_path, text), tmp_path)) == 1
     r = json.loads((tmp_path / "out" / "p.jacquard.json").read_text())
     assert r["success"] is False
