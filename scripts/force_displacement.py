@@ -37,31 +37,26 @@ import numpy as np  # noqa: E402
 
 from matplotlib.collections import LineCollection  # noqa: E402
 
-from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
+from knit_nlp.jsonio import write_csv  # noqa: E402
+from knit_nlp.weft.cases import diagonal_pull, unclamped  # noqa: E402
 from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
-from knit_nlp.weft.results import natural_centrelines, solution_centrelines  # noqa: E402
+from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
+from knit_nlp.weft.study import LoadPath, WeftStudy, point_solution, run_study  # noqa: E402
 
 STUDY = "force_displacement"
 DIRECTIONS = ("course", "wale", "diagonal")
-STRETCH, TURN_DEG = 1.8830761813505632, 25.25734166917165   # eq. 28 on 5 x 5 (bench_weft.py)
 FIELDS = ("displacement", "strain", "reaction", "energy_total", "energy_spring",
           "energy_bending", "success")
 
 
-def base_doc(m: int, n: int) -> dict[str, Any]:
-    """An m x n fabric with the paper's material and no clamps, as a problem dict."""
-    return {"fabric": {"courses": m, "wales": n},
-            "material": {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0}}
-
-
 def natural(m: int, n: int) -> WeftProblem:
     """The parsed clamp-free problem (for natural positions and spacings)."""
-    return parse_problem("<natural>", base_doc(m, n))
+    return parse_problem(unclamped(m, n), "<natural>")
 
 
 def course_doc(m: int, n: int) -> dict[str, Any]:
     """Left line clamp (starts of (i, 1)) fixed; right line clamp (ends of (i, n)) to move."""
-    doc = base_doc(m, n)
+    doc = unclamped(m, n)
     doc["rigid_clamp"] = [
         {"points": [{"loop": [i, 1], "point": "start"} for i in range(1, m + 1)]},
         {"points": [{"loop": [i, n], "point": "end"} for i in range(1, m + 1)]}]
@@ -70,7 +65,7 @@ def course_doc(m: int, n: int) -> dict[str, Any]:
 
 def wale_doc(m: int, n: int) -> dict[str, Any]:
     """Bottom line clamp (starts of (1, j)) fixed; top line clamp (starts of (m, j)) to move."""
-    doc = base_doc(m, n)
+    doc = unclamped(m, n)
     doc["rigid_clamp"] = [
         {"points": [{"loop": [1, j], "point": "start"} for j in range(1, n + 1)]},
         {"points": [{"loop": [m, j], "point": "start"} for j in range(1, n + 1)]}]
@@ -81,15 +76,13 @@ def diagonal_geometry(m: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Natural position of H of loop (1, n) and the unit direction of the eq. 28 pull."""
     pr = natural(m, n)
     h0 = pr.natural_position((1, n), pr.crossings.s["H"])
-    c, s = np.cos(np.radians(TURN_DEG)), np.sin(np.radians(TURN_DEG))
-    target = STRETCH * np.array([[c, -s], [s, c]]) @ h0
-    u = target - h0
+    u = np.array(diagonal_pull(n, m)["clamp"][1]["position"]) - h0
     return h0, u / np.linalg.norm(u)
 
 
 def diagonal_doc(m: int, n: int) -> dict[str, Any]:
     """Corner (1, 1) start pinned; H of loop (1, n) pinned at its natural place (moved later)."""
-    doc = base_doc(m, n)
+    doc = unclamped(m, n)
     doc["clamp"] = [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
                     {"loop": [1, n], "point": "H", "displacement": [0.0, 0.0]}]
     return doc
@@ -112,15 +105,15 @@ def build_paths(m: int, n: int, steps: int, max_strain: float,
     for name in directions:
         if name == "course":
             d, u, doc = strains * n * w, np.array([1.0, 0.0]), course_doc(m, n)
-            points = [{"rigid": {"1": [di, 0.0, 0.0]}} for di in d]
+            points = [{"rigid": {"2": [di, 0.0, 0.0]}} for di in d]
         elif name == "wale":
             d, u, doc = strains * (m - 1) * c, np.array([0.0, 1.0]), wale_doc(m, n)
-            points = [{"rigid": {"1": [0.0, di, 0.0]}} for di in d]
+            points = [{"rigid": {"2": [0.0, di, 0.0]}} for di in d]
         else:
             h0, u = diagonal_geometry(m, n)
             d = np.array([diagonal_displacement(h0, u, e) for e in strains])
             doc = diagonal_doc(m, n)
-            points = [{"displacements": {"1": (di * u).tolist()}} for di in d]
+            points = [{"displacements": {"2": (di * u).tolist()}} for di in d]
         out[name] = (LoadPath(name, doc, points,
                               labels=[float(e) for e in strains]),
                      {"d": d, "strain": strains, "u": u})
@@ -182,9 +175,9 @@ def plot(path: Path, tables: dict[str, list[dict[str, Any]]], title: str) -> Pat
 
 def last_lines(path: LoadPath, cache: Path) -> tuple[np.ndarray, np.ndarray, WeftStudy]:
     """Natural and deformed centrelines (m, n, S, 2) of a path's last (cached) point."""
-    study = WeftStudy(parse_problem(f"<{path.name}>", path.doc))
+    study = WeftStudy(parse_problem(path.doc, f"<{path.name}>"))
     x = point_solution(cache.parent, path, len(path.points) - 1)
-    return natural_centrelines(study.problem), solution_centrelines(study.wnlp, x), study
+    return natural_centrelines(study.problem), solution_centrelines(study.nlp, x), study
 
 
 def held_positions(path: LoadPath, study: WeftStudy) -> np.ndarray:
@@ -193,11 +186,11 @@ def held_positions(path: LoadPath, study: WeftStudy) -> np.ndarray:
     if pr.rigid_clamps:
         out = []
         for q, rc in enumerate(pr.rigid_clamps):
-            move = np.array(point.get("rigid", {}).get(str(q), [0.0, 0.0, 0.0])[:2])
+            move = np.array(point.get("rigid", {}).get(str(q + 1), [0.0, 0.0, 0.0])[:2])
             out += [pr.natural_position(lp, s) + move for lp, _, s in rc.points]
         return np.array(out)
     disp = point.get("displacements", {})
-    return np.array([pr.natural_position(c.loop, c.s) + np.array(disp.get(str(q), [0.0, 0.0]))
+    return np.array([pr.natural_position(c.loop, c.s) + np.array(disp.get(str(q + 1), [0.0, 0.0]))
                      for q, c in enumerate(pr.clamps)])
 
 

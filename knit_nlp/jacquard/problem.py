@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -58,7 +58,9 @@ class SolverOptions:
 
 @dataclass(frozen=True)
 class JacquardProblem:
-    """A validated double-jacquard problem (spec/jacquard_mass_spring.md)."""
+    """A validated double-jacquard problem (docs/jacquard.md)."""
+
+    model: ClassVar[str] = "jacquard"
 
     name: str
     description: str
@@ -254,9 +256,12 @@ def _read_solver(top: Table) -> SolverOptions:
     return opts
 
 
-def parse_problem(doc: dict[str, Any], path: Path | str) -> JacquardProblem:
-    """Validate a parsed TOML document into a :class:`JacquardProblem` (no numerics)."""
-    path = Path(path)
+def parse_problem(doc: dict[str, Any], source: Path | str) -> JacquardProblem:
+    """Validate a parsed TOML document into a :class:`JacquardProblem` (no numerics).
+
+    ``source`` names the document in messages (its file), gives the default ``name`` and the
+    folder that design files are read from."""
+    path = Path(source)
     top = Table(doc, path, "")
     name = top.string("name", path.stem)
     description = top.string("description", "")

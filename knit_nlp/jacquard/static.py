@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from ..ipopt import ipopt_options, succeeded
 from .problem import JacquardProblem
 from .result import JacquardResult
 from .springs import Network, SpringSet, build_network, spring_geometry
@@ -249,14 +250,11 @@ def violations(x: np.ndarray, net: Network, s: SpringSet, work: WorkingSet,
 
 def _ipopt_options(problem: JacquardProblem, print_level: int, extra: dict | None) -> dict:
     opts = problem.solver
-    ipopt = {"tol": opts.tol, "max_iter": opts.max_iter, "print_level": print_level,
-             "sb": "yes", "linear_solver": "mumps",
-             "mumps_pivot_order": 5,             # METIS (see docs/jacquard.md)
-             "hessian_approximation": opts.hessian,
-             "fixed_variable_treatment": "make_parameter", "mu_strategy": "adaptive",
-             "acceptable_iter": 0}               # success means Solve_Succeeded, nothing less
-    ipopt.update(extra or {})
-    return ipopt
+    return ipopt_options(opts.tol, opts.max_iter, print_level,
+                         mumps_pivot_order=5,             # METIS (see docs/jacquard.md)
+                         hessian_approximation=opts.hessian,
+                         fixed_variable_treatment="make_parameter", mu_strategy="adaptive",
+                         **(extra or {}))
 
 
 def solve_static(problem: JacquardProblem, network: Network | None = None, *,
@@ -274,15 +272,15 @@ def solve_static(problem: JacquardProblem, network: Network | None = None, *,
     for rounds in range(1, MAX_ROUNDS + 1):
         tb = time.perf_counter()
         nlp, custom, bounds = build_nlp(problem, net, s, inc, work)
-        solver = ca.nlpsol("jacquard_static", "ipopt", nlp,
-                           {**custom, "ipopt": ipopt, "print_time": False})
+        solver = ca.nlpsol("jacquard_static", "ipopt", nlp, {**custom, **ipopt})
         ts = time.perf_counter()
         sol = solver(x0=x, **bounds)
         timings["build_s"] += ts - tb
         timings["solve_s"] += time.perf_counter() - ts
         stats = solver.stats()
         iterations += int(stats["iter_count"])
-        status, success = str(stats["return_status"]), bool(stats["success"])
+        status = str(stats["return_status"])
+        success = succeeded(status)
         x = np.array(sol["x"]).ravel()
         new = violations(x.reshape(-1, 2), net, s, work)
         if not success or (new.limits.size == 0 and new.orders.size == 0):
