@@ -41,7 +41,8 @@ from knit_nlp.jsonio import write_csv  # noqa: E402
 from knit_nlp.weft.cases import diagonal_pull, unclamped  # noqa: E402
 from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
 from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
-from knit_nlp.weft.study import LoadPath, WeftStudy, point_solution, run_study  # noqa: E402
+from knit_nlp.weft.study import (LoadPath, WeftStudy, point_solution, print_table,  # noqa: E402
+                                  run_study)
 
 STUDY = "force_displacement"
 DIRECTIONS = ("course", "wale", "diagonal")
@@ -219,15 +220,13 @@ def plot_shapes(path: Path, paths: list[LoadPath], cache: Path, strain: float,
     return path
 
 
-def print_table(tables: dict[str, list[dict[str, Any]]]) -> None:
+def show_table(tables: dict[str, list[dict[str, Any]]]) -> None:
     """One screen: per direction and step, strain, displacement, reaction, energies, success."""
-    print(f"{'pull':<9}{'strain':>7}{'disp':>8}{'reaction':>10}{'U total':>9}{'U spring':>9}"
-          f"{'U bend':>9}  ok")
-    for name, rows in tables.items():
-        for r in rows:
-            print(f"{name:<9}{r['strain']:>7.3f}{r['displacement']:>8.3f}{r['reaction']:>10.4f}"
-                  f"{r['energy_total']:>9.4f}{r['energy_spring']:>9.4f}{r['energy_bending']:>9.4f}"
-                  f"  {'y' if r['success'] else 'NO'}")
+    print_table([{"pull": name, **r} for name, rows in tables.items() for r in rows],
+                [("pull", "pull", ""), ("strain", "strain", ".3f"), ("displacement", "disp", ".3f"),
+                 ("reaction", "reaction", ".4f"), ("energy_total", "U total", ".4f"),
+                 ("energy_spring", "U spring", ".4f"), ("energy_bending", "U bend", ".4f"),
+                 ("success", "ok", "")])
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -260,7 +259,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[dict[str, Any]]]:
                f"clamps, diagonal with point clamps (x on the axis: not converged)")
     shapes = plot_shapes(out / "shapes.png", [p for p, _ in built.values()], out / "points",
                          args.max_strain, [rows[-1]["success"] for rows in tables.values()])
-    print_table(tables)
+    show_table(tables)
     print(f"wrote {out}/{{{','.join(tables)}}}.csv, {png}, {shapes}, {out / 'summary.json'}")
     return tables
 

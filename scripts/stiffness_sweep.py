@@ -31,7 +31,8 @@ from knit_nlp.jsonio import write_csv  # noqa: E402
 from knit_nlp.weft.cases import diagonal_pull  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
-from knit_nlp.weft.study import LoadPath, WeftStudy, point_solution, run_study  # noqa: E402
+from knit_nlp.weft.study import (LoadPath, WeftStudy, point_solution, print_table,  # noqa: E402
+                                  run_study)
 
 STUDY = "stiffness_sweep"
 FIELDS = ("k_b_over_k_a", "R_f", "energy_total", "energy_spring", "energy_bending",
@@ -107,14 +108,13 @@ def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cac
     return path
 
 
-def print_table(rows: list[dict[str, Any]]) -> None:
+def show_table(rows: list[dict[str, Any]]) -> None:
     """The table on one screen."""
-    print(f"{'kb/ka':>7}{'R_f':>7}{'U total':>9}{'U spring':>9}{'U bend':>9}{'F_x':>9}{'F_y':>9}"
-          f"{'|F|':>8}  ok")
-    for r in rows:
-        print(f"{r['k_b_over_k_a']:>7g}{r['R_f']:>7g}{r['energy_total']:>9.4f}"
-              f"{r['energy_spring']:>9.4f}{r['energy_bending']:>9.4f}{r['reaction_x']:>9.4f}"
-              f"{r['reaction_y']:>9.4f}{r['reaction_norm']:>8.4f}  {'y' if r['success'] else 'NO'}")
+    print_table(rows, [("k_b_over_k_a", "kb/ka", "g"), ("R_f", "R_f", "g"),
+                       ("energy_total", "U total", ".4f"), ("energy_spring", "U spring", ".4f"),
+                       ("energy_bending", "U bend", ".4f"), ("reaction_x", "F_x", ".4f"),
+                       ("reaction_y", "F_y", ".4f"), ("reaction_norm", "|F|", ".4f"),
+                       ("success", "ok", "")])
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -145,7 +145,7 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
                     f"{args.size} x {args.size} diagonal pull (eq. 28: H of loop (1, {args.size}) "
                     f"to ({target[0]:.1f}, {target[1]:.1f})), k_a = 1; "
                     f"|F| = reaction at the pulled point")
-    print_table(rows)
+    show_table(rows)
     print(f"wrote {out / (STUDY + '.csv')}, {png}, {out / 'summary.json'}")
     return rows
 

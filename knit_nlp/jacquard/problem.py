@@ -1,8 +1,8 @@
 """Parse and validate a ``model = "jacquard"`` problem file into plain dataclasses.
 
 Everything a user can get wrong is checked here, before any numerics, and reported as a
-:class:`~knit_nlp.errors.ProblemError` naming file, table and key (spec/problem_files.md).
-The model itself is spec/jacquard_mass_spring.md; docs/jacquard.md is the key reference.
+:class:`~knit_nlp.errors.ProblemError` naming file, table and key (README, "Command line").
+The model and the key reference are in docs/jacquard.md.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ STRUCTURES = ("thick", "thin", "net")
 SYSTEMS = ("fall_plate", "inlay")
 EDGES = ("bottom", "top", "left", "right")
 
-# Defaults (spec: spans; the rest are this project's choices, docs/jacquard.md).
+# Defaults (the paper's spans, docs/jacquard.md; the rest are this project's choices, docs/jacquard.md).
 DEFAULT_SPAN = {"fall_plate": {"thick": 4, "thin": 2, "net": 1},
                 "inlay": {"thick": 3, "thin": 2, "net": 1}}
 DEFAULT_STIFFNESS = {"fall_plate": {"longitudinal": 0.5, "thick": 1.0, "thin": 0.7},

@@ -1,4 +1,4 @@
-"""Pictures of the fabric (spec "Rendering"; paper Fig. 2 stitch models).
+"""Pictures of the fabric (docs/jacquard.md, "Rendering"; paper Fig. 2 stitch models).
 
 Each pillar loop is a closed smooth yarn through 6 points (P1-P6), each inlay underlap a smooth
 yarn through 4 points and each fall-plate underlap a 2-point yarn, all placed in the frame of
@@ -17,8 +17,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
+from typing import TYPE_CHECKING  # noqa: E402
+
 from .problem import JacquardProblem  # noqa: E402
 from .springs import zigzag_direction  # noqa: E402
+
+if TYPE_CHECKING:
+    from .result import JacquardResult
 
 # Local stitch points (u in units of w to the right, v in units of the loop's height).
 PILLAR = np.array([[0.06, 0.0], [-0.22, 0.30], [-0.20, 0.95], [0.20, 0.95], [0.22, 0.30],
@@ -150,9 +155,10 @@ def draw_fabric(ax, p: JacquardProblem, x: np.ndarray, title: str) -> None:
     ax.set_facecolor("#20242a")
 
 
-def render(p: JacquardProblem, natural: np.ndarray, final: np.ndarray, path: Path,
-           solver: str, svg: bool = False) -> list[Path]:
+def render(result: "JacquardResult", path: Path, svg: bool = False) -> list[Path]:
     """Natural and simulated fabric side by side: ``path`` (PNG) and, if asked, the SVG."""
+    p, natural, final, solver = (result.problem, result.network.natural, result.positions,
+                                 result.solver)
     t = _Tiling(p, natural)
     aspect = (t.nc * p.h + 2 * p.h) / (t.nw * p.w + 3 * p.w)
     fig, axes = plt.subplots(1, 2, figsize=(12, max(3.5, min(12, 6 * aspect + 1))), dpi=110)

@@ -120,6 +120,5 @@ class JacquardResult(Outcome):
         from .render import render
         out = Path(out_dir)
         js = write_json(out / f"{self.problem.name}.jacquard.json", self.to_json())
-        pictures = render(self.problem, self.network.natural, self.positions,
-                          out / f"{self.problem.name}.jacquard.png", self.solver, svg=svg)
+        pictures = render(self, out / f"{self.problem.name}.jacquard.png", svg=svg)
         return [js, *pictures]

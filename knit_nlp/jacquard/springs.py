@@ -1,4 +1,4 @@
-"""The spring network generated from the designs, and its forces (spec: "Fabric, particles",
+"""The spring network generated from the designs, and its forces (docs/jacquard.md: "Fabric, particles",
 "Bars and designs", "Springs, forces, mass", "Boundaries", "Zero-energy modes").
 
 Particles are numbered ``j*M + i`` (wale ``i``, course ``j``). A spring joins particle ``a`` to
@@ -78,7 +78,7 @@ def zigzag_direction(p: JacquardProblem, j: np.ndarray) -> np.ndarray:
 
 
 def build_springs(p: JacquardProblem) -> SpringSet:
-    """Pillar springs, each system's longitudinal springs and underlaps (spec "Bars and designs")."""
+    """Pillar springs, each system's longitudinal springs and underlaps (docs/jacquard.md, "Bars and designs")."""
     m, n = p.wales, p.courses
     jj, ii = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
     i_all, j_all = ii.ravel(), jj.ravel()

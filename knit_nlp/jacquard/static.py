@@ -1,4 +1,4 @@
-"""The static equilibrium as a CasADi NLP solved with IPOPT (spec "Solvers", `static`).
+"""The static equilibrium as a CasADi NLP solved with IPOPT (docs/jacquard.md, "Solvers", `static`).
 
 Formulation (docs/jacquard.md, "Static NLP"): the variables are the particle positions ``x``
 only. With ``d_s = x[b_s] + shift_s - x[a_s]`` (``d = B x + c``, ``B`` the sparse incidence

@@ -1,6 +1,6 @@
 """A weft-knit problem: read from TOML, checked completely before any symbolic work.
 
-The contract is spec/problem_files.md; every rule a bad file can break raises
+The contract is the README's "Weft problem files"; every rule a bad file can break raises
 :class:`~knit_nlp.errors.ProblemError` naming file, table and key.
 """
 from __future__ import annotations

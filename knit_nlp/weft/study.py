@@ -139,6 +139,17 @@ def _worker(args: tuple[LoadPath, Path, int | None, Any]) -> list[dict[str, Any]
     return run_path(path, cache, limit, tick=(lambda: queue.put(1)) if queue is not None else None)
 
 
+def print_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str, str]]) -> None:
+    """A study table on one screen: ``columns`` are (key, header, format spec); booleans print as
+    ``y`` / ``NO``."""
+    widths = [max(len(head) + 1, 7) for _, head, _ in columns]
+    print("".join(f"{head:>{w}}" for (_, head, _), w in zip(columns, widths)))
+    for r in rows:
+        cells = [("y" if r[key] else "NO") if isinstance(r[key], bool) else format(r[key], fmt)
+                 for key, _, fmt in columns]
+        print("".join(f"{c:>{w}}" for c, w in zip(cells, widths)))
+
+
 class Progress:
     """One line of progress on stderr: count, elapsed time, estimate of the time left."""
 
