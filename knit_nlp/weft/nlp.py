@@ -19,7 +19,7 @@ stiffnesses and loads are NLP parameters: one build serves many solves.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
