@@ -57,6 +57,15 @@ class SolverOptions:
 
 
 @dataclass(frozen=True)
+class Pull:
+    """``[[pull]]``: a held edge moved by ``displacement`` (dx, dy) in mm from its natural place
+    (docs/jacquard.md, "Pulling an edge")."""
+
+    edge: str
+    displacement: tuple[float, float]
+
+
+@dataclass(frozen=True)
 class JacquardProblem:
     """A validated double-jacquard problem (docs/jacquard.md)."""
 
@@ -79,6 +88,7 @@ class JacquardProblem:
     boundary: str = "periodic"
     fixed_edges: tuple[str, ...] = ()
     loop_width_stiffness: float = 0.0   # extension: compression-only course springs (0 = off)
+    pulls: tuple[Pull, ...] = ()     # extension: held edges that move ([[pull]])
     solver: SolverOptions = field(default_factory=SolverOptions)
     source: str = ""
 
@@ -256,6 +266,23 @@ def _read_solver(top: Table) -> SolverOptions:
     return opts
 
 
+def _read_pulls(top: Table, boundary: str, edges: tuple[str, ...]) -> tuple[Pull, ...]:
+    """``[[pull]]`` tables: ``edge`` (a held edge) and ``displacement = [dx, dy]`` in mm."""
+    pulls: list[Pull] = []
+    for t in top.tables("pull"):
+        edge = t.string("edge", choices=EDGES)
+        if boundary != "fixed":
+            raise t.error("edge", 'pulling an edge needs boundary = "fixed" in [fabric]')
+        if edge not in edges:
+            raise t.error("edge", f"edge {edge!r} is not held: add it to [fabric] fixed_edges")
+        if edge in (q.edge for q in pulls):
+            raise t.error("edge", f"edge {edge!r} is pulled twice")
+        dx, dy = t.numbers("displacement", length=2)
+        t.finish()
+        pulls.append(Pull(edge, (dx, dy)))
+    return tuple(pulls)
+
+
 def parse_problem(doc: dict[str, Any], source: Path | str) -> JacquardProblem:
     """Validate a parsed TOML document into a :class:`JacquardProblem` (no numerics).
 
@@ -297,6 +324,7 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> JacquardProblem:
     gp = _ratio(gr, "pretension", DEFAULT_PRETENSION)
     gr.finish()
     systems = tuple(_read_system(top, s, path.parent, (n, m)) for s in SYSTEMS)
+    pulls = _read_pulls(top, boundary, edges)
     solver = _read_solver(top)
     top.finish()
     return JacquardProblem(
@@ -304,7 +332,7 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> JacquardProblem:
         ground_stiffness=gk, ground_pretension=gp, systems=systems, mass=mass, damping=damping,
         dt=dt, lambda_max=lam, zigzag=1 if zig == "right" else -1, boundary=boundary,
         fixed_edges=edges if boundary == "fixed" else (), loop_width_stiffness=loop_k,
-        solver=solver, source=str(path))
+        pulls=pulls, solver=solver, source=str(path))
 
 
 def load_problem(path: Path | str) -> JacquardProblem:

@@ -11,7 +11,8 @@ import numpy as np
 from ..jsonio import write_json
 from ..outcome import Energy, Outcome
 from .problem import JacquardProblem
-from .springs import Network, spring_energy, spring_geometry, residual_force
+from .springs import (Network, edge_particles, edge_reaction, residual_force, spring_energy,
+                      spring_geometry)
 
 ZERO_MODE_TREATMENT = ("each floating component of the spring graph has its centroid held at "
                        "its natural centroid (what the explicit dynamics conserves)")
@@ -71,6 +72,14 @@ class JacquardResult(Outcome):
         yarn = ~s.compress
         return float(np.max(length[yarn] / s.l_init[yarn])) if yarn.any() else 1.0
 
+    def pulls(self) -> list[dict[str, Any]]:
+        """Per ``[[pull]]``: the edge, its displacement (mm) and the reaction, the force the
+        grip applies to the fabric (minus the net spring force on the edge's particles)."""
+        p = self.problem
+        return [{"edge": q.edge, "displacement": list(q.displacement),
+                 "reaction": edge_reaction(self.positions, self.network,
+                                           edge_particles(p, q.edge))} for q in p.pulls]
+
     def min_order_gap(self) -> float:
         """Smallest X(i+1,j) - X(i,j) (must stay >= 0)."""
         net, x = self.network, self.positions
@@ -111,6 +120,7 @@ class JacquardResult(Outcome):
                            "none needed: floating components keep their momentum (zero)"},
             "wales": p.wales, "courses": p.courses, "w_mm": p.w, "h_mm": p.h,
             "boundary": p.boundary, "n_particles": p.n_particles, "n_springs": net.springs.n,
+            "pulls": self.pulls(),
             "particles": {"index": "j*M + i", "natural": net.natural, "final": self.positions},
             "skew": self.wale_skew(),
         }

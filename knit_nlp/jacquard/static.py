@@ -83,9 +83,11 @@ def _spring_law() -> ca.Function:
     """Energy of one spring and the 3 entries (xx, xy, yy) of its Hessian in d.
 
     ``sign = +1``: rope, 1/2 k (|d| - l0)+^2; ``sign = -1``: loop-width, 1/2 k (l0 - |d|)+^2.
+    A spring of zero length (an edge pushed onto the next course) has zero force, not NaN.
     """
     d, k, l0, sign = ca.SX.sym("d", 2), ca.SX.sym("k"), ca.SX.sym("l0"), ca.SX.sym("sign")
-    stretch = ca.fmax(sign * (ca.norm_2(d) - l0), 0)
+    length = ca.sqrt(ca.sumsqr(d) + 1e-300)    # not norm_2: its gradient is NaN at d = 0
+    stretch = ca.fmax(sign * (length - l0), 0)
     energy = 0.5 * k * stretch ** 2
     hess = ca.hessian(energy, d)[0]
     return ca.Function("spring_law", [d, k, l0, sign],
@@ -228,7 +230,7 @@ def build_nlp(problem: JacquardProblem, net: Network, s: SpringSet, inc: Inciden
     hess_lag = ca.Function("hess_lag", [x, p, lam_f, lam_g], [ca.MX(inc.hess_sparsity, hnz)],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
     fixed = np.repeat(net.fixed, 2)
-    flat = net.natural.ravel()
+    flat = net.held.ravel()                                   # pulled edges moved ([[pull]])
     bounds = {"lbx": np.where(fixed, flat, -np.inf), "ubx": np.where(fixed, flat, np.inf),
               "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg)}
     return {"x": x, "f": f, "g": g}, {"hess_lag": hess_lag}, bounds
@@ -266,7 +268,7 @@ def solve_static(problem: JacquardProblem, network: Network | None = None, *,
     inc = incidence(s, net.natural.shape[0])
     ipopt = _ipopt_options(problem, print_level, extra_options)
     work = WorkingSet(np.zeros(0, dtype=int), np.zeros(0, dtype=int))
-    x = net.natural.ravel().copy()
+    x = net.held.ravel().copy()
     timings = {"build_s": time.perf_counter() - t0, "solve_s": 0.0}
     iterations, status, success = 0, "", False
     for rounds in range(1, MAX_ROUNDS + 1):

@@ -19,5 +19,11 @@ def solve_summary(r: JacquardResult, paths: list[Path]) -> str:
         f"  max |dx| {abs(r.displacement()[:, 0]).max() / p.w:.4g} w; wale skew "
         f"{skew.min():+.3g}..{skew.max():+.3g} deg; max stretch {r.max_stretch():.4f} "
         f"(limit {p.lambda_max:g})",
+        *(f"  pull {q['edge']} by {_vec(q['displacement'])} mm: reaction {_vec(q['reaction'])}"
+          for q in r.pulls()),
         "  wrote " + ", ".join(str(x) for x in paths),
     ])
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{c:.4g}" for c in v) + ")"
