@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from knit_nlp.cli import main
 from knit_nlp.errors import ProblemError
 from knit_nlp.jacquard import load_problem, parse_problem, solve_explicit, solve_static
 from knit_nlp.jacquard.springs import edge_particles
+from knit_nlp.jacquard.summary import solve_summary
 from knit_nlp.tomlio import load_toml
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
@@ -145,10 +145,12 @@ def test_an_edge_pulled_twice_is_an_error():
         parse_problem(doc, STRETCH)
 
 
-def test_cli_reports_the_pull(tmp_path, capsys):
-    assert main(["solve", str(STRETCH), "--out", str(tmp_path)]) == 0
-    data = json.loads((tmp_path / "jacquard_diamond_stretch.jacquard.json").read_text())
+def test_json_and_summary_report_the_pull():
+    """What ``knit-nlp solve`` writes and prints (the CLI run itself: test_jacquard_render's
+    README letter K test)."""
+    r = solve_static(load_problem(STRETCH))
+    data = json.loads(json.dumps(r.to_json(), default=lambda a: a.tolist()))
     (pull,) = data["pulls"]
     assert pull["edge"] == "top" and pull["displacement"] == [0.0, 0.3]
-    assert pull["reaction"][1] > 1.0
-    assert "pull top by (0, 0.3) mm: reaction" in capsys.readouterr().out
+    assert pull["reaction"] == pytest.approx(r.pulls()[0]["reaction"].tolist())
+    assert "pull top by (0, 0.3) mm: reaction (0.1733, 3.581)" in solve_summary(r, [])

@@ -25,7 +25,8 @@ to ``nlpsol`` in exactly that form (one small SX Function for the blocks, mapped
 springs, then ``A``), so CasADi never has to discover the sparsity of, or colour, a
 whole-fabric Hessian — that discovery took a minute at 500 x 500.
 
-Boundary particles are fixed by equal bounds (IPOPT ``make_parameter``); each floating
+Boundary particles are fixed by equal bounds at their natural or pulled (``[[pull]]``) places
+(IPOPT ``make_parameter``); each floating
 component of the spring graph (a zero-energy mode, see springs.build_network) has its centroid
 held at its natural centroid by two linear equalities, which is what the explicit dynamics
 conserves. Springs that go slack can leave further flat directions; the tiny regularisation
