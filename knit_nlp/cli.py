@@ -1,8 +1,9 @@
-"""The ``knit-nlp`` command line (spec/problem_files.md, "Command line").
+"""The ``knit-nlp`` command line (README, "Command line").
 
 Exit codes: 0 success, 1 solver did not converge (results still written, ``"success": false``),
 2 bad problem file or bad arguments (one line naming file, table and key; no traceback).
-Every check on the problem file and the arguments happens before anything is built or written.
+Commands dispatch by the problem's model through :data:`knit_nlp.api.MODELS`; which flags
+apply to which model is said once, in :data:`FLAGS`.
 """
 from __future__ import annotations
 
@@ -12,12 +13,19 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from .api import MODELS, load_problem
 from .errors import ProblemError, quoted, shown
 from .problems import named_problems, resolve
-from .tomlio import load_toml
 
 MAX_CONTINUATION = 1000
+# the middle part of the output names each command writes: <name>.<kind>.<suffix>
 OUTPUTS = {"weft": ("full", "reduced"), "compare": ("compare",), "jacquard": ("jacquard",)}
+
+# CLI flag -> the model it applies to
+FLAGS = {"--reduced": "weft", "--full": "weft", "--continuation": "weft",
+         "--warm-from-reduced": "weft", "--solver": "jacquard", "--svg": "jacquard"}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -58,14 +66,14 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument("--solver", choices=["static", "explicit"], default=None,
                        help="jacquard: override [solver] method")
     solve.add_argument("--svg", action="store_true", help="jacquard: also write an SVG picture")
-    compare = sub.add_parser("compare", help="solve full and reduced models and compare them")
+    compare = sub.add_parser("compare", help="weft: solve full and reduced models and compare them")
     compare.add_argument("problem")
     compare.add_argument("--out", default="results")
     sub.add_parser("list", help="list the named problems")
     return parser
 
 
-def _cmd_list() -> int:
+def _cmd_list(args: argparse.Namespace) -> int:
     rows = [(shown(n), shown(m), shown(d, 200)) for n, m, d in named_problems()]
     width = max((len(r[0]) for r in rows), default=4)
     for name, model, description in rows:
@@ -73,9 +81,72 @@ def _cmd_list() -> int:
     return 0
 
 
+def _given_flags(args: argparse.Namespace) -> list[str]:
+    """The model-specific flags given on the command line."""
+    values = {"--reduced": args.reduced, "--full": args.full,
+              "--continuation": args.continuation is not None,
+              "--warm-from-reduced": args.warm_from_reduced,
+              "--solver": args.solver is not None, "--svg": args.svg}
+    return [flag for flag, given in values.items() if given]
+
+
+def _solve_options(args: argparse.Namespace, model: str) -> dict[str, Any]:
+    if model == "weft":
+        opts: dict[str, Any] = {"continuation": args.continuation,
+                                "warm_from_reduced": args.warm_from_reduced}
+        if args.reduced or args.full:
+            opts["reduced"] = bool(args.reduced)
+        return opts
+    return {"solver": args.solver}
+
+
+def _cmd_solve(args: argparse.Namespace) -> int:
+    path = resolve(args.problem)
+    problem = load_problem(path)
+    wrong = [f for f in _given_flags(args) if FLAGS[f] != problem.model]
+    if wrong:
+        raise ProblemError(path, "", "model", f"{'/'.join(wrong)} apply to {FLAGS[wrong[0]]} "
+                           f"problems only; this is a {problem.model} problem")
+    if args.warm_from_reduced and args.reduced or (
+            args.warm_from_reduced and not args.full and getattr(problem, "reduction", None)):
+        raise ProblemError(path, "", "", "--warm-from-reduced starts the full model: add --full")
+    out = prepare_out(args.out, problem.name, OUTPUTS[problem.model])
+    result = MODELS[problem.model].solve(problem, **_solve_options(args, problem.model))
+    with np.errstate(invalid="ignore", over="ignore"):  # a diverged run: NaN figures (null)
+        paths = result.save(out, **({"svg": True} if args.svg else {}))
+        print(_summary(problem.model)(result, paths))
+    return 0 if result.success else 1
+
+
+def _summary(model: str):
+    if model == "weft":
+        from .weft.summary import solve_summary
+    else:
+        from .jacquard.summary import solve_summary
+    return solve_summary
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    path = resolve(args.problem)
+    problem = load_problem(path)
+    compare = MODELS[problem.model].compare
+    if compare is None:
+        raise ProblemError(path, "", "model", f"compare is for weft problems; this is a "
+                           f"{problem.model} problem")
+    from .weft.summary import compare_summary
+    out = prepare_out(args.out, problem.name, OUTPUTS["compare"])
+    cmp = compare(problem)
+    print(compare_summary(cmp, cmp.save(out)))
+    return 0 if cmp.success else 1
+
+
+COMMANDS = {"list": _cmd_list, "solve": _cmd_solve, "compare": _cmd_compare}
+
+
 def prepare_out(out: str, name: str, kinds: tuple[str, ...]) -> Path:
     """The output folder, created: refused (one line, exit 2) if it names a file, lies under a
-    file, cannot be created or written, or holds a non-file where an output must go."""
+    file, cannot be created or written, or holds a non-file where an output must go. Called
+    after the problem is read and checked, before solving: bad input writes nothing."""
     folder = Path(out)
     if not out or "\0" in out:
         raise ProblemError("--out", "", "", f"not a usable folder name: {quoted(out)}")
@@ -101,55 +172,13 @@ def prepare_out(out: str, name: str, kinds: tuple[str, ...]) -> Path:
     return folder
 
 
-def _load(problem: str) -> tuple[Path, dict[str, Any], str]:
-    path = resolve(problem)
-    doc = load_toml(path)
-    model = doc.get("model", "weft")
-    if model not in ("weft", "jacquard"):
-        raise ProblemError(path, "", "model", f"must be 'weft' or 'jacquard'; got {quoted(model)}")
-    return path, doc, model
-
-
-def _cmd_solve(args: argparse.Namespace) -> int:
-    path, doc, model = _load(args.problem)
-    if model == "jacquard":
-        if args.reduced or args.full or args.continuation is not None or args.warm_from_reduced:
-            raise ProblemError(path, "", "model", "--reduced/--full/--continuation/"
-                               "--warm-from-reduced apply to weft problems only")
-        from .jacquard import parse_problem as parse_jacquard, solve_file
-        out = prepare_out(args.out, parse_jacquard(doc, path).name, OUTPUTS["jacquard"])
-        return solve_file(path, doc, out, solver=args.solver, svg=args.svg)
-    if args.solver is not None or args.svg:
-        raise ProblemError(path, "", "model", "--solver/--svg apply to jacquard problems only")
-    from .weft.problem import parse_problem as parse_weft
-    from .weft.run import solve_file as weft_solve
-    out = prepare_out(args.out, parse_weft(path, doc).name, OUTPUTS["weft"])
-    reduced = True if args.reduced else False if args.full else None
-    return weft_solve(path, doc, out, reduced=reduced, continuation=args.continuation,
-                      warm_from_reduced=args.warm_from_reduced)
-
-
-def _cmd_compare(args: argparse.Namespace) -> int:
-    path, doc, model = _load(args.problem)
-    if model != "weft":
-        raise ProblemError(path, "", "model", "compare applies to weft problems only")
-    from .weft.problem import parse_problem as parse_weft
-    from .weft.run import compare_file
-    out = prepare_out(args.out, parse_weft(path, doc).name, OUTPUTS["compare"])
-    return compare_file(path, doc, out)
-
-
 def main(argv: list[str] | None = None) -> int:
     try:
         args = _parser().parse_args(argv)
     except SystemExit as stop:              # --help (0) or a bad argument (2, one line)
         return int(stop.code or 0)
     try:
-        if args.command == "list":
-            return _cmd_list()
-        if args.command == "solve":
-            return _cmd_solve(args)
-        return _cmd_compare(args)
+        return COMMANDS[args.command](args)
     except ProblemError as err:
         print(f"knit-nlp: {err}", file=sys.stderr)
         return 2

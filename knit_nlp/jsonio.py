@@ -1,13 +1,15 @@
-"""Writing result JSON: numpy scalars and arrays become plain JSON numbers and lists."""
+"""Writing result files: JSON (numpy scalars and arrays become plain numbers and lists), NPZ, CSV;
+each atomically (a temporary file in the same folder, then renamed: :mod:`knit_nlp.atomic`)."""
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .atomic import write_text
+from .atomic import atomic_file, write_text
 
 
 def _plain(obj: Any) -> Any:
@@ -25,6 +27,22 @@ def _plain(obj: Any) -> Any:
 
 
 def write_json(path: Path, data: dict[str, Any]) -> Path:
-    """Write ``data`` as indented JSON (non-finite numbers become null), creating the folder;
-    atomically (:mod:`knit_nlp.atomic`)."""
+    """Write ``data`` as indented JSON (non-finite numbers become null), creating the folder."""
     return write_text(path, json.dumps(_plain(data), indent=1) + "\n")
+
+
+def write_npz(path: Path, **arrays: np.ndarray) -> Path:
+    """Write arrays to a compressed NPZ, creating the folder."""
+    with atomic_file(path) as fh:
+        np.savez_compressed(fh, **arrays)
+    return path
+
+
+def write_csv(path: Path, rows: Sequence[Mapping[str, Any]],
+              fields: Sequence[str] | None = None) -> Path:
+    """A study table as CSV (columns ``fields``, default the first row's keys)."""
+    with atomic_file(path, "w", newline="", encoding="utf-8") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(fields or rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    return path

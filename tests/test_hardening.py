@@ -292,19 +292,21 @@ def test_api_refuses_an_unknown_jacquard_solver():
 
 @pytest.mark.parametrize("kwargs,key", [
     ({"material": {"k_a": -1.0}}, "k_a"), ({"material": {"k_b": float("nan")}}, "k_b"),
-    ({"material": {"R_f": 1e300}}, "R_f"), ({"material": {"E": 1.0}}, "E"),
-    ({"displacements": {1: [float("inf"), 0.0]}}, "displacement"),
-    ({"targets": {5: [0.0, 0.0]}}, "index"), ({"forces": {0: [1.0, 2.0]}}, "index"),
-    ({"targets": {0: [0.0]}}, "position"),
+    ({"material": {"R_f": 1e300}}, "R_f"), ({"material": {"R_f": 10 ** 400}}, "R_f"),
+    ({"material": {"E": 1.0}}, "E"),
+    ({"displacements": {2: [float("inf"), 0.0]}}, "displacement"),
+    ({"targets": {5: [0.0, 0.0]}}, "clamp 5"), ({"forces": {1: [1.0, 2.0]}}, "load 1"),
+    ({"targets": {1: [0.0]}}, "target"),
 ])
 def test_study_parameters_are_checked_like_the_file(kwargs, key):
-    from knit_nlp.study import WeftStudy
+    """WeftParams.with_ refuses what a problem file would (ValueError naming the value)."""
+    from knit_nlp.weft.study import WeftStudy
     from knit_nlp.weft.problem import parse_problem
     import tomllib
-    study = WeftStudy(parse_problem("<s>", tomllib.loads(WEFT)))
-    with pytest.raises(ProblemError, match=key):
-        study.params(**kwargs)
-    assert study.params(material={"k_a": 2.0}) is not None
+    study = WeftStudy(parse_problem(tomllib.loads(WEFT), "<s>"))
+    with pytest.raises(ValueError, match=key):
+        study.params.with_(**kwargs)
+    assert study.params.with_(material={"k_a": 2.0}).k_a == 2.0
 
 
 # --- budgets and after-solve paths -----------------------------------------------------------

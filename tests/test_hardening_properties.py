@@ -5,6 +5,7 @@ command line's argument handling exits 0 or 2 with one line, never a traceback. 
 no solver runs here (the CLI's solve entry points are replaced by a stub)."""
 import copy
 import datetime
+from dataclasses import replace
 import math
 from pathlib import Path
 from unittest import mock
@@ -117,14 +118,14 @@ def folder(tmp_path_factory) -> Path:
 
 
 def test_the_base_documents_are_valid(folder):
-    assert parse_weft("w.toml", copy.deepcopy(WEFT_BASE)).courses == 2
+    assert parse_weft(copy.deepcopy(WEFT_BASE), "w.toml").courses == 2
     assert parse_jacquard(copy.deepcopy(JACQUARD_BASE), folder / "j.toml").wales == 4
 
 
 @SETTINGS
 @given(doc=mutated(WEFT_BASE))
 def test_weft_documents_are_a_problem_or_one_problem_error(doc):
-    _check_outcome(lambda: parse_weft("w.toml", doc))
+    _check_outcome(lambda: parse_weft(doc, "w.toml"))
 
 
 @SETTINGS
@@ -171,15 +172,34 @@ ARGV = structured_argv() | st.lists(TOKENS | ANY_TEXT, max_size=7)
 @given(argv=ARGV)
 def test_cli_arguments_exit_0_or_2_with_one_line(tmp_path, capsys, argv):
     """Solving is stubbed out (returns 0): what is tested is everything before it."""
-    with mock.patch("knit_nlp.weft.run.solve_file", return_value=0), \
-            mock.patch("knit_nlp.weft.run.compare_file", return_value=0), \
-            mock.patch("knit_nlp.jacquard.solve_file", return_value=0), \
+    with mock.patch.dict("knit_nlp.cli.MODELS", _STUBS), \
+            mock.patch("knit_nlp.cli._summary", return_value=lambda result, paths: "solved"), \
+            mock.patch("knit_nlp.weft.summary.compare_summary", return_value="compared"), \
             mock.patch("knit_nlp.cli.prepare_out", side_effect=_no_writes(tmp_path)):
         code = main(argv)
     out, err = capsys.readouterr()
     assert code in (0, 2)
     if code == 2:
         assert len(err.strip().splitlines()) == 1 and err.strip().isprintable(), repr(err)
+
+
+class _Solved:
+    """What a stubbed solve or compare returns: success, and nothing saved."""
+
+    success = True
+
+    def save(self, out, **options):
+        return []
+
+
+def _stub(model):
+    from knit_nlp.api import MODELS
+    real = MODELS[model]
+    return replace(real, solve=lambda problem, **options: _Solved(),
+                   compare=None if real.compare is None else lambda problem: _Solved())
+
+
+_STUBS = {model: _stub(model) for model in ("weft", "jacquard")}
 
 
 def _no_writes(tmp_path: Path):
