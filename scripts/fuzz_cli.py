@@ -37,8 +37,11 @@ sys.path.insert(0, str(ROOT))
 
 # imported once here, so that every forked case starts warm (the CLI imports these lazily)
 import matplotlib.image  # noqa: E402,F401
-import knit_nlp.jacquard  # noqa: E402,F401
-import knit_nlp.weft.run  # noqa: E402,F401
+import knit_nlp.jacquard.render  # noqa: E402,F401
+import knit_nlp.jacquard.summary  # noqa: E402,F401
+import knit_nlp.weft.api  # noqa: E402,F401
+import knit_nlp.weft.plot  # noqa: E402,F401
+import knit_nlp.weft.summary  # noqa: E402,F401
 from knit_nlp.cli import main  # noqa: E402
 
 DECOY = Path(tempfile.gettempdir()) / "knit_fuzz_decoy"
