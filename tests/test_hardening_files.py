@@ -21,16 +21,14 @@ WRITER = textwrap.dedent("""
     import sys
     from pathlib import Path
     import numpy as np
-    from knit_nlp.jsonio import write_json
-    from knit_nlp.atomic import atomic_file
+    from knit_nlp.jsonio import write_json, write_npz
     out = Path(sys.argv[1])
     k = 0
     while True:
         k += 1
         data = {"k": k, "payload": np.full(200_000, float(k))}
         write_json(out / "r.json", data)
-        with atomic_file(out / "r.npz") as fh:
-            np.savez_compressed(fh, payload=data["payload"])
+        write_npz(out / "r.npz", payload=data["payload"])
         print(k, flush=True)
 """)
 
@@ -52,19 +50,19 @@ def _kill_during_a_write(proc: subprocess.Popen, target: Path, timeout: float = 
 
 
 def test_kill_9_never_leaves_a_truncated_result(tmp_path):
-    """Kill a process that rewrites a 3 MB JSON and an NPZ in a loop, 6 times, half of them the
-    moment the JSON changes and half at random: each time both files hold one complete
-    version (with a plain write_text the JSON is left empty or cut)."""
+    """Kill a process that rewrites a 3 MB JSON and an NPZ in a loop (write_json, write_npz),
+    6 times: the moment the JSON changes, the moment the NPZ changes, or at random. Each time
+    both files hold one complete version (with plain writes they are left empty or cut)."""
     rng = np.random.default_rng(13)
     for trial in range(6):
         proc = subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path)], cwd=ROOT,
                                 stdout=subprocess.PIPE, text=True)
         assert proc.stdout.readline().strip()          # at least one complete write
-        if trial % 2:
+        if trial % 3 == 2:
             time.sleep(rng.uniform(0.0, 0.3))
             proc.send_signal(signal.SIGKILL)
         else:
-            _kill_during_a_write(proc, tmp_path / "r.json")
+            _kill_during_a_write(proc, tmp_path / ("r.json", "r.npz")[trial % 3])
         proc.wait()
         proc.stdout.close()
         data = json.loads((tmp_path / "r.json").read_text())
