@@ -5,7 +5,7 @@ tiled or cut), solve statically, then run the explicit solver until its residual
 net spring force on a free particle) is at most the static one; print both times and the ratio.
 Then the static solver alone on 500 x 500.
 
-    .venv/bin/python scripts/bench_jacquard.py [--sizes 20] [--static-only 100]
+    .venv/bin/python scripts/bench_jacquard.py [--sizes 10] [--static-only 100]
                                                [--max-steps 400000] [--full-sizes]
 
 The defaults take under a minute; ``--full-sizes`` runs docs/jacquard.md's benchmark
@@ -36,7 +36,7 @@ def resized(p: JacquardProblem, size: int) -> JacquardProblem:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", type=int, nargs="*", default=[20])
+    ap.add_argument("--sizes", type=int, nargs="*", default=[10])
     ap.add_argument("--static-only", type=int, nargs="*", default=[100])
     ap.add_argument("--max-steps", type=int, default=400_000)
     ap.add_argument("--full-sizes", action="store_true",

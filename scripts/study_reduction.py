@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from knit_nlp.jsonio import write_csv  # noqa: E402
+from knit_nlp.units import Units  # noqa: E402
 from knit_nlp.weft.api import solve  # noqa: E402
 from knit_nlp.weft.cases import course_pull, diagonal_pull  # noqa: E402
 from knit_nlp.weft.parametrisation import Full, Reduced  # noqa: E402
@@ -85,7 +86,7 @@ def plot(rows: list[dict], path: Path) -> None:
         ax.set_xscale("log")
         ax.set_yscale("symlog", linthresh=1e-3)
         ax.set_xlabel(label)
-        ax.set_ylabel("largest centreline distance to the full model")
+        ax.set_ylabel(f"largest centreline distance to the full model [{Units().length}]")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
     fig.suptitle("Interpolation reduction: error against size and time")

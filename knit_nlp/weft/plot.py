@@ -88,6 +88,8 @@ def solution_figure(result: "WeftResult", natural: np.ndarray, deformed: np.ndar
                     colour: str = "course") -> tuple[plt.Figure, plt.Axes]:
     """The solution picture (not saved): natural loops grey, deformed loops coloured by course
     or by displacement magnitude, grips, targets and force arrows."""
+    if colour not in COLOURINGS:
+        raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}; got {colour!r}")
     units = result.problem.units
     pts = np.concatenate([natural.reshape(-1, 2), deformed.reshape(-1, 2)])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
