@@ -121,7 +121,7 @@ def solution_figure(result: "WeftResult", natural: np.ndarray, deformed: np.ndar
     ax.set_title(f"{result.problem.name} ({result.model}): stored energy "
                  f"{result.energy.total:.4g} {units.energy}, "
                  f"{'converged' if result.success else 'NOT CONVERGED'}", fontsize=10)
-    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), ncol=3, fontsize=8, frameon=False)
+    fig.legend(loc="outside lower left", ncol=3, fontsize=8, frameon=False)
     return fig, ax
 
 
@@ -133,13 +133,19 @@ def _draw_grips(ax: plt.Axes, result: "WeftResult") -> None:
     if len(singles):
         ax.plot(singles[:, 0], singles[:, 1], "s", color=GRIP, ms=6, zorder=4,
                 label="point clamp")
-    moved = [c for c in result.clamps if all(c.fix) and np.linalg.norm(
-        c.target - result.problem.natural_position(c.loop, result.problem.clamps[c.number - 1].s))
-        > result.problem.solver.tol]
-    if moved:
-        tg = np.array([c.target for c in moved])
-        ax.plot(tg[:, 0], tg[:, 1], "x", color=GRIP, ms=9, mew=2, zorder=5,
-                label="clamp target")
+    pr = result.problem
+    moved = [c for c in result.clamps if np.linalg.norm(
+        c.target - pr.natural_position(c.loop, pr.clamps[c.number - 1].s)) > pr.solver.tol]
+    # a target that holds both coordinates is a cross; one that holds x (y) only is a bar
+    # across that axis at the held value, through where the point ended
+    for fix, marker, label in ((("x", "y"), "x", "clamp target"),
+                               (("x",), "|", "clamp target (x held)"),
+                               (("y",), "_", "clamp target (y held)")):
+        tg = np.array([[c.target[0] if "x" in fix else c.position[0],
+                        c.target[1] if "y" in fix else c.position[1]]
+                       for c in moved if c.fix == fix]).reshape(-1, 2)
+        if len(tg):
+            ax.plot(tg[:, 0], tg[:, 1], marker, color=GRIP, ms=12, mew=2, zorder=5, label=label)
 
 
 def _draw_forces(ax: plt.Axes, result: "WeftResult", size: float) -> None:
@@ -159,8 +165,8 @@ def _draw_forces(ax: plt.Axes, result: "WeftResult", size: float) -> None:
                       label="clamp reaction" if kind == "reaction" else "load")
         ax.update_datalim(p + f * scale)                 # keep the arrow tips in view
     ref = round_reference(largest)
-    ax.quiverkey(q, 0.82, -0.13, ref * scale, f"{ref:g} {result.problem.units.force}",
-                 labelpos="E", coordinates="axes", color="0.2", fontproperties={"size": 8})
+    ax.quiverkey(q, 0.72, 0.035, ref * scale, f"{ref:g} {result.problem.units.force}",
+                 labelpos="E", coordinates="figure", color="0.2", fontproperties={"size": 8})
 
 
 def plot_solution(path: Path, result: "WeftResult", natural: np.ndarray,
