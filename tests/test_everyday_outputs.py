@@ -225,3 +225,35 @@ def test_version(capsys):
         main(["--version"])
     assert ex.value.code == 0
     assert capsys.readouterr().out.strip() == f"knit-nlp {knit_nlp.__version__}"
+
+
+def test_targets_are_drawn_where_they_hold(write_problem):
+    """A clamp holding x only is drawn as a bar at its target x (through where the point
+    ended); one holding both as a cross at its target; holding clamps draw no target."""
+    r = solve(load_problem(write_problem(FABRIC + """
+[[clamp]]
+edge = "left"
+displacement = [0.0, 0.0]
+fix = ["x"]
+[[clamp]]
+loop = [1, 1]
+point = "head"
+displacement = [0.0, 0.0]
+[[clamp]]
+edge = "right"
+displacement = [2.0, 0.0]
+fix = ["x"]
+[[clamp]]
+loop = [2, 2]
+point = "head"
+displacement = [0.5, 0.5]
+""")))
+    assert r.success
+    fig, ax = solution_figure(r, r.natural_centrelines(), r.centrelines())
+    marks = {line.get_marker(): np.column_stack(line.get_data()) for line in ax.get_lines()
+             if line.get_marker() in ("x", "|", "_")}
+    plt.close(fig)
+    assert set(marks) == {"x", "|"}
+    right = [c for c in r.clamps if c.group == "clamp[3]"]
+    np.testing.assert_allclose(marks["|"], [[c.target[0], c.position[1]] for c in right])
+    np.testing.assert_allclose(marks["x"], [r.clamps[-1].target])
