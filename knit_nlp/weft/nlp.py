@@ -86,6 +86,12 @@ class WeftNLP:
     energy: ca.Function
     coeff_map: np.ndarray | None
     n_parameters: int
+    displacements: ca.MX | None = None     # D: per-loop integrals (2 × N·P), see _constraints
+
+    @property
+    def eval_points(self) -> list[float]:
+        """The s-values of each loop's columns of ``displacements``."""
+        return _eval_points(self.problem, self.specials)
 
     @property
     def n_variables(self) -> int:
@@ -197,14 +203,14 @@ def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
     pl = _param_layout(pr)
     psym = ca.MX.sym("p", pl.size)
     pb = {name: ca.reshape(psym[pl.slice(name)], *shape) for name, (_, _, shape) in pl.blocks.items()}
-    gl, g = _constraints(pr, A, xb, pb, specials, clamp_pts, rigid_pts, continuity=coeff_map is None)
+    gl, g, D = _constraints(pr, A, xb, pb, specials, clamp_pts, rigid_pts, continuity=coeff_map is None)
     spring, bend, work = _energy_terms(pr, A, xb, pb, specials, load_pts)
     nlp = {"x": xsym, "p": psym, "f": spring + bend - work, "g": g}
     energy = ca.Function("energy", [xsym, psym], [spring, bend, work],
                          ["x", "p"], ["spring", "bending", "load_work"])
     result = WeftNLP(pr, reduced, nlp, xl, pl, gl, np.zeros(xl.size), _param_values(pr, pl),
                      specials, clamp_pts, load_pts, rigid_pts, energy, coeff_map,
-                     n_parameters(pr, reduced))
+                     n_parameters(pr, reduced), D)
     result.x0 = result.lift(np.broadcast_to(pr.natural.coeffs, (m, n, nc)).copy(),
                             pr.natural_starts())
     return result
@@ -231,9 +237,10 @@ def _variables(pr: WeftProblem, coeff_map: np.ndarray | None, specials: list[Spe
 
 def _constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
                  specials: list[SpecialPoint], clamp_pts: list[int], rigid_pts: list[list[int]],
-                 continuity: bool) -> tuple[Layout, ca.MX]:
+                 continuity: bool) -> tuple[Layout, ca.MX, ca.MX]:
     """All equality constraints g = 0: chaining (eq. 1), lifted spring vectors and points,
-    continuity (18)-(19) unless the parametrisation has it built in, clamps."""
+    continuity (18)-(19) unless the parametrisation has it built in, clamps; and the per-loop
+    integrals D they use (g is affine in the variables and D)."""
     n, N, X = pr.wales, pr.n_loops, xb["starts"]
     evals = _eval_points(pr, specials)
     col, P = {s: q for q, s in enumerate(evals)}, len(evals)
@@ -265,7 +272,7 @@ def _constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, 
               - ca.mtimes(ca.DM(S), A[:, (left + 1).tolist()]))
     _clamp_constraints(pr, A, xb, pb, clamp_pts, add_g)
     _rigid_constraints(pr, xb, pb, rigid_pts, add_g)
-    return gl, ca.vertcat(*g)
+    return gl, ca.vertcat(*g), D
 
 
 def _energy_terms(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],

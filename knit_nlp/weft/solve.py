@@ -20,8 +20,12 @@ import casadi as ca
 import numpy as np
 
 from .basis import n_coeffs, phi
+from .derivatives import closed_form_derivatives
 from .nlp import WeftNLP
 from .quadrature import positions
+from .start import start_point
+
+DEFAULT_START = "natural"
 
 SUCCESS = "Solve_Succeeded"
 
@@ -53,17 +57,18 @@ class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
-                 print_level: int = 0) -> None:
+                 print_level: int = 0, derivatives: str = "closed_form",
+                 ipopt: dict | None = None) -> None:
         opts = wnlp.problem.solver
         self.wnlp = wnlp
         t0 = time.perf_counter()
         self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, {
-            "print_time": False,
+            "print_time": False, **derivative_options(wnlp, derivatives),
             "ipopt": {"tol": tol or opts.tol, "max_iter": max_iter or opts.max_iter,
                       "print_level": print_level, "sb": "yes", "linear_solver": "mumps",
                       # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of
                       # IPOPT's own time and the KKT systems here are well scaled without them
-                      "mumps_scaling": 0, "mumps_permuting_scaling": 0}})
+                      "mumps_scaling": 0, "mumps_permuting_scaling": 0, **(ipopt or {})}})
         self.setup_s = time.perf_counter() - t0
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
 
@@ -106,6 +111,16 @@ class WeftSolver:
             dtau /= 2
         total.success = True
         return total
+
+
+def derivative_options(wnlp: WeftNLP, derivatives: str) -> dict:
+    """nlpsol options for the derivatives: ``closed_form`` (derivatives.py; full model only,
+    measured faster, see README) or ``casadi`` (CasADi's AD of the NLP expressions)."""
+    if derivatives not in ("closed_form", "casadi"):
+        raise ValueError(f"unknown derivatives {derivatives!r}")
+    if derivatives == "casadi" or wnlp.coeff_map is not None:
+        return {}
+    return closed_form_derivatives(wnlp)
 
 
 def natural_parameters(wnlp: WeftNLP) -> np.ndarray:
@@ -158,14 +173,17 @@ def needs_perturbation(wnlp: WeftNLP, p: np.ndarray) -> bool:
 
 
 def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, p: np.ndarray | None = None,
-          x0: np.ndarray | None = None, continuation: int | None = None) -> SolveReport:
-    """Solve robustly: direct, then continuation; from perturbed starts where degenerate."""
+          x0: np.ndarray | None = None, continuation: int | None = None,
+          start: str = DEFAULT_START) -> SolveReport:
+    """Solve robustly: direct, then continuation; from perturbed starts where degenerate.
+    Without x0 the solve starts from ``start`` (start.py: ``natural`` or ``rigid``)."""
     solver = solver or WeftSolver(wnlp)
     p = wnlp.p0 if p is None else p
     continuation = continuation or wnlp.problem.solver.continuation
     if needs_perturbation(wnlp, p) and x0 is None:
         return _best_of_perturbed(wnlp, solver, p, continuation)
-    return _direct_then_continuation(solver, p, wnlp.x0 if x0 is None else x0, continuation)
+    return _direct_then_continuation(solver, p, start_point(wnlp, p, start) if x0 is None else x0,
+                                     continuation)
 
 
 def _direct_then_continuation(solver: WeftSolver, p: np.ndarray, x0: np.ndarray,
