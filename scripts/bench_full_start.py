@@ -1,0 +1,125 @@
+"""Benchmark: the full model on large fabrics, by start and derivatives (issue 14, items 3-4).
+
+For each size and pull (the diagonal pull of bench_weft.py, and a course pull: every course's
+first loop start held in x, its last loop end moved 25 % of the fabric width in x, loop (1, 1)
+held in y), every configuration runs in its own process so that its peak memory (max RSS) is its
+own:
+
+- ``casadi``: natural start, CasADi's AD derivatives (the code before issue 14);
+- ``closed``: natural start, closed-form Jacobian and Hessian (knit_nlp/weft/derivatives.py);
+- ``rigid``: the rigid-fit start (knit_nlp/weft/start.py) with closed-form derivatives;
+- ``closed+soc0`` / ``rigid+soc0``: the same with IPOPT's ``max_soc = 0``.
+
+Printed per run: IPOPT iterations, objective evaluations, evaluation seconds (IPOPT's
+``t_wall_nlp_*``), IPOPT's own seconds (solve minus evaluations), solver set-up, end to end in the
+process, peak MB, the energy and its difference from the first configuration's, and every
+time's ratio to the first configuration's in the same run. Timings on a shared machine are
+noisy: compare ratios within one run.
+
+    python scripts/bench_full_start.py                    # 30 x 30 (about a minute alone)
+    python scripts/bench_full_start.py --large            # 30, 50 and 100 (many minutes)
+    python scripts/bench_full_start.py --sizes 50 --pulls diagonal --configs casadi rigid
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE), str(HERE.parent)]          # bench_weft and knit_nlp from this checkout
+
+from bench_weft import diagonal_pull_doc  # noqa: E402
+
+CONFIGS = {"casadi": ("natural", "casadi", {}),
+           "closed": ("natural", "closed_form", {}),
+           "rigid": ("rigid", "closed_form", {}),
+           "closed+soc0": ("natural", "closed_form", {"max_soc": 0}),
+           "rigid+soc0": ("rigid", "closed_form", {"max_soc": 0})}
+
+
+def course_pull_doc(n: int, strain: float = 0.25) -> dict:
+    """An n x n course pull: problems/course_stretch.toml's clamps on an n x n fabric."""
+    from knit_nlp.weft.natural import natural_loop, preset_coeffs
+    w = natural_loop(preset_coeffs("jersey", 3), 10.0, 3).wale_spacing
+    clamps = [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]}]
+    clamps += [{"loop": [i, 1], "point": "start", "displacement": [0.0, 0.0], "fix": ["x"]}
+               for i in range(2, n + 1)]
+    clamps += [{"loop": [i, n], "point": "end", "displacement": [strain * n * w, 0.0], "fix": ["x"]}
+               for i in range(1, n + 1)]
+    return {"name": f"course_pull_{n}x{n}", "fabric": {"courses": n, "wales": n}, "clamp": clamps}
+
+
+PULLS = {"diagonal": diagonal_pull_doc, "course": course_pull_doc}
+
+
+def run_one(n: int, pull: str, config: str) -> dict:
+    """Read, build, set up, start and solve one case in this process; report effort and memory."""
+    from knit_nlp.weft.nlp import build_nlp
+    from knit_nlp.weft.problem import parse_problem
+    from knit_nlp.weft.solve import WeftSolver
+    from knit_nlp.weft.start import start_point
+    start, derivatives, ipopt = CONFIGS[config]
+    t0 = time.perf_counter()
+    pr = parse_problem(f"<bench {pull} {n}x{n}>", PULLS[pull](n))
+    wnlp = build_nlp(pr)
+    t1 = time.perf_counter()
+    solver = WeftSolver(wnlp, derivatives=derivatives, ipopt=ipopt)
+    t2 = time.perf_counter()
+    x0 = start_point(wnlp, wnlp.p0, start)
+    t3 = time.perf_counter()
+    rep = solver.once(wnlp.p0, x0)
+    stats = solver.solver.stats()
+    evals = sum(v for k, v in rep.stats.items() if k.startswith("t_wall_nlp"))
+    return {"n": n, "pull": pull, "config": config, "success": rep.success,
+            "iterations": rep.iterations, "f_evals": int(stats.get("n_call_nlp_f", 0)),
+            "build_s": t1 - t0, "setup_s": t2 - t1, "start_s": t3 - t2, "solve_s": rep.solve_s,
+            "eval_s": evals, "ipopt_s": rep.solve_s - evals,
+            "profile": {k[7:]: v for k, v in rep.stats.items() if k.startswith("t_wall_nlp")},
+            "total_s": time.perf_counter() - t0, "energy": rep.objective,
+            "start_violation": solver.violation(x0, wnlp.p0),
+            "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=None)
+    ap.add_argument("--large", action="store_true", help="sizes 30, 50 and 100")
+    ap.add_argument("--pulls", nargs="+", choices=list(PULLS), default=list(PULLS))
+    ap.add_argument("--configs", nargs="+", choices=list(CONFIGS), default=list(CONFIGS))
+    ap.add_argument("--json", type=Path, help="also write all rows to this file")
+    ap.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one:
+        print(json.dumps(run_one(int(args.one[0]), args.one[1], args.one[2])))
+        return
+    sizes = args.sizes or ([30, 50, 100] if args.large else [30])
+    rows = []
+    print(f"{'case':<16} {'config':<12} {'ok':>2} {'iter':>4} {'f ev':>4} {'eval s':>7} "
+          f"{'ipopt s':>7} {'setup s':>7} {'total s':>7} {'peak MB':>7} {'energy':>14} "
+          f"{'dE':>8}  ratios to first (eval/ipopt/total)", flush=True)
+    for n in sizes:
+        for pull in args.pulls:
+            first = None
+            for config in args.configs:
+                out = subprocess.run([sys.executable, __file__, "--one", str(n), pull, config],
+                                     check=True, capture_output=True, text=True).stdout
+                r = json.loads(out.strip().splitlines()[-1])
+                rows.append(r)
+                first = first or r
+                print(f"{pull + f' {n}x{n}':<16} {config:<12} {'y' if r['success'] else 'N':>2} "
+                      f"{r['iterations']:>4} {r['f_evals']:>4} {r['eval_s']:>7.2f} {r['ipopt_s']:>7.2f} "
+                      f"{r['setup_s']:>7.2f} {r['total_s']:>7.2f} {r['peak_mb']:>7.0f} "
+                      f"{r['energy']:>14.9g} {r['energy'] - first['energy']:>8.1e}  "
+                      f"{r['eval_s'] / first['eval_s']:.2f}/{r['ipopt_s'] / first['ipopt_s']:.2f}/"
+                      f"{r['total_s'] / first['total_s']:.2f}", flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
