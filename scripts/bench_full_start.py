@@ -7,8 +7,12 @@ own:
 
 - ``casadi``: natural start, CasADi's AD derivatives (the code before issue 14);
 - ``closed``: natural start, closed-form Jacobian and Hessian (knit_nlp/weft/derivatives.py);
-- ``rigid``: the rigid-fit start (knit_nlp/weft/start.py) with closed-form derivatives;
-- ``closed+soc0`` / ``rigid+soc0``: the same with IPOPT's ``max_soc = 0``.
+- ``multilevel``: the multilevel start (knit_nlp/weft/start.py: the same pull solved on a fabric
+  with half the courses and wales, recursively, and prolonged), closed-form derivatives;
+- ``rigid``: the rigid-fit start (start.py) with closed-form derivatives;
+- ``closed+soc0`` / ``multilevel+soc0``: the same with IPOPT's ``max_soc = 0``.
+
+The multilevel start's coarse solves are counted in ``start s`` and in the end-to-end time.
 
 Printed per run: IPOPT iterations, objective evaluations, evaluation seconds (IPOPT's
 ``t_wall_nlp_*``), IPOPT's own seconds (solve minus evaluations), solver set-up, end to end in the
@@ -37,9 +41,10 @@ from bench_weft import diagonal_pull_doc  # noqa: E402
 
 CONFIGS = {"casadi": ("natural", "casadi", {}),
            "closed": ("natural", "closed_form", {}),
+           "multilevel": ("multilevel", "closed_form", {}),
            "rigid": ("rigid", "closed_form", {}),
            "closed+soc0": ("natural", "closed_form", {"max_soc": 0}),
-           "rigid+soc0": ("rigid", "closed_form", {"max_soc": 0})}
+           "multilevel+soc0": ("multilevel", "closed_form", {"max_soc": 0})}
 
 
 def course_pull_doc(n: int, strain: float = 0.25) -> dict:
@@ -70,7 +75,8 @@ def run_one(n: int, pull: str, config: str) -> dict:
     t1 = time.perf_counter()
     solver = WeftSolver(wnlp, derivatives=derivatives, ipopt=ipopt)
     t2 = time.perf_counter()
-    x0 = start_point(wnlp, wnlp.p0, start)
+    levels: list[str] = []
+    x0 = start_point(wnlp, wnlp.p0, start, levels)
     t3 = time.perf_counter()
     rep = solver.once(wnlp.p0, x0)
     stats = solver.solver.stats()
@@ -81,7 +87,7 @@ def run_one(n: int, pull: str, config: str) -> dict:
             "eval_s": evals, "ipopt_s": rep.solve_s - evals,
             "profile": {k[7:]: v for k, v in rep.stats.items() if k.startswith("t_wall_nlp")},
             "total_s": time.perf_counter() - t0, "energy": rep.objective,
-            "start_violation": solver.violation(x0, wnlp.p0),
+            "start_violation": solver.violation(x0, wnlp.p0), "levels": levels,
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
@@ -99,8 +105,8 @@ def main() -> None:
         return
     sizes = args.sizes or ([30, 50, 100] if args.large else [30])
     rows = []
-    print(f"{'case':<16} {'config':<12} {'ok':>2} {'iter':>4} {'f ev':>4} {'eval s':>7} "
-          f"{'ipopt s':>7} {'setup s':>7} {'total s':>7} {'peak MB':>7} {'energy':>14} "
+    print(f"{'case':<16} {'config':<15} {'ok':>2} {'iter':>4} {'f ev':>4} {'eval s':>7} "
+          f"{'ipopt s':>7} {'setup s':>7} {'start s':>7} {'total s':>7} {'peak MB':>7} {'energy':>14} "
           f"{'dE':>8}  ratios to first (eval/ipopt/total)", flush=True)
     for n in sizes:
         for pull in args.pulls:
@@ -111,12 +117,15 @@ def main() -> None:
                 r = json.loads(out.strip().splitlines()[-1])
                 rows.append(r)
                 first = first or r
-                print(f"{pull + f' {n}x{n}':<16} {config:<12} {'y' if r['success'] else 'N':>2} "
+                print(f"{pull + f' {n}x{n}':<16} {config:<15} {'y' if r['success'] else 'N':>2} "
                       f"{r['iterations']:>4} {r['f_evals']:>4} {r['eval_s']:>7.2f} {r['ipopt_s']:>7.2f} "
-                      f"{r['setup_s']:>7.2f} {r['total_s']:>7.2f} {r['peak_mb']:>7.0f} "
+                      f"{r['setup_s']:>7.2f} {r['start_s']:>7.2f} {r['total_s']:>7.2f} {r['peak_mb']:>7.0f} "
                       f"{r['energy']:>14.9g} {r['energy'] - first['energy']:>8.1e}  "
                       f"{r['eval_s'] / first['eval_s']:.2f}/{r['ipopt_s'] / first['ipopt_s']:.2f}/"
                       f"{r['total_s'] / first['total_s']:.2f}", flush=True)
+                if r["levels"]:
+                    print(f"{'':<16} {'':<15} start: " + "; ".join(r["levels"])
+                          + f"; violation at start {r['start_violation']:.3g}", flush=True)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
 

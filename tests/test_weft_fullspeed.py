@@ -6,7 +6,8 @@ import pytest
 from knit_nlp.weft.derivatives import closed_form_derivatives
 from knit_nlp.weft.nlp import build_nlp
 from knit_nlp.weft.problem import load_problem, parse_problem
-from knit_nlp.weft.solve import WeftSolver, solve
+from knit_nlp.weft import start
+from knit_nlp.weft.solve import WeftSolver, natural_parameters, solve
 from knit_nlp.weft.start import rigid_start
 
 from conftest import ROOT
@@ -155,3 +156,67 @@ def test_rigid_and_natural_starts_reach_the_same_minimum(n, doc):
     assert abs(nat.objective - rig.objective) < 1e-9 * nat.objective
     assert np.max(np.abs(wnlp.coefficients(nat.x) - wnlp.coefficients(rig.x))) < 1e-6
     assert np.max(np.abs(wnlp.starts(nat.x) - wnlp.starts(rig.x))) < 1e-6
+
+
+@pytest.mark.parametrize("n", [10, 20])
+@pytest.mark.parametrize("doc", [diagonal_pull_doc, course_pull_doc], ids=["diagonal", "course"])
+def test_multilevel_and_natural_starts_reach_the_same_minimum(n, doc, monkeypatch):
+    """Two levels at each size (10 -> 5, 20 -> 10 -> 5); the start violates the constraints at most a fifth as much as the natural one."""
+    monkeypatch.setattr(start, "COARSEST", 5)
+    wnlp = build_nlp(parse_problem("p", doc(n)))
+    solver = WeftSolver(wnlp)
+    nat = solve(wnlp, solver, start="natural")
+    ml = solve(wnlp, solver, start="multilevel")
+    assert nat.success and ml.success
+    assert [a.split(":")[0] for a in ml.attempts[:-1]] == (
+        ["multilevel 5x5"] if n == 10 else ["multilevel 5x5", "multilevel 10x10"])
+    assert abs(nat.objective - ml.objective) < 1e-9 * nat.objective
+    assert np.max(np.abs(wnlp.coefficients(nat.x) - wnlp.coefficients(ml.x))) < 1e-6
+    assert np.max(np.abs(wnlp.starts(nat.x) - wnlp.starts(ml.x))) < 1e-6
+    x0 = start.start_point(wnlp, wnlp.p0, "multilevel")
+    assert solver.violation(x0, wnlp.p0) < 0.2 * solver.violation(wnlp.x0, wnlp.p0)
+
+
+def test_prolonged_coarse_natural_state_is_the_fine_natural_state():
+    """Unpulled (targets at their natural positions) the coarse problem's solution is the
+    natural state, and its prolongation is the fine natural state with every constraint held."""
+    wnlp = build_nlp(parse_problem("p", diagonal_pull_doc(9)))
+    p = natural_parameters(wnlp)
+    cp = start.coarse_problem(wnlp.problem, wnlp.p.get(p, "targets"), wnlp.p.get(p, "rigid"), 5, 5)
+    assert [c.loop for c in cp.clamps] == [(1, 1), (1, 5)]
+    for c in cp.clamps:            # at their natural positions on the coarse fabric
+        assert np.allclose(c.target, cp.natural_position(c.loop, c.s), atol=1e-12)
+    coarse = build_nlp(cp)
+    x = start.prolong(coarse, coarse.x0, wnlp)
+    assert np.allclose(wnlp.starts(x), wnlp.problem.natural_starts(), atol=1e-8)
+    assert WeftSolver(wnlp).violation(x, p) < 1e-8
+
+
+def test_coarse_problem_scales_the_pull_and_merges_points():
+    """The course pull: 20 left and 20 right edge clamps become 10 + 10 with the displacement
+    halved in proportion (r = 9/19), and the corner keeps both coordinates."""
+    pr = parse_problem("p", course_pull_doc(20))
+    wnlp = build_nlp(pr)
+    cp = start.coarse_problem(pr, wnlp.p.get(wnlp.p0, "targets"), wnlp.p.get(wnlp.p0, "rigid"), 10, 10)
+    assert len(cp.clamps) == 20 and cp.clamps[0].fix == (True, True)
+    right = [c for c in cp.clamps if c.loop[1] == 10]
+    d = [c.target[0] - cp.natural_position(c.loop, c.s)[0] for c in right]
+    assert np.allclose(d, 0.25 * 20 * pr.natural.wale_spacing * 9 / 19)
+
+
+def test_prolonged_rigid_turn_is_the_same_rigid_turn():
+    """Displacements scale with the fabric: the coarse natural fabric turned about the origin
+    prolongs to exactly the fine natural fabric turned by the same angle."""
+    def turned(wnlp, phi):
+        pr = wnlp.problem
+        R = np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
+        coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, 8)).copy()
+        coeffs[..., -1] += phi
+        return wnlp.lift(coeffs, pr.natural_starts() @ R.T)
+
+    fine = build_nlp(parse_problem("p", diagonal_pull_doc(9)))
+    coarse = build_nlp(parse_problem("p", diagonal_pull_doc(5)))
+    x = start.prolong(coarse, turned(coarse, 0.4), fine)
+    want = turned(fine, 0.4)
+    assert np.max(np.abs(fine.coefficients(x) - fine.coefficients(want))) < 1e-12
+    assert np.max(np.abs(fine.starts(x) - fine.starts(want))) < 1e-9

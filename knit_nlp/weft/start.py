@@ -13,10 +13,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import n_coeffs
-from .nlp import WeftNLP, rigid_natural_points
+from dataclasses import replace
 
-STARTS = ("rigid", "natural")
+from .basis import n_coeffs
+from .nlp import WeftNLP, build_nlp, rigid_natural_points
+from .quadrature import positions
+from .problem import Clamp, RigidClamp, WeftProblem, canonical_point
+
+STARTS = ("multilevel", "rigid", "natural")
+COARSEST = 12          # the multilevel start solves cold once a side is at most this many loops
 
 
 def clamp_pairs(wnlp: WeftNLP, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -59,14 +64,129 @@ def rigid_start(wnlp: WeftNLP, p: np.ndarray) -> np.ndarray:
     return wnlp.lift(coeffs, pr.natural_starts() @ _rotation(phi).T + b)
 
 
-def start_point(wnlp: WeftNLP, p: np.ndarray, start: str) -> np.ndarray:
+def start_point(wnlp: WeftNLP, p: np.ndarray, start: str,
+                log: list[str] | None = None) -> np.ndarray:
     """The decision vector a solve starts from: ``natural`` or ``rigid`` (the reduced model
     always starts natural: its map fixes the turn in every loop's parameters)."""
     if start not in STARTS:
         raise ValueError(f"unknown start {start!r}; use one of {', '.join(STARTS)}")
     if start == "natural" or wnlp.coeff_map is not None:
         return wnlp.x0
-    return rigid_start(wnlp, p)
+    if start == "rigid":
+        return rigid_start(wnlp, p)
+    x = multilevel_start(wnlp, p, log)
+    return wnlp.x0 if x is None else x
+
+
+def coarse_size(m: int) -> int:
+    """Loops along one side on the next coarser level (halved, rounded up; at least 2)."""
+    return m if m <= COARSEST else max(2, (m + 1) // 2)
+
+
+def coarse_problem(pr: WeftProblem, p_targets: np.ndarray, p_rigid: np.ndarray,
+                   m_c: int, n_c: int) -> WeftProblem | None:
+    """The same pull on an m_c × n_c fabric: every clamped material point moves to the loop at
+    the same fraction of the courses and wales, and its displacement from the natural position
+    scales with the fabric, r = ((n_c−1)/(n−1), (m_c−1)/(m−1)). Points that meet are merged
+    (targets averaged, fixed coordinates united). None where this is not defined (loads, or a
+    point and a rigid clamp meeting)."""
+    m, n = pr.courses, pr.wales
+    if pr.loads:
+        return None
+    r = np.array([(n_c - 1) / (n - 1) if n > 1 else 1.0, (m_c - 1) / (m - 1) if m > 1 else 1.0])
+
+    def coarse_loop(loop: tuple[int, int]) -> tuple[int, int]:
+        return (1 + round((loop[0] - 1) * r[1]), 1 + round((loop[1] - 1) * r[0]))
+
+    merged: dict[tuple, list[Clamp]] = {}
+    for c, target in zip(pr.clamps, p_targets.T):
+        loop = coarse_loop(c.loop)
+        key = canonical_point(loop, c.s, pr.L, n_c)
+        moved = replace(c, loop=loop, target=None)
+        d = np.asarray(target) - pr.natural_position(c.loop, c.s)
+        merged.setdefault(key, []).append((moved, d))
+    clamps, held = [], set()
+    for key, group in merged.items():
+        c0 = group[0][0]
+        fix = tuple(any(c.fix[k] for c, _ in group) for k in range(2))
+        d = np.mean([d for _, d in group], axis=0)
+        angle = next((c.angle for c, _ in group if c.angle is not None), None)
+        clamps.append(replace(c0, fix=fix, angle=angle, target=None))
+        clamps[-1] = replace(clamps[-1], target=_natural(pr, m_c, n_c, c0.loop, c0.s) + r * d)
+        held.add(key)
+    rigid = []
+    for rc, (tx, ty, rot) in zip(pr.rigid_clamps, p_rigid.T):
+        pts, seen = [], set()
+        for loop, label, s in rc.points:
+            lc = coarse_loop(loop)
+            key = canonical_point(lc, s, pr.L, n_c)
+            if key in held:
+                return None
+            if key not in seen:
+                seen.add(key)
+                pts.append((lc, label, s))
+        held |= seen
+        rigid.append(RigidClamp(tuple(pts), r * np.array([tx, ty]), float(rot), r * rc.centre))
+    return replace(pr, name=f"{pr.name} (coarse {m_c}x{n_c})", courses=m_c, wales=n_c,
+                   clamps=tuple(clamps), rigid_clamps=tuple(rigid), reduction=None)
+
+
+def _natural(pr: WeftProblem, m: int, n: int, loop: tuple[int, int], s: float) -> np.ndarray:
+    return replace(pr, courses=m, wales=n).natural_position(loop, s)
+
+
+def prolong(coarse: WeftNLP, xc: np.ndarray, fine: WeftNLP) -> np.ndarray:
+    """A fine decision vector from a coarse solution: loop coefficients interpolated bilinearly
+    at the same fractions of the courses and wales, course-start displacements interpolated and
+    scaled by 1/r, every other loop chained from its course start (eq. 1) and the lifted
+    points recomputed, so only continuity and the clamps keep (small) residuals."""
+    pc, pf = coarse.problem, fine.problem
+    a_c = coarse.coefficients(xc)
+    u_c = coarse.starts(xc)[:, 0] - pc.natural_starts()[:, 0]
+    xi = _fractions(pf.courses, pc.courses)
+    eta = _fractions(pf.wales, pc.wales)
+    a = _interp(_interp(a_c, xi, axis=0), eta, axis=1)
+    r = np.array([(pc.wales - 1) / (pf.wales - 1) if pf.wales > 1 else 1.0,
+                  (pc.courses - 1) / (pf.courses - 1) if pf.courses > 1 else 1.0])
+    course_starts = pf.natural_starts()[:, 0] + _interp(u_c, xi, axis=0) / r
+    ends = positions(a.reshape(-1, n_coeffs(pf.t)), [pf.L], pf.L, pf.t).reshape(
+        pf.courses, pf.wales, 2)
+    starts = np.concatenate([course_starts[:, None], ends[:, :-1]], axis=1).cumsum(axis=1)
+    return fine.lift(a, starts)
+
+
+def _fractions(fine: int, coarse: int) -> np.ndarray:
+    """Fractional coarse indices (0-based) of the fine indices at the same fraction of the side."""
+    return np.arange(fine) * ((coarse - 1) / (fine - 1) if fine > 1 else 0.0)
+
+
+def _interp(arr: np.ndarray, at: np.ndarray, axis: int) -> np.ndarray:
+    """Linear interpolation of ``arr`` along ``axis`` at fractional indices ``at``."""
+    lo = np.clip(np.floor(at).astype(int), 0, arr.shape[axis] - 1)
+    hi = np.minimum(lo + 1, arr.shape[axis] - 1)
+    w = (at - lo).reshape([-1 if k == axis else 1 for k in range(arr.ndim)])
+    return np.take(arr, lo, axis=axis) * (1 - w) + np.take(arr, hi, axis=axis) * w
+
+
+def multilevel_start(wnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
+                     ) -> np.ndarray | None:
+    """Solve the same pull on a fabric with half the courses and wales (itself started the same
+    way, down to COARSEST loops a side) and prolong its solution; None where no coarser problem
+    is defined or its solve fails. Each level's solve is appended to ``log``, coarsest first."""
+    from .solve import WeftSolver, solve
+    pr = wnlp.problem
+    m_c, n_c = coarse_size(pr.courses), coarse_size(pr.wales)
+    if (m_c, n_c) == (pr.courses, pr.wales) or wnlp.coeff_map is not None:
+        return None
+    cp = coarse_problem(pr, wnlp.p.get(p, "targets"), wnlp.p.get(p, "rigid"), m_c, n_c)
+    if cp is None:
+        return None
+    coarse = build_nlp(cp)
+    rep = solve(coarse, WeftSolver(coarse), start="multilevel")
+    if log is not None:
+        log.extend(a for a in rep.attempts if a.startswith("multilevel"))
+        log.append(f"multilevel {m_c}x{n_c}: {rep.status} ({rep.iterations} it, {rep.solve_s:.2f} s)")
+    return prolong(coarse, rep.x, wnlp) if rep.success else None
 
 
 def _rotation(phi: float) -> np.ndarray:
