@@ -1,9 +1,8 @@
 """Benchmark: the full model on large fabrics, by start and derivatives (issue 14, items 3-4).
 
-For each size and pull (the diagonal pull of bench_weft.py, and a course pull: every course's
-first loop start held in x, its last loop end moved 25 % of the fabric width in x, loop (1, 1)
-held in y), every configuration runs in its own process so that its peak memory (max RSS) is its
-own:
+For each size and pull (knit_nlp/weft/cases.py: the diagonal pull, eq. 28 scaled to the fabric,
+and the course pull, left edge held, right edge pulled 25 % of the width), every configuration
+runs in its own process so that its peak memory (max RSS) is its own:
 
 - ``casadi``: natural start, CasADi's AD derivatives (the code before issue 14);
 - ``closed``: natural start, closed-form Jacobian and Hessian (knit_nlp/weft/derivatives.py);
@@ -34,10 +33,9 @@ import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path[:0] = [str(HERE), str(HERE.parent)]          # bench_weft and knit_nlp from this checkout
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))     # knit_nlp from this checkout
 
-from bench_weft import diagonal_pull_doc  # noqa: E402
+from knit_nlp.weft.cases import course_pull, diagonal_pull  # noqa: E402
 
 CONFIGS = {"casadi": ("natural", "casadi", {}),
            "closed": ("natural", "closed_form", {}),
@@ -47,19 +45,7 @@ CONFIGS = {"casadi": ("natural", "casadi", {}),
            "multilevel+soc0": ("multilevel", "closed_form", {"max_soc": 0})}
 
 
-def course_pull_doc(n: int, strain: float = 0.25) -> dict:
-    """An n x n course pull: problems/course_stretch.toml's clamps on an n x n fabric."""
-    from knit_nlp.weft.natural import natural_loop, preset_coeffs
-    w = natural_loop(preset_coeffs("jersey", 3), 10.0, 3).wale_spacing
-    clamps = [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]}]
-    clamps += [{"loop": [i, 1], "point": "start", "displacement": [0.0, 0.0], "fix": ["x"]}
-               for i in range(2, n + 1)]
-    clamps += [{"loop": [i, n], "point": "end", "displacement": [strain * n * w, 0.0], "fix": ["x"]}
-               for i in range(1, n + 1)]
-    return {"name": f"course_pull_{n}x{n}", "fabric": {"courses": n, "wales": n}, "clamp": clamps}
-
-
-PULLS = {"diagonal": diagonal_pull_doc, "course": course_pull_doc}
+PULLS = {"diagonal": diagonal_pull, "course": course_pull}
 
 
 def run_one(n: int, pull: str, config: str) -> dict:
@@ -70,7 +56,7 @@ def run_one(n: int, pull: str, config: str) -> dict:
     from knit_nlp.weft.start import start_point
     start, derivatives, ipopt = CONFIGS[config]
     t0 = time.perf_counter()
-    pr = parse_problem(f"<bench {pull} {n}x{n}>", PULLS[pull](n))
+    pr = parse_problem(PULLS[pull](n), f"<bench {pull} {n}x{n}>")
     wnlp = build_nlp(pr)
     t1 = time.perf_counter()
     solver = WeftSolver(wnlp, derivatives=derivatives, ipopt=ipopt)

@@ -7,14 +7,13 @@ from knit_nlp.weft.derivatives import closed_form_derivatives
 from knit_nlp.weft.nlp import build_nlp
 from knit_nlp.weft.problem import load_problem, parse_problem
 from knit_nlp.weft import start
-from knit_nlp.weft.solve import WeftSolver, natural_parameters, solve
+from knit_nlp.weft.params import WeftParams
+from knit_nlp.weft.solve import WeftSolver, solve
 from knit_nlp.weft.start import rigid_start
 
-from conftest import ROOT
+from knit_nlp.weft.cases import course_pull, diagonal_pull
 
-import sys
-sys.path.insert(0, str(ROOT / "scripts"))
-from bench_full_start import course_pull_doc, diagonal_pull_doc  # noqa: E402
+from conftest import ROOT
 
 # every kind of constraint and energy term: point clamps (one at a crossing point, one partial),
 # an angle clamp, a rigid clamp, a point load with a moment
@@ -126,19 +125,16 @@ def test_rigid_start_is_consistent_and_exact_for_a_rigid_motion(all_terms):
     # targets of the two fully clamped points and the rigid clamp, all by one rigid motion
     phi, b = 0.4, np.array([3.0, -2.0])
     R = np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
-    p = wnlp.p0.copy()
-    targets = wnlp.p.get(p, "targets")
-    for q, c in enumerate(pr.clamps):
-        targets[:, q] = R @ pr.natural_position(c.loop, c.s) + b
-    wnlp.p.put(p, "targets", targets)
     rc = pr.rigid_clamps[0]
-    wnlp.p.put(p, "rigid", np.array([[*(R @ rc.centre + b - rc.centre), phi]]).T)
+    p = wnlp.params.with_(
+        targets={q + 1: R @ pr.natural_position(c.loop, c.s) + b for q, c in enumerate(pr.clamps)},
+        rigid={1: [*(R @ rc.centre + b - rc.centre), phi]}).vector()
     res = np.asarray(g(rigid_start(wnlp, p), p)).ravel()
     for q, c in enumerate(pr.clamps):
         assert np.max(np.abs(res[gl.slice(f"clamp{q}_pos")])) < 1e-8
     assert np.max(np.abs(res[gl.slice("rigid0")])) < 1e-8
     # it halves (at least) the clamp violation of the natural start on the diagonal pull
-    diag = build_nlp(parse_problem("d", diagonal_pull_doc(10)))
+    diag = build_nlp(parse_problem(diagonal_pull(10), "d"))
     gd = ca.Function("g", [diag.nlp["x"], diag.nlp["p"]], [diag.nlp["g"]])
     v_nat = np.max(np.abs(np.asarray(gd(diag.x0, diag.p0))))
     v_rig = np.max(np.abs(np.asarray(gd(rigid_start(diag, diag.p0), diag.p0))))
@@ -146,9 +142,9 @@ def test_rigid_start_is_consistent_and_exact_for_a_rigid_motion(all_terms):
 
 
 @pytest.mark.parametrize("n", [10, 20])
-@pytest.mark.parametrize("doc", [diagonal_pull_doc, course_pull_doc], ids=["diagonal", "course"])
+@pytest.mark.parametrize("doc", [diagonal_pull, course_pull], ids=["diagonal", "course"])
 def test_rigid_and_natural_starts_reach_the_same_minimum(n, doc):
-    wnlp = build_nlp(parse_problem("p", doc(n)))
+    wnlp = build_nlp(parse_problem(doc(n), "p"))
     solver = WeftSolver(wnlp)
     nat = solve(wnlp, solver, start="natural")
     rig = solve(wnlp, solver, start="rigid")
@@ -159,11 +155,13 @@ def test_rigid_and_natural_starts_reach_the_same_minimum(n, doc):
 
 
 @pytest.mark.parametrize("n", [10, 20])
-@pytest.mark.parametrize("doc", [diagonal_pull_doc, course_pull_doc], ids=["diagonal", "course"])
+@pytest.mark.parametrize("doc", [diagonal_pull, course_pull], ids=["diagonal", "course"])
 def test_multilevel_and_natural_starts_reach_the_same_minimum(n, doc, monkeypatch):
-    """Two levels at each size (10 -> 5, 20 -> 10 -> 5); the start violates the constraints at most a fifth as much as the natural one."""
+    """Two levels at each size (10 -> 5, 20 -> 10 -> 5), prolonged whatever the probe says;
+    the start violates the constraints at most a fifth as much as the natural one."""
     monkeypatch.setattr(start, "COARSEST", 5)
-    wnlp = build_nlp(parse_problem("p", doc(n)))
+    monkeypatch.setattr(start, "EASY_ITERATIONS", 0)
+    wnlp = build_nlp(parse_problem(doc(n), "p"))
     solver = WeftSolver(wnlp)
     nat = solve(wnlp, solver, start="natural")
     ml = solve(wnlp, solver, start="multilevel")
@@ -177,27 +175,38 @@ def test_multilevel_and_natural_starts_reach_the_same_minimum(n, doc, monkeypatc
     assert solver.violation(x0, wnlp.p0) < 0.2 * solver.violation(wnlp.x0, wnlp.p0)
 
 
+def test_probe_keeps_the_natural_start_for_the_course_pull_only():
+    """20 x 20: the 10 x 10 probe takes 5 iterations on the course pull (natural start kept, no
+    more coarse solves) and more than EASY_ITERATIONS on the diagonal pull (prolonged)."""
+    for doc, prolonged in ((course_pull, False), (diagonal_pull, True)):
+        wnlp = build_nlp(parse_problem(doc(20), "p"))
+        log = []
+        x0 = start.start_point(wnlp, wnlp.p0, "multilevel", log)
+        assert len(log) == 1 and log[0].startswith("multilevel 10x10: Solve_Succeeded")
+        assert (x0 is not wnlp.x0) == prolonged
+
+
 def test_prolonged_coarse_natural_state_is_the_fine_natural_state():
     """Unpulled (targets at their natural positions) the coarse problem's solution is the
     natural state, and its prolongation is the fine natural state with every constraint held."""
-    wnlp = build_nlp(parse_problem("p", diagonal_pull_doc(9)))
-    p = natural_parameters(wnlp)
-    cp = start.coarse_problem(wnlp.problem, wnlp.p.get(p, "targets"), wnlp.p.get(p, "rigid"), 5, 5)
+    wnlp = build_nlp(parse_problem(diagonal_pull(9), "p"))
+    p = WeftParams.natural(wnlp.problem)
+    cp = start.coarse_problem(wnlp.problem, p, 5, 5)
     assert [c.loop for c in cp.clamps] == [(1, 1), (1, 5)]
     for c in cp.clamps:            # at their natural positions on the coarse fabric
         assert np.allclose(c.target, cp.natural_position(c.loop, c.s), atol=1e-12)
     coarse = build_nlp(cp)
     x = start.prolong(coarse, coarse.x0, wnlp)
     assert np.allclose(wnlp.starts(x), wnlp.problem.natural_starts(), atol=1e-8)
-    assert WeftSolver(wnlp).violation(x, p) < 1e-8
+    assert WeftSolver(wnlp).violation(x, p.vector()) < 1e-8
 
 
 def test_coarse_problem_scales_the_pull_and_merges_points():
     """The course pull: 20 left and 20 right edge clamps become 10 + 10 with the displacement
     halved in proportion (r = 9/19), and the corner keeps both coordinates."""
-    pr = parse_problem("p", course_pull_doc(20))
+    pr = parse_problem(course_pull(20), "p")
     wnlp = build_nlp(pr)
-    cp = start.coarse_problem(pr, wnlp.p.get(wnlp.p0, "targets"), wnlp.p.get(wnlp.p0, "rigid"), 10, 10)
+    cp = start.coarse_problem(pr, WeftParams.of(pr), 10, 10)
     assert len(cp.clamps) == 20 and cp.clamps[0].fix == (True, True)
     right = [c for c in cp.clamps if c.loop[1] == 10]
     d = [c.target[0] - cp.natural_position(c.loop, c.s)[0] for c in right]
@@ -214,8 +223,8 @@ def test_prolonged_rigid_turn_is_the_same_rigid_turn():
         coeffs[..., -1] += phi
         return wnlp.lift(coeffs, pr.natural_starts() @ R.T)
 
-    fine = build_nlp(parse_problem("p", diagonal_pull_doc(9)))
-    coarse = build_nlp(parse_problem("p", diagonal_pull_doc(5)))
+    fine = build_nlp(parse_problem(diagonal_pull(9), "p"))
+    coarse = build_nlp(parse_problem(diagonal_pull(5), "p"))
     x = start.prolong(coarse, turned(coarse, 0.4), fine)
     want = turned(fine, 0.4)
     assert np.max(np.abs(fine.coefficients(x) - fine.coefficients(want))) < 1e-12

@@ -17,25 +17,30 @@ from dataclasses import replace
 
 from .basis import n_coeffs
 from .nlp import WeftNLP, build_nlp, rigid_natural_points
+from .params import WeftParams
 from .quadrature import positions
 from .problem import Clamp, RigidClamp, WeftProblem, canonical_point
 
 STARTS = ("multilevel", "rigid", "natural")
 COARSEST = 12          # the multilevel start solves cold once a side is at most this many loops
+# a cold solve of the coarsest fabric in at most this many iterations marks a pull the natural
+# start handles well (measured: course pulls take 5 iterations at every size from 8 x 8 to
+# 100 x 100, where the coarse solves cost more than they save; diagonal pulls 9 on 8 x 8 and
+# 13-39 on larger fabrics)
+EASY_ITERATIONS = 6
 
 
 def clamp_pairs(wnlp: WeftNLP, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Natural positions (k × 2) and targets (k × 2) of every point held in both coordinates at
     parameters p: point clamps fixing x and y, and every point of every rigid clamp."""
-    pr, pl = wnlp.problem, wnlp.p
-    targets, rigid = pl.get(p, "targets"), pl.get(p, "rigid")
+    pr = wnlp.problem
+    params = WeftParams.from_vector(pr, p)
     nat, tgt = [], []
-    for q, c in enumerate(pr.clamps):
+    for c, target in zip(pr.clamps, params.targets):
         if all(c.fix):
             nat.append(pr.natural_position(c.loop, c.s))
-            tgt.append(targets[:, q])
-    for q, (rc, P0) in enumerate(zip(pr.rigid_clamps, rigid_natural_points(pr))):
-        tx, ty, rot = rigid[:, q]
+            tgt.append(target)
+    for rc, P0, (tx, ty, rot) in zip(pr.rigid_clamps, rigid_natural_points(pr), params.rigid):
         R = _rotation(rot)
         for X in P0:
             nat.append(X)
@@ -83,8 +88,7 @@ def coarse_size(m: int) -> int:
     return m if m <= COARSEST else max(2, (m + 1) // 2)
 
 
-def coarse_problem(pr: WeftProblem, p_targets: np.ndarray, p_rigid: np.ndarray,
-                   m_c: int, n_c: int) -> WeftProblem | None:
+def coarse_problem(pr: WeftProblem, params: WeftParams, m_c: int, n_c: int) -> WeftProblem | None:
     """The same pull on an m_c × n_c fabric: every clamped material point moves to the loop at
     the same fraction of the courses and wales, and its displacement from the natural position
     scales with the fabric, r = ((n_c−1)/(n−1), (m_c−1)/(m−1)). Points that meet are merged
@@ -99,7 +103,7 @@ def coarse_problem(pr: WeftProblem, p_targets: np.ndarray, p_rigid: np.ndarray,
         return (1 + round((loop[0] - 1) * r[1]), 1 + round((loop[1] - 1) * r[0]))
 
     merged: dict[tuple, list[Clamp]] = {}
-    for c, target in zip(pr.clamps, p_targets.T):
+    for c, target in zip(pr.clamps, params.targets):
         loop = coarse_loop(c.loop)
         key = canonical_point(loop, c.s, pr.L, n_c)
         moved = replace(c, loop=loop, target=None)
@@ -115,7 +119,7 @@ def coarse_problem(pr: WeftProblem, p_targets: np.ndarray, p_rigid: np.ndarray,
         clamps[-1] = replace(clamps[-1], target=_natural(pr, m_c, n_c, c0.loop, c0.s) + r * d)
         held.add(key)
     rigid = []
-    for rc, (tx, ty, rot) in zip(pr.rigid_clamps, p_rigid.T):
+    for rc, (tx, ty, rot) in zip(pr.rigid_clamps, params.rigid):
         pts, seen = [], set()
         for loop, label, s in rc.points:
             lc = coarse_loop(loop)
@@ -168,25 +172,42 @@ def _interp(arr: np.ndarray, at: np.ndarray, axis: int) -> np.ndarray:
     return np.take(arr, lo, axis=axis) * (1 - w) + np.take(arr, hi, axis=axis) * w
 
 
+def coarse_chain(pr: WeftProblem, params: WeftParams) -> list[WeftProblem]:
+    """The same pull on ever coarser fabrics (halved until a side has at most COARSEST loops),
+    finest first; empty where the problem is small or no coarser problem is defined."""
+    chain: list[WeftProblem] = []
+    while True:
+        m_c, n_c = coarse_size(pr.courses), coarse_size(pr.wales)
+        cp = None if (m_c, n_c) == (pr.courses, pr.wales) else coarse_problem(pr, params, m_c, n_c)
+        if cp is None:
+            return chain
+        chain.append(cp)
+        pr, params = cp, WeftParams.of(cp)
+
+
 def multilevel_start(wnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
                      ) -> np.ndarray | None:
-    """Solve the same pull on a fabric with half the courses and wales (itself started the same
-    way, down to COARSEST loops a side) and prolong its solution; None where no coarser problem
-    is defined or its solve fails. Each level's solve is appended to ``log``, coarsest first."""
+    """Solve the pull on the coarsest fabric of :func:`coarse_chain` from its natural state; if
+    that took more than EASY_ITERATIONS (the pull is hard for a cold start), prolong the
+    solution level by level (each level solved from the prolonged start) up to this fabric.
+    None (start natural) where no coarser problem is defined, the probe was easy or a coarse
+    solve failed. Every coarse solve is appended to ``log``, coarsest first."""
     from .solve import WeftSolver, solve
-    pr = wnlp.problem
-    m_c, n_c = coarse_size(pr.courses), coarse_size(pr.wales)
-    if (m_c, n_c) == (pr.courses, pr.wales) or wnlp.coeff_map is not None:
+    if wnlp.coeff_map is not None:
         return None
-    cp = coarse_problem(pr, wnlp.p.get(p, "targets"), wnlp.p.get(p, "rigid"), m_c, n_c)
-    if cp is None:
-        return None
-    coarse = build_nlp(cp)
-    rep = solve(coarse, WeftSolver(coarse), start="multilevel")
-    if log is not None:
-        log.extend(a for a in rep.attempts if a.startswith("multilevel"))
-        log.append(f"multilevel {m_c}x{n_c}: {rep.status} ({rep.iterations} it, {rep.solve_s:.2f} s)")
-    return prolong(coarse, rep.x, wnlp) if rep.success else None
+    chain = coarse_chain(wnlp.problem, WeftParams.from_vector(wnlp.problem, p))
+    x, prev = None, None
+    for level, cp in enumerate(reversed(chain)):
+        nlp = build_nlp(cp)
+        x0 = None if prev is None else prolong(prev, x, nlp)
+        rep = solve(nlp, WeftSolver(nlp), x0=x0, start="natural")
+        if log is not None:
+            log.append(f"multilevel {cp.courses}x{cp.wales}: {rep.status} ({rep.iterations} it, "
+                       f"{rep.solve_s:.2f} s)")
+        if not rep.success or (level == 0 and rep.iterations <= EASY_ITERATIONS):
+            return None
+        x, prev = rep.x, nlp
+    return None if prev is None else prolong(prev, x, wnlp)
 
 
 def _rotation(phi: float) -> np.ndarray:
