@@ -20,7 +20,7 @@ time's ratio to the first configuration's in the same run. Timings on a shared m
 noisy: compare ratios within one run.
 
     python scripts/bench_full_start.py                    # 30 x 30 (about a minute alone)
-    python scripts/bench_full_start.py --large            # 30, 50 and 100 (many minutes)
+    python scripts/bench_full_start.py --full-sizes       # 30, 50 and 100 (many minutes)
     python scripts/bench_full_start.py --sizes 50 --pulls diagonal --configs casadi rigid
 """
 from __future__ import annotations
@@ -80,7 +80,7 @@ def run_one(n: int, pull: str, config: str) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=None)
-    ap.add_argument("--large", action="store_true", help="sizes 30, 50 and 100")
+    ap.add_argument("--full-sizes", action="store_true", help="sizes 30, 50 and 100")
     ap.add_argument("--pulls", nargs="+", choices=list(PULLS), default=list(PULLS))
     ap.add_argument("--configs", nargs="+", choices=list(CONFIGS), default=list(CONFIGS))
     ap.add_argument("--json", type=Path, help="also write all rows to this file")
@@ -89,7 +89,7 @@ def main() -> None:
     if args.one:
         print(json.dumps(run_one(int(args.one[0]), args.one[1], args.one[2])))
         return
-    sizes = args.sizes or ([30, 50, 100] if args.large else [30])
+    sizes = args.sizes or ([30, 50, 100] if args.full_sizes else [30])
     rows = []
     print(f"{'case':<16} {'config':<15} {'ok':>2} {'iter':>4} {'f ev':>4} {'eval s':>7} "
           f"{'ipopt s':>7} {'setup s':>7} {'start s':>7} {'total s':>7} {'peak MB':>7} {'energy':>14} "

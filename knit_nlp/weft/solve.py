@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from ..ipopt import ipopt_options, succeeded
+from ..progress import IterationLine
 from .derivatives import closed_form_derivatives
 from .guesses import needs_perturbation, perturbed_starts
 from .nlp import WeftNLP
@@ -43,6 +44,8 @@ class SolveReport:
     continuation_steps: int = 0
     attempts: list[str] = field(default_factory=list)
     stats: dict[str, float] = field(default_factory=dict)
+    # continuation: (load factor, x, lam_g) of every step reached, the loading path
+    path: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)
 
     def add_effort(self, other: "SolveReport") -> None:
         """Count another solve's iterations, time and IPOPT profile into this report."""
@@ -56,7 +59,7 @@ class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
-                 print_level: int = 0, derivatives: str = "closed_form",
+                 print_level: int = 0, verbose: bool = False, derivatives: str = "closed_form",
                  ipopt: dict | None = None) -> None:
         opts = wnlp.problem.solver
         self.wnlp = wnlp
@@ -65,6 +68,9 @@ class WeftSolver:
         # time and the KKT systems here are well scaled without them
         options = ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
                                 mumps_scaling=0, mumps_permuting_scaling=0, **(ipopt or {}))
+        self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints) if verbose else None
+        if self.progress is not None:
+            options["iteration_callback"] = self.progress
         self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp,
                                 {**options, **derivative_options(wnlp, derivatives)})
         self.setup_s = time.perf_counter() - t0
@@ -100,6 +106,7 @@ class WeftSolver:
             if rep.success:
                 x, tau = rep.x, nxt
                 total.continuation_steps += 1
+                total.path.append((tau, rep.x, rep.lam_g))
                 total.x, total.lam_g, total.objective, total.status = rep.x, rep.lam_g, rep.objective, rep.status
                 continue
             halvings += 1
