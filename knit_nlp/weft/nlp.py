@@ -86,6 +86,7 @@ class WeftNLP:
     energy: ca.Function
     coeff_map: np.ndarray | None
     n_parameters: int
+    nlpsol_options: dict = field(default_factory=dict)   # extra nlpsol options (none here)
 
     @property
     def n_variables(self) -> int:
@@ -107,6 +108,10 @@ class WeftNLP:
         """Loop start points (m, n, 2) of a solution vector."""
         pr = self.problem
         return self.x.get(xval, "starts").T.reshape(pr.courses, pr.wales, 2)
+
+    def special_positions(self, xval: np.ndarray) -> np.ndarray:
+        """Positions (2 × specials) of the clamped and loaded material points."""
+        return self.x.get(xval, "PC") if self.specials else np.zeros((2, 0))
 
     def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
         """A full decision vector from loop coefficients (m, n, 2t+2) and starts (m, n, 2)."""

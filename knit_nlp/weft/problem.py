@@ -63,10 +63,18 @@ class Load:
 
 @dataclass(frozen=True)
 class Reduction:
-    """Representative courses and wales (1-based, increasing, first and last included)."""
+    """Representative courses and wales (1-based, increasing, first and last included).
+
+    With ``adaptive`` the representatives are chosen by refinement from the corners until the
+    estimated RMS centreline error is at most ``tolerance`` or the next grid would exceed
+    ``max_parameters`` (``knit_nlp.weft.adaptive``); ``courses``/``wales`` are then the corners.
+    """
 
     courses: tuple[int, ...]
     wales: tuple[int, ...]
+    adaptive: bool = False
+    tolerance: float | None = None
+    max_parameters: int | None = None
 
 
 @dataclass(frozen=True)
@@ -308,6 +316,15 @@ def _check_overconstraint(top: Table, clamps: tuple[Clamp, ...], rigid: tuple[Ri
 
 def _read_reduction(top: Table, m: int, n: int) -> Reduction:
     tab = top.table("reduction")
+    adaptive = tab.boolean("adaptive", False)
+    tolerance = tab.number("tolerance", None, positive=True)
+    max_parameters = tab.integer("max_parameters", None, minimum=1)
+    for key in ("representative_courses", "representative_wales"):
+        if adaptive and tab.has(key):
+            raise tab.error(key, "not with adaptive = true (adaptive starts from the corners)")
+    for key, value in (("tolerance", tolerance), ("max_parameters", max_parameters)):
+        if value is not None and not adaptive:
+            raise tab.error(key, "only with adaptive = true")
     courses = tab.integers("representative_courses", [1, m] if m > 1 else [1])
     wales = tab.integers("representative_wales", [1, n] if n > 1 else [1])
     for key, values, last in (("representative_courses", courses, m),
@@ -317,7 +334,7 @@ def _read_reduction(top: Table, m: int, n: int) -> Reduction:
         if any(b <= a for a, b in zip(values[:-1], values[1:])):
             raise tab.error(key, "must be strictly increasing")
     tab.finish()
-    return Reduction(tuple(courses), tuple(wales))
+    return Reduction(tuple(courses), tuple(wales), adaptive, tolerance, max_parameters)
 
 
 def _read_solver(tab: Table) -> SolverOptions:

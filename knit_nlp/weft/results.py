@@ -38,7 +38,7 @@ def rigid_clamp_results(wnlp: WeftNLP, x: np.ndarray, lam_g: np.ndarray,
     """Per rigid clamp: its points' positions and reactions, the total force, and the moment of
     the reactions about the moved centre."""
     out = []
-    pc = wnlp.x.get(x, "PC") if wnlp.specials else np.zeros((2, 0))
+    pc = wnlp.special_positions(x)
     par = wnlp.p.get(p, "rigid")
     for q, (rc, idx) in enumerate(zip(wnlp.problem.rigid_clamps, wnlp.rigid_points)):
         forces = -lam_g[wnlp.g.slice(f"rigid{q}")].reshape(2, -1, order="F")
@@ -62,7 +62,7 @@ def result_dict(wnlp: WeftNLP, rep: SolveReport, violation: float, build_s: floa
     p = wnlp.p0 if p is None else p
     spring, bending, work = (float(v) for v in wnlp.energy(rep.x, p))
     coeffs, starts = wnlp.coefficients(rep.x), wnlp.starts(rep.x)
-    pc = wnlp.x.get(rep.x, "PC") if wnlp.specials else np.zeros((2, 0))
+    pc = wnlp.special_positions(rep.x)
     clamps = []
     targets = wnlp.p.get(p, "targets")
     for q_c, (c, q, (force, moment)) in enumerate(zip(pr.clamps, wnlp.clamp_points,

@@ -9,6 +9,8 @@ from typing import Any
 import numpy as np
 
 from ..jsonio import write_json
+from .adaptive import solve_adaptive
+from .condensed import CondensedNLP, build_condensed
 from .nlp import WeftNLP, build_nlp
 from .plot import plot_overlay, plot_solution
 from .problem import WeftProblem, parse_problem
@@ -21,7 +23,7 @@ from .solve import SolveReport, WeftSolver, solve
 class Solved:
     """One solved model: the NLP, the solver report and the result JSON."""
 
-    wnlp: WeftNLP
+    wnlp: WeftNLP | CondensedNLP
     report: SolveReport
     result: dict[str, Any]
 
@@ -33,9 +35,17 @@ class Solved:
 def solve_problem(pr: WeftProblem, reduced: bool = False, continuation: int | None = None,
                   start: Solved | None = None, extra: dict[str, Any] | None = None) -> Solved:
     """Build and solve one model of a problem, from the natural state or from another solved
-    model's loops (lifted into this one); time the build (assembly + solver setup)."""
+    model's loops (lifted into this one); time the build (assembly + solver setup). The reduced
+    model is the condensed one (``condensed``), adaptive when the problem asks for it."""
+    if reduced and start is None and pr.reduction is not None and pr.reduction.adaptive:
+        run = solve_adaptive(pr, continuation=continuation)
+        viol = WeftSolver(run.cnlp).violation(run.report.x, run.cnlp.p0)
+        adaptive = {"adaptive": {"steps": [st.as_dict() for st in run.steps],
+                                 "estimate": run.steps[-1].estimate}}
+        return Solved(run.cnlp, run.report, result_dict(run.cnlp, run.report, viol, run.build_s,
+                                                        {**adaptive, **(extra or {})}))
     t0 = time.perf_counter()
-    wnlp = build_nlp(pr, reduced=reduced)
+    wnlp = build_condensed(pr) if reduced else build_nlp(pr)
     solver = WeftSolver(wnlp)
     build_s = time.perf_counter() - t0
     x0 = None if start is None else wnlp.lift(start.wnlp.coefficients(start.report.x),
@@ -119,6 +129,10 @@ def compare(pr: WeftProblem, samples: int = 61) -> dict[str, Any]:
             "distance": {"max": float(dist.max()), "rms": float(np.sqrt(np.mean(dist ** 2))),
                          "samples_per_loop": samples},
             "energy_gap": red.result["energy"]["total"] - full.result["energy"]["total"],
+            **({"adaptive": {"estimate": red.result["adaptive"]["estimate"],
+                             "true_rms": float(np.sqrt(np.mean(dist ** 2))),
+                             "steps": red.result["adaptive"]["steps"]}}
+               if "adaptive" in red.result else {}),
             "speedup_reduced": (full.result["timings"]["build_s"] + full.result["timings"]["solve_s"])
             / (red.result["timings"]["build_s"] + red.result["timings"]["solve_s"]),
             "_solved": (full, red, warm)}

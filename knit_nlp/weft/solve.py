@@ -63,7 +63,8 @@ class WeftSolver:
                       "print_level": print_level, "sb": "yes", "linear_solver": "mumps",
                       # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of
                       # IPOPT's own time and the KKT systems here are well scaled without them
-                      "mumps_scaling": 0, "mumps_permuting_scaling": 0}})
+                      "mumps_scaling": 0, "mumps_permuting_scaling": 0},
+            **wnlp.nlpsol_options})
         self.setup_s = time.perf_counter() - t0
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
 
