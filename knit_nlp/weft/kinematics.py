@@ -47,9 +47,12 @@ class LoopIntegrals:
 
     def jacobians(self, theta: np.ndarray) -> np.ndarray:
         """∂D/∂a per loop, (N × P × 2 × nc)."""
-        Jx = -np.matmul(np.sin(theta)[:, None, :] * self.W[None], self.Phi)
-        Jy = np.matmul(np.cos(theta)[:, None, :] * self.W[None], self.Phi)
-        return np.stack([Jx, Jy], axis=2)
+        sin, cos = np.sin(theta), np.cos(theta)
+        J = np.empty((theta.shape[0], self.W.shape[0], 2, self.Phi.shape[1]))
+        for p, w in enumerate(self.W):                  # one (N × Q)(Q × nc) product per point
+            J[:, p, 0] = -(sin * w) @ self.Phi
+            J[:, p, 1] = (cos * w) @ self.Phi
+        return J
 
     def weighted_hessians(self, theta: np.ndarray, mu: np.ndarray) -> np.ndarray:
         """Σ_p μ_p·∇²D_p per loop (N × nc × nc) for adjoints μ (N × P × 2)."""
