@@ -22,7 +22,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import dataclasses  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -30,12 +29,13 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_weft import diagonal_pull_doc  # noqa: E402
-from study_reduction import course_pull_doc, even  # noqa: E402
+from study_reduction import even  # noqa: E402
 
 from knit_nlp.weft.adaptive import solve_adaptive  # noqa: E402
-from knit_nlp.weft.problem import Reduction, parse_problem  # noqa: E402
-from knit_nlp.weft.run import solve_problem  # noqa: E402
+from knit_nlp.weft.api import solve  # noqa: E402
+from knit_nlp.weft.cases import course_pull, diagonal_pull  # noqa: E402
+from knit_nlp.weft.parametrisation import Adaptive, Full, Reduced  # noqa: E402
+from knit_nlp.weft.problem import parse_problem  # noqa: E402
 
 SAMPLES = 21
 
@@ -64,34 +64,27 @@ def row(case: str, model: str, params: int, its: int, build: float, solve_s: flo
 
 
 def run_case(case: str, doc: dict, grids: list[int], adaptive: bool) -> None:
-    pr = parse_problem(f"<{case}>", doc)
-    t0 = time.perf_counter()
-    full = solve_problem(pr)
-    full_time = time.perf_counter() - t0
-    ref = full.lines(SAMPLES)
-    r = full.result
-    print(row(case, "full", r["n_parameters"], r["iterations"], r["timings"]["build_s"],
-              r["timings"]["solve_s"], full.report.stats, r["energy"]["total"], (0.0, 0.0),
-              None, full.report.success), flush=True)
-    full_time = r["timings"]["build_s"] + r["timings"]["solve_s"]
+    pr = parse_problem(doc, f"<{case}>")
+    full = solve(pr, Full())
+    ref = full.centrelines(SAMPLES)
+    print(row(case, "full", full.nlp.n_parameters, full.iterations, full.build_s,
+              full.report.solve_s, full.report.stats, full.energy.total, (0.0, 0.0), None,
+              full.success), flush=True)
+    full_time = full.build_s + full.report.solve_s
     m, n = pr.courses, pr.wales
     even_errors = []
     for k in grids:
-        red = Reduction(tuple(even(k, m)), tuple(even(k, n)))
-        s = solve_problem(dataclasses.replace(pr, reduction=red), reduced=True)
-        r = s.result
-        err = distances(s.lines(SAMPLES), ref)
-        even_errors.append((r["n_parameters"], err[1]))
+        s = solve(pr, Reduced(tuple(even(k, m)), tuple(even(k, n))))
+        err = distances(s.centrelines(SAMPLES), ref)
+        even_errors.append((s.nlp.n_parameters, err[1]))
         label = "corner 2x2" if k == 2 else f"even {k}x{k}"
-        print(row(case, label, r["n_parameters"], r["iterations"], r["timings"]["build_s"],
-                  r["timings"]["solve_s"], s.report.stats, r["energy"]["total"], err, full_time,
-                  s.report.success), flush=True)
+        print(row(case, label, s.nlp.n_parameters, s.iterations, s.build_s, s.report.solve_s,
+                  s.report.stats, s.energy.total, err, full_time, s.success), flush=True)
     if not adaptive:
         return
-    budget = full.result["n_parameters"] * 3 // 10
-    cfg = Reduction((1, m), (1, n), True, 0.1 * pr.L, budget)
+    budget = full.nlp.n_parameters * 3 // 10
     t0 = time.perf_counter()
-    run = solve_adaptive(dataclasses.replace(pr, reduction=cfg), samples=SAMPLES)
+    run = solve_adaptive(pr, Adaptive(0.1 * pr.L, budget), samples=SAMPLES)
     wall = time.perf_counter() - t0
     last = run.steps[-1]
     err = distances(last.lines, ref)
@@ -103,14 +96,13 @@ def run_case(case: str, doc: dict, grids: list[int], adaptive: bool) -> None:
         e = distances(st.lines, ref)
         print(f"|   step {q} | courses {list(st.courses)}, wales {list(st.wales)} | "
               f"{st.n_parameters} params, energy {st.energy:.5g}, {st.iterations} it | "
-              f"estimate {st.estimate:.3g} | true RMS {e[1]:.3g}, max "
-              f"{e[0]:.3g} |", flush=True)
+              f"estimate {st.estimate:.3g} | true RMS {e[1]:.3g}, max {e[0]:.3g} |", flush=True)
     fewer = [e for p, e in even_errors if p <= last.n_parameters]
     if fewer:
         print(f"|   adaptive vs best even grid with at most {last.n_parameters} parameters: "
               f"RMS {err[1]:.3g} against {min(fewer):.3g} ({min(fewer) / err[1]:.2f}x lower); "
-              f"parameters {100 * last.n_parameters / full.result['n_parameters']:.1f} % of "
-              f"full |", flush=True)
+              f"parameters {100 * last.n_parameters / full.nlp.n_parameters:.1f} % of full |",
+              flush=True)
 
 
 def main() -> None:
@@ -124,7 +116,7 @@ def main() -> None:
     print("| case | model | parameters | iterations | build s | solve s | evaluations s | "
           "IPOPT own s | build + solve s | speed-up | energy | max distance | RMS distance |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    docs = {"diagonal": diagonal_pull_doc, "course": course_pull_doc}
+    docs = {"diagonal": diagonal_pull, "course": course_pull}
     for size in args.sizes:
         for pull in args.pulls:
             run_case(f"{pull} {size}x{size}", docs[pull](size), args.grids, not args.skip_adaptive)

@@ -7,7 +7,7 @@ from knit_nlp.cli import main
 from knit_nlp.weft.adaptive import NewtonProbe, solve_adaptive
 from knit_nlp.weft.condensed import build_condensed
 from knit_nlp.weft.problem import load_problem
-from knit_nlp.weft.run import solve_problem
+from knit_nlp.weft.api import solve as solve_model
 from knit_nlp.weft.solve import WeftSolver, solve
 
 # the diagonal pull of scripts/bench_weft.py on 12 x 12 (the corner H of loop (1, 12) stretched
@@ -43,17 +43,17 @@ def _rank(a):
 
 def test_indicator_vanishes_at_the_full_solution_and_ranks_loops_like_the_true_error(write_problem):
     pr = load_problem(_diagonal(write_problem, 12))
-    full = solve_problem(pr)
-    assert full.report.success
+    full = solve_model(pr)
+    assert full.success
     probe = NewtonProbe(pr)
-    at_full = probe.step(full.wnlp.coefficients(full.report.x), full.wnlp.starts(full.report.x), 21)
+    at_full = probe.step(full.coefficients, full.starts, 21)
     corner = build_condensed(pr)
     rep = solve(corner, WeftSolver(corner))
     coeffs, starts = corner.coefficients(rep.x), corner.starts(rep.x)
     eta = probe.step(coeffs, starts, 21)
-    from knit_nlp.weft.results import centrelines
+    from knit_nlp.weft.sampling import centrelines
     err = np.sqrt(np.mean(np.sum((centrelines(coeffs, starts, pr.L, pr.t, 21)[0]
-                                  - full.lines(21)) ** 2, axis=-1), axis=-1))
+                                  - full.centrelines(21)) ** 2, axis=-1), axis=-1))
     assert np.sqrt(np.mean(err ** 2)) > 1.0                      # the corner form is wrong here
     assert np.max(at_full) < 1e-6 * np.max(eta)
     assert np.corrcoef(_rank(eta), _rank(err))[0, 1] > 0.9       # measured 0.97
@@ -64,7 +64,8 @@ def test_indicator_vanishes_at_the_full_solution_and_ranks_loops_like_the_true_e
 def test_refinement_is_monotone_and_reported(write_problem, tmp_path):
     path = _diagonal(write_problem, 8, "[reduction]\nadaptive = true\ntolerance = 0.05\n"
                                        "max_parameters = 300\n")
-    run = solve_adaptive(load_problem(path))
+    pr = load_problem(path)
+    run = solve_adaptive(pr, pr.reduction)
     energies = [st.energy for st in run.steps]
     estimates = [st.estimate for st in run.steps]
     assert len(run.steps) >= 3 and all(st.success for st in run.steps)

@@ -7,7 +7,8 @@ import pytest
 from knit_nlp.weft.condensed import build_condensed
 from knit_nlp.weft.kinematics import LoopIntegrals, loop_displacements
 from knit_nlp.weft.nlp import build_nlp
-from knit_nlp.weft.problem import Reduction, load_problem
+from knit_nlp.weft.parametrisation import Reduced
+from knit_nlp.weft.problem import load_problem
 from knit_nlp.weft.solve import WeftSolver, solve
 
 # every kind of term: point clamps (one fixing x only), an angle clamp, a rigid clamp, a load
@@ -47,7 +48,8 @@ representative_wales = [1, 2, 5]
 
 @pytest.fixture
 def mixed(write_problem):
-    return build_condensed(load_problem(write_problem(MIXED)))
+    pr = load_problem(write_problem(MIXED))
+    return build_condensed(pr, pr.reduction)
 
 
 def _point(c, seed=0, scale=0.05):
@@ -105,7 +107,7 @@ def test_jacobian_and_hessian_equal_central_differences(mixed):
 
 def test_condensed_and_lifted_reduced_models_reach_the_same_minimum(write_problem):
     pr = load_problem(write_problem(MIXED))
-    cond, lifted = build_condensed(pr), build_nlp(pr, reduced=True)
+    cond, lifted = build_condensed(pr, pr.reduction), build_nlp(pr, pr.reduction)
     rc, rl = solve(cond, WeftSolver(cond)), solve(lifted, WeftSolver(lifted))
     assert rc.success and rl.success
     assert rc.objective == pytest.approx(rl.objective, rel=1e-9)
@@ -119,7 +121,7 @@ def test_condensed_and_lifted_reduced_models_reach_the_same_minimum(write_proble
 
 def test_every_loop_representative_condensed_equals_the_full_model(write_problem):
     pr = load_problem(write_problem(MIXED))
-    every = Reduction(tuple(range(1, 5)), tuple(range(1, 6)))
+    every = Reduced(tuple(range(1, 5)), tuple(range(1, 6)))
     cond, full = build_condensed(pr, every), build_nlp(pr)
     rc, rf = solve(cond, WeftSolver(cond)), solve(full, WeftSolver(full))
     assert rc.success and rf.success

@@ -36,10 +36,10 @@ import numpy as np
 
 from .basis import n_coeffs
 from .condensed import CondensedNLP
-from .problem import Reduction, WeftProblem
-from .reduction import default_reduction
 from .nlp import build_nlp
-from .results import centrelines, solution_centrelines
+from .parametrisation import Adaptive, Reduced
+from .problem import WeftProblem
+from .sampling import centrelines, solution_centrelines
 from .solve import SolveReport, WeftSolver, solve
 
 MARK = 0.5
@@ -105,7 +105,7 @@ def _bisections(reps: tuple[int, ...], scores: np.ndarray) -> list[tuple[float, 
     return out
 
 
-def refine(red: Reduction, eta: np.ndarray, t: int) -> Reduction:
+def refine(red: Reduced, eta: np.ndarray, t: int) -> Reduced:
     """Bisect every interval whose indicator per added parameter is at least MARK × the best."""
     p, q = len(red.courses), len(red.wales)
     cand = [(s / (q * 2 * t + 2), "c", k) for s, k in _bisections(red.courses, (eta ** 2).sum(1))]
@@ -120,19 +120,17 @@ def refine(red: Reduction, eta: np.ndarray, t: int) -> Reduction:
     return replace(red, courses=tuple(sorted(courses)), wales=tuple(sorted(wales)))
 
 
-def n_reduced_parameters(pr: WeftProblem, red: Reduction) -> int:
+def n_reduced_parameters(pr: WeftProblem, red: Reduced) -> int:
     """The paper's count for a grid: p·q·2t + 2p + 2m."""
     return len(red.courses) * len(red.wales) * 2 * pr.t + 2 * len(red.courses) + 2 * pr.courses
 
 
-def solve_adaptive(pr: WeftProblem, samples: int = 21,
+def solve_adaptive(pr: WeftProblem, cfg: Adaptive = Adaptive(), samples: int = 21,
                    continuation: int | None = None) -> AdaptiveRun:
     """Refine the representatives from the corners (module docstring); return the last solve."""
-    cfg = pr.reduction or Reduction((1, pr.courses), (1, pr.wales), adaptive=True)
     tol = cfg.tolerance if cfg.tolerance is not None else 0.1 * pr.L
     budget = cfg.max_parameters or (pr.n_loops * n_coeffs(pr.t) + 2 * pr.courses) * 3 // 10
-    corner = default_reduction(pr)
-    red = replace(cfg, courses=corner.courses, wales=corner.wales)
+    red = Reduced().resolve(pr.courses, pr.wales)
     probe = NewtonProbe(pr)
     run, start = None, None
     while True:

@@ -32,12 +32,14 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
+from ..layout import Layout
 from .basis import bending_diagonal, n_coeffs, phi
 from .kinematics import LoopIntegrals
-from .nlp import (Layout, SpecialPoint, _eval_points, _param_layout, _param_values, _specials,
-                  n_parameters, rigid_natural_points)
-from .problem import Reduction, WeftProblem
-from .reduction import CourseMap, course_maps, default_reduction, n_reduced
+from .nlp import ClampRows, eval_points, n_parameters, rigid_natural_points, special_points
+from .params import WeftParams, param_layout
+from .parametrisation import Reduced
+from .problem import WeftProblem
+from .reduction import CourseMap, course_maps, n_reduced
 
 
 class _NumericFunction(ca.Callback):
@@ -93,23 +95,23 @@ class _Point:
 
 
 class CondensedNLP:
-    """The condensed reduced NLP; exposes what ``WeftSolver``, ``solve`` and ``results`` use of
-    ``WeftNLP`` (nlp, layouts x, p, g, x0, p0, specials, clamp/load/rigid points, energy,
-    coefficients, starts, lift, special_positions, n_parameters)."""
+    """The condensed reduced NLP; exposes what ``WeftSolver``, ``solve`` and ``WeftResult`` use
+    of ``WeftNLP`` (nlp, layouts x, p, g, x0, params, p0, specials, clamp/load/rigid points and
+    rows, energy, coefficients, starts, lift, special_positions, n_parameters, model)."""
 
-    reduced = True
+    model = "reduced"
 
-    def __init__(self, pr: WeftProblem, reduction: Reduction | None = None) -> None:
+    def __init__(self, pr: WeftProblem, reduced: Reduced) -> None:
         self.problem = pr
-        self.reduction = reduction or pr.reduction or default_reduction(pr)
         m, n, t = pr.courses, pr.wales, pr.t
+        self.parametrisation = self.reduction = reduced.resolve(m, n)
         self.nc, self.nz = n_coeffs(t), n_reduced(self.reduction, t)
         self.maps: list[CourseMap] = course_maps(pr, self.reduction)
         # columns of w = (z, course starts) each course depends on
         self.cw = [np.concatenate([cm.cols, self.nz + 2 * i + np.arange(2)])
                    for i, cm in enumerate(self.maps)]
-        self.specials, self.clamp_points, self.load_points, self.rigid_points = _specials(pr)
-        evals = _eval_points(pr, self.specials)
+        self.specials, self.clamp_points, self.load_points, self.rigid_points = special_points(pr)
+        evals = eval_points(pr, self.specials)
         self.P, col = len(evals), {s: q for q, s in enumerate(evals)}
         self.pL = col[pr.L]
         self.springs = pr.courses > 1 and pr.crossings is not None
@@ -120,11 +122,10 @@ class CondensedNLP:
         self.x = Layout()
         self.x.add("coeffs", self.nz, 1)
         self.x.add("course_starts", 2, m)
-        self.p = _param_layout(pr)
-        self.p0 = _param_values(pr, self.p)
-        self.g = self._g_layout()
-        self.n_parameters = n_parameters(pr, reduced=True) if reduction is None else \
-            self.nz + 2 * m
+        self.p = param_layout(pr)
+        self.params = WeftParams.of(pr)
+        self.g, self.clamp_rows, self.rigid_rows = self._g_layout()
+        self.n_parameters = n_parameters(pr, self.reduction)
         self._loop_functions()
         self._cache: dict[str, object] = {}
         self._sparsities()
@@ -135,6 +136,11 @@ class CondensedNLP:
 
     # ----------------------------------------------------------------- set-up
     @property
+    def p0(self) -> np.ndarray:
+        """The problem's own parameter vector."""
+        return self.params.vector()
+
+    @property
     def n_variables(self) -> int:
         return self.x.size
 
@@ -142,22 +148,28 @@ class CondensedNLP:
     def n_constraints(self) -> int:
         return self.g.size
 
-    def _g_layout(self) -> Layout:
-        gl = Layout()
+    def _g_layout(self) -> tuple[Layout, list[ClampRows], list[slice]]:
+        """Constraint rows: clamp positions and angles, then rigid-clamp points."""
+        gl, clamp_rows, rigid_rows = Layout(), [], []
         for q, c in enumerate(self.problem.clamps):
-            dims = sum(c.fix)
+            dims = tuple(d for d in range(2) if c.fix[d])
+            pos = angle = None
             if dims:
-                gl.add(f"clamp{q}_pos", dims, 1)
+                gl.add(f"clamp{q}_pos", len(dims), 1)
+                pos = gl.slice(f"clamp{q}_pos")
             if c.angle is not None:
                 gl.add(f"clamp{q}_angle", 1, 1)
+                angle = gl.slice(f"clamp{q}_angle")
+            clamp_rows.append(ClampRows(pos, dims, angle))
         for q, idx in enumerate(self.rigid_points):
             gl.add(f"rigid{q}", 2 * len(idx), 1)
-        return gl
+            rigid_rows.append(gl.slice(f"rigid{q}"))
+        return gl, clamp_rows, rigid_rows
 
     def _loop_functions(self) -> None:
         """Per-loop D, its Jacobian and Σ_p μ_p·∇²D_p in closed form (``LoopIntegrals``)."""
         pr = self.problem
-        self.integrals = LoopIntegrals(pr.L, pr.t, np.array(_eval_points(pr, self.specials)),
+        self.integrals = LoopIntegrals(pr.L, pr.t, np.array(eval_points(pr, self.specials)),
                                        pr.quadrature_nodes)
         self.bend_diag = bending_diagonal(pr.L, pr.t)
 
@@ -509,7 +521,6 @@ def _nonzeros(dense: np.ndarray, sp: ca.Sparsity) -> np.ndarray:
     return dense[np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)]
 
 
-def build_condensed(pr: WeftProblem, reduction: Reduction | None = None) -> CondensedNLP:
-    """The condensed reduced model of a problem over ``reduction`` (default: the problem's own,
-    else the paper's corner form)."""
-    return CondensedNLP(pr, reduction)
+def build_condensed(pr: WeftProblem, reduced: Reduced = Reduced()) -> CondensedNLP:
+    """The condensed reduced model of a problem over ``reduced`` (default: the corner form)."""
+    return CondensedNLP(pr, reduced)

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .basis import n_coeffs
-from .problem import Reduction, WeftProblem
+from .parametrisation import Reduced
+from .problem import WeftProblem
 
 
 def hat_weights(index: int, reps: tuple[int, ...]) -> np.ndarray:
@@ -27,13 +28,6 @@ def hat_weights(index: int, reps: tuple[int, ...]) -> np.ndarray:
         return np.ones(1)
     eye = np.eye(len(reps))
     return np.array([np.interp(index, reps, eye[r]) for r in range(len(reps))])
-
-
-def default_reduction(pr: WeftProblem) -> Reduction:
-    """The paper's corner form: representatives at the first and last course and wale."""
-    courses = (1, pr.courses) if pr.courses > 1 else (1,)
-    wales = (1, pr.wales) if pr.wales > 1 else (1,)
-    return Reduction(courses, wales)
 
 
 @dataclass(frozen=True)
@@ -49,12 +43,12 @@ class CourseMap:
     T: np.ndarray                                   # (n, 2t+2, len(cols))
 
 
-def n_reduced(red: Reduction, t: int) -> int:
+def n_reduced(red: Reduced, t: int) -> int:
     """Number of reduced parameters z: p·q·2t + 2p."""
     return len(red.courses) * len(red.wales) * 2 * t + 2 * len(red.courses)
 
 
-def course_map(i: int, red: Reduction, n: int, t: int, L: float) -> CourseMap:
+def course_map(i: int, red: Reduced, n: int, t: int, L: float) -> CourseMap:
     """The rows of T for the loops of 1-based course ``i`` (eqs. 20-23; see the module docstring)."""
     p, q, h = len(red.courses), len(red.wales), 2 * t
     wi = hat_weights(i, red.courses)
@@ -77,15 +71,15 @@ def course_map(i: int, red: Reduction, n: int, t: int, L: float) -> CourseMap:
     return CourseMap(cols, T)
 
 
-def course_maps(pr: WeftProblem, red: Reduction | None = None) -> list[CourseMap]:
+def course_maps(pr: WeftProblem, reduced: Reduced) -> list[CourseMap]:
     """Every course's block of the map, course 1 first."""
-    red = red or pr.reduction or default_reduction(pr)
+    red = reduced.resolve(pr.courses, pr.wales)
     return [course_map(i, red, pr.wales, pr.t, pr.L) for i in range(1, pr.courses + 1)]
 
 
-def reduction_map(pr: WeftProblem, red: Reduction | None = None) -> np.ndarray:
+def reduction_map(pr: WeftProblem, reduced: Reduced) -> np.ndarray:
     """T with vec(coeffs) = T·z, coeffs (2t+2 × N) column-major by loop k = (i−1)·n + (j−1)."""
-    red = red or pr.reduction or default_reduction(pr)
+    red = reduced.resolve(pr.courses, pr.wales)
     n, nc = pr.wales, n_coeffs(pr.t)
     T = np.zeros((nc * pr.n_loops, n_reduced(red, pr.t)))
     for i, cm in enumerate(course_maps(pr, red)):
