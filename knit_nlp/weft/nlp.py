@@ -19,7 +19,7 @@ stiffnesses and loads are NLP parameters: one build serves many solves.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -80,6 +80,7 @@ class WeftNLP:
     coeff_map: np.ndarray | None
     n_parameters: int
     displacements: ca.MX | None = None     # D: per-loop integrals (2 × N·P), see _constraints
+    nlpsol_options: dict = field(default_factory=dict)   # extra nlpsol options (none here)
 
     @property
     def eval_points(self) -> list[float]:
@@ -116,6 +117,10 @@ class WeftNLP:
         """Loop start points (m, n, 2) of a solution vector."""
         pr = self.problem
         return self.x.get(xval, "starts").T.reshape(pr.courses, pr.wales, 2)
+
+    def special_positions(self, xval: np.ndarray) -> np.ndarray:
+        """Positions (2 × specials) of the clamped and loaded material points."""
+        return self.x.get(xval, "PC") if self.specials else np.zeros((2, 0))
 
     def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
         """A full decision vector from loop coefficients (m, n, 2t+2) and starts (m, n, 2)."""

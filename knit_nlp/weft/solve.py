@@ -66,8 +66,9 @@ class WeftSolver:
         t0 = time.perf_counter()
         # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of IPOPT's own
         # time and the KKT systems here are well scaled without them
-        options = ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
-                                mumps_scaling=0, mumps_permuting_scaling=0, **(ipopt or {}))
+        options = {**ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
+                                   mumps_scaling=0, mumps_permuting_scaling=0, **(ipopt or {})),
+                   **wnlp.nlpsol_options}
         self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints) if verbose else None
         if self.progress is not None:
             options["iteration_callback"] = self.progress
@@ -123,7 +124,7 @@ def derivative_options(wnlp: WeftNLP, derivatives: str) -> dict:
     measured faster, see README) or ``casadi`` (CasADi's AD of the NLP expressions)."""
     if derivatives not in ("closed_form", "casadi"):
         raise ValueError(f"unknown derivatives {derivatives!r}")
-    if derivatives == "casadi" or wnlp.coeff_map is not None:
+    if derivatives == "casadi" or wnlp.model != "full":
         return {}
     return closed_form_derivatives(wnlp)
 

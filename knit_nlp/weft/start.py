@@ -75,7 +75,7 @@ def start_point(wnlp: WeftNLP, p: np.ndarray, start: str,
     always starts natural: its map fixes the turn in every loop's parameters)."""
     if start not in STARTS:
         raise ValueError(f"unknown start {start!r}; use one of {', '.join(STARTS)}")
-    if start == "natural" or wnlp.coeff_map is not None:
+    if start == "natural" or wnlp.model != "full":
         return wnlp.x0
     if start == "rigid":
         return rigid_start(wnlp, p)
@@ -193,7 +193,7 @@ def multilevel_start(wnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
     None (start natural) where no coarser problem is defined, the probe was easy or a coarse
     solve failed. Every coarse solve is appended to ``log``, coarsest first."""
     from .solve import WeftSolver, solve
-    if wnlp.coeff_map is not None:
+    if wnlp.model != "full":
         return None
     chain = coarse_chain(wnlp.problem, WeftParams.from_vector(wnlp.problem, p))
     x, prev = None, None
