@@ -84,15 +84,17 @@ def _row(path: LoadPath, index: int, result: dict[str, Any] | None,
            "point": path.points[index]}
     if result is None:
         return {**row, "success": False, "status": status, "reason": reason}
-    row.update(success=result["success"], status=result["status"], energy=result["energy"])
+    row.update(success=result["success"], status=result["status"])
     if "clamps" in result:                                  # weft
+        row["energy"] = result["energy"]
         row.update(iterations=result["iterations"],
                    clamps=[{"loop": c["loop"], "point": c["point"], "position": c["position"],
                             "reaction": c["reaction"]} for c in result["clamps"]],
                    rigid_clamps=[{"force": r["force"], "moment": r["moment"]}
                                  for r in result["rigid_clamps"]])
-    else:                                                   # jacquard
-        row.update(iterations=result.get("iterations") or result.get("steps"),
+    else:                                                   # jacquard: all spring energy
+        row.update(energy={"total": result["energy"], "spring": result["energy"]},
+                   iterations=result.get("iterations") or result.get("steps"),
                    residual_force=result["residual_force"])
     return row
 
