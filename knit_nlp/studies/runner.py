@@ -157,7 +157,7 @@ class _Run:
         self.states = [_PathState(p) for p in paths]
         self.cache, self.executor, self.own = cache, executor, own
         self.timeout, self.limit, self.progress, self.on_point = timeout, limit, progress, on_point
-        self.flight: dict[Future, tuple[_PathState, float, bool, Executor]] = {}
+        self.flight: dict[Future, tuple[_PathState, float, bool]] = {}
         self.suspects: deque[_PathState] = deque()
         self.lost_points = 0
         self.submitted = 0
@@ -202,11 +202,11 @@ class _Run:
                          self.timeout, this_process(), self.submitted)
         try:
             fut = self.executor.submit(solve_point, task)
-        except BrokenExecutor:
+        except BrokenExecutor:          # a local pool that lost a process: replace it
             self._renew()
             fut = self.executor.submit(solve_point, task)
         st.busy, st.new = True, st.new + 1
-        self.flight[fut] = (st, time.perf_counter(), alone, self.executor)
+        self.flight[fut] = (st, time.perf_counter(), alone)
 
     def _renew(self) -> None:
         """Replace a broken local pool by a new one of the same size."""
@@ -226,11 +226,8 @@ class _Run:
             self._submit(st, alone=False)
 
     # -- collecting --------------------------------------------------------------------------
-    def _lost(self, st: _PathState, started: float, alone: bool, err: BaseException,
-              executor: Executor) -> None:
+    def _lost(self, st: _PathState, started: float, alone: bool, err: BaseException) -> None:
         self.lost_points += 1
-        if isinstance(err, BrokenExecutor) and executor is self.executor:
-            self._renew()
         took = time.perf_counter() - started
         timed_out = self.timeout is not None and took >= self.timeout
         st.solo += alone
@@ -252,11 +249,11 @@ class _Run:
 
     def _collect(self, done: set[Future]) -> None:
         for fut in done:
-            st, started, alone, executor = self.flight.pop(fut)
+            st, started, alone = self.flight.pop(fut)
             try:
                 out = fut.result()
             except Exception as err:   # noqa: BLE001 - the executor lost the point
-                self._lost(st, started, alone, err, executor)
+                self._lost(st, started, alone, err)
             else:
                 self._solved(st, out)
 
@@ -265,7 +262,7 @@ class _Run:
         if self.timeout is None:
             return
         now = time.perf_counter()
-        for fut, (st, started, _, _) in list(self.flight.items()):
+        for fut, (st, started, _) in list(self.flight.items()):
             if now - started > self.timeout + ABANDON_SLACK_S:
                 del self.flight[fut]
                 self._record(st, _row(st.path, st.next, None, "Study_Timeout",
