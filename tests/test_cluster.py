@@ -108,6 +108,6 @@ def test_a_point_past_its_timeout_is_recorded_and_the_study_goes_on(tmp_path):
     assert summary["complete"]
     hang, *quick = summary["points"]
     assert not hang["success"] and hang["status"] == "Study_Timeout"
-    assert "5 s per-point timeout" in hang["reason"]
+    assert "5 s per-point timeout; worker stopped" in hang["reason"]
     assert all(r["success"] for r in quick) and len(quick) == 6
     assert not list((tmp_path / "t" / "points").glob("hang.*"))     # not cached: a rerun retries
