@@ -7,7 +7,6 @@ import os
 import signal
 from concurrent.futures import ThreadPoolExecutor
 
-import numpy as np
 import pytest
 
 from knit_nlp.studies import LoadPath, open_executor, run_study

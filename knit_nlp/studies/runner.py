@@ -8,10 +8,11 @@ so workers need no shared disk and a study interrupted anywhere resumes from eve
 came back. ``summary.json`` (rows in path order, no timings) equals an uninterrupted run's.
 
 Failures: a solve that raises or does not converge is a row with ``success`` false. A point whose
-worker is lost (crash, or the per-point timeout's watchdog, :mod:`.points`) is first rerun alone,
-since a lost process pool or a dead Dask worker takes every point it held with it; lost again
-when alone, it is recorded as failed with the reason and its path goes on from the last solved
-point. A broken local pool is replaced by a new one of the same size.
+worker is lost (crash, or the per-point timeout's watchdog, :mod:`.points`) is rerun alone,
+since a lost process pool or a dead Dask worker takes every point it held with it; past its
+timeout when alone, or lost ``SOLO_ATTEMPTS`` times alone (a rerun may meet a worker that had
+just died), it is recorded as failed with the reason, not cached, and its path goes on from the
+last solved point. A broken local pool is replaced by a new one of the same size.
 """
 from __future__ import annotations
 

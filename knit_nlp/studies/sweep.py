@@ -28,7 +28,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import ArgumentError, ProblemError
-from ..jacquard.problem import STRUCTURES, SYMBOLS, SYSTEMS, JacquardProblem
+from ..jacquard.problem import SYMBOLS, SYSTEMS, JacquardProblem
 from ..jacquard.problem import parse_problem as parse_jacquard
 from ..weft.params import MATERIAL, WeftParams
 from ..weft.problem import WeftProblem
@@ -36,7 +36,7 @@ from .points import set_key
 from .runner import LoadPath
 
 NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-_AXIS = re.compile(rf"^(?P<key>[A-Za-z_][\w.\[\]]*)=(?P<start>[^:]+):(?P<stop>[^:]+):(?P<count>\d+)$")
+_AXIS = re.compile(r"^(?P<key>[A-Za-z_][\w.\[\]]*)=(?P<start>[^:]+):(?P<stop>[^:]+):(?P<count>\d+)$")
 _INDEXED = re.compile(r"^(clamp|load|rigid_clamp)\[(\d+)\]\.(\w+)(?:\.([xy]))?$")
 # weft indexed tables: field -> is it a vector
 WEFT_FIELDS = {"clamp": {"position": True, "displacement": True, "angle": False},
@@ -165,8 +165,8 @@ def _check_weft(pr: WeftProblem, axis: Axis) -> None:
 def shippable_doc(doc: dict[str, Any], pr: JacquardProblem) -> dict[str, Any]:
     """The jacquard document with every design inline (workers read no files)."""
     out = dict(doc)
-    letter = {0: ".", 1: "+", 2: "#"}
-    assert set(letter.values()) == set(SYMBOLS)
+    code = {"net": 0, "thin": 1, "thick": 2}          # as parse_design codes them
+    letter = {code[structure]: symbol for symbol, structure in SYMBOLS.items()}
     for system in pr.systems:
         table = {k: v for k, v in doc[system.name].items()
                  if k not in ("design", "design_file", "design_image")}

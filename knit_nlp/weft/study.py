@@ -51,3 +51,6 @@ class WeftStudy:
 # the study runner is shared by both models; its names stay importable from here
 from ..studies.runner import (LoadPath, Progress, point_files, point_solution,  # noqa: E402
                               print_table, run_study)
+
+__all__ = ["WeftStudy", "LoadPath", "Progress", "point_files", "point_solution", "print_table",
+           "run_study"]
