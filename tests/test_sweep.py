@@ -49,6 +49,14 @@ def test_weft_sweep_matches_one_solve_per_point(tmp_path, capsys):
     assert "4 of 4 points converged" in capsys.readouterr().out
 
 
+def test_sweep_on_a_local_dask_cluster_equals_the_local_pool(tmp_path):
+    pytest.importorskip("distributed")
+    args = ["wada_fig7", "--vary", "material.R_f=0.5:2:2", "--path", "material.k_b=0.01:0.05:2"]
+    assert main(["sweep", *args, "--out", str(tmp_path / "pool")]) == 0
+    assert main(["sweep", *args, "--scheduler", "local:2", "--out", str(tmp_path / "dask")]) == 0
+    assert _rows(tmp_path / "pool", "sweep_wada_fig7") == _rows(tmp_path / "dask", "sweep_wada_fig7")
+
+
 def test_jacquard_sweep_matches_one_solve_per_point(tmp_path):
     """Thick fall-plate stiffness x thin inlay pretension on the diamond (designs in sibling
     files, shipped inline): each point equals a solve of the edited document."""
