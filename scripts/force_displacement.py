@@ -253,7 +253,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[dict[str, Any]]]:
     args = parse_args(argv)
     m, n = (args.size * 2)[:2]
     built = build_paths(m, n, args.steps, args.max_strain, args.directions)
-    summary = run_with_options(STUDY, [p for p, _ in built.values()], args.out, args)
+    summary = run_with_options(STUDY, [p for p, _ in built.values()], args.out, args,
+                               prog=Path(__file__).name)
     tables = tabulate(summary, built)
     out = args.out / STUDY
     for name, rows in tables.items():

@@ -139,7 +139,8 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """Run the sweep; write the CSV, the grid PNG and summary.json; print the table."""
     args = parse_args(argv)
     paths = build_paths(args.size, args.kb, args.rf)
-    summary = run_with_options(STUDY, paths, args.out, args)
+    summary = run_with_options(STUDY, paths, args.out, args,
+                               prog=Path(__file__).name)
     rows = tabulate(summary)
     out = args.out / STUDY
     write_csv(out / f"{STUDY}.csv", rows, FIELDS)

@@ -149,6 +149,16 @@ class _PathState:
         return self.path.doc.get("model", "weft") != "jacquard"
 
 
+def _worker_lost(err: BaseException) -> bool:
+    """Did the executor lose the worker running the point (a broken local pool, a process
+    pool's lost process, a Dask worker that died: ``distributed.KilledWorker``)?"""
+    return isinstance(err, BrokenExecutor) or type(err).__name__ == "KilledWorker"
+
+
+def _one_line(err: BaseException) -> str:
+    return f"{type(err).__name__}: {' '.join(str(err).split())}"[:300]
+
+
 class _Run:
     """The submitting side of one study (module docstring)."""
 
@@ -244,7 +254,7 @@ class _Run:
             status = "Study_Timeout"
         else:
             reason = (f"worker lost {st.solo} times when solving this point alone, last after "
-                      f"{took:.1f} s: {type(err).__name__}: {' '.join(str(err).split())}")[:300]
+                      f"{took:.1f} s: {_one_line(err)}")[:300]
             status = "Worker_Lost"
         self._record(st, _row(st.path, st.next, None, status, reason))
 
@@ -253,8 +263,12 @@ class _Run:
             st, started, alone = self.flight.pop(fut)
             try:
                 out = fut.result()
-            except Exception as err:   # noqa: BLE001 - the executor lost the point
-                self._lost(st, started, alone, err)
+            except Exception as err:   # noqa: BLE001 - the executor's, not the solve's
+                if _worker_lost(err):
+                    self._lost(st, started, alone, err)
+                else:                  # e.g. a cluster without knit_nlp: rerunning won't help
+                    self._record(st, _row(st.path, st.next, None, "Executor_Error",
+                                          _one_line(err)))
             else:
                 self._solved(st, out)
 
@@ -317,15 +331,18 @@ def run_study(name: str, paths: Sequence[LoadPath], out_root: Path = Path("resul
     return summary
 
 
-def run_with_options(name: str, paths: Sequence[LoadPath], out_root: Path,
-                     options: Any) -> dict[str, Any]:
-    """:func:`run_study` with the parsed ``--workers/--scheduler/--timeout`` of a study script
-    (:func:`~knit_nlp.studies.executors.add_executor_arguments`); a scheduler that cannot be
-    reached is one line on stderr and exit code 2."""
+def run_with_options(name: str, paths: Sequence[LoadPath], out_root: Path, options: Any,
+                     prog: str | None = None) -> dict[str, Any]:
+    """:func:`run_study` with the parsed ``--workers/--scheduler/--timeout`` of a study command
+    (:func:`~knit_nlp.studies.executors.add_executor_arguments`). A scheduler that cannot be
+    reached raises :class:`ArgumentError`, or with ``prog`` (a script's name) is one line
+    ``prog: message`` on stderr and exit code 2."""
     workers = options.workers or max(1, min(len(paths), os.cpu_count() or 1))
     try:
         with open_executor(options.scheduler, workers) as executor:
             return run_study(name, paths, out_root, executor=executor, timeout=options.timeout)
     except ArgumentError as err:
-        print(f"{Path(sys.argv[0]).name}: {err}", file=sys.stderr)
+        if prog is None:
+            raise
+        print(f"{prog}: {err}", file=sys.stderr)
         raise SystemExit(2) from None
