@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 import signal
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
 
 import pytest
 
@@ -110,3 +110,24 @@ def test_a_point_past_its_timeout_is_recorded_and_the_study_goes_on(tmp_path):
     assert "5 s per-point timeout; worker stopped" in hang["reason"]
     assert all(r["success"] for r in quick) and len(quick) == 6
     assert not list((tmp_path / "t" / "points").glob("hang.*"))     # not cached: a rerun retries
+
+
+class _Unpicklable(Executor):
+    """An executor whose every task fails as on a Dask cluster without knit_nlp."""
+
+    submitted = 0
+
+    def submit(self, fn, /, *args, **kwargs):
+        type(self).submitted += 1
+        failed = Future()
+        failed.set_exception(RuntimeError("Error during deserialization of the task graph"))
+        return failed
+
+
+def test_an_executor_error_is_recorded_once_not_rerun(tmp_path):
+    """Not a lost worker: each point is tried once and recorded as Executor_Error."""
+    with _Unpicklable() as executor:
+        summary = run_study("e", _paths(), tmp_path, executor=executor, timeout=None)
+    assert summary["complete"] and _Unpicklable.submitted == 6
+    assert {r["status"] for r in summary["points"]} == {"Executor_Error"}
+    assert "deserialization" in summary["points"][0]["reason"]
