@@ -54,20 +54,25 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     ap.add_argument("--paths", type=int, default=4)
     ap.add_argument("--steps", type=int, default=3)
     ap.add_argument("--dask", action="store_true", help="also time a LocalCluster of 1 and 2")
+    ap.add_argument("--repeat", type=int, default=1, help="alternate 1 and 2 workers this often")
     args = ap.parse_args(argv)
     study = paths(args.size, args.paths, args.steps)
-    runs = [("pool", None, 1), ("pool", None, 2)]
-    if args.dask:
-        runs += [("dask", "local:1", 1), ("dask", "local:2", 2)]
-    times = {}
-    for kind, scheduler, workers in runs:
-        start, wall = timed(study, scheduler, workers)
-        times[f"{kind}{workers}"] = wall
-        print(f"{kind:5s} {workers} worker(s): study {wall:6.2f} s  (start-up {start:5.2f} s)")
-    for kind in ("pool", "dask"):
-        if f"{kind}1" in times:
-            print(f"{kind}: 1 -> 2 workers speed-up {times[f'{kind}1'] / times[f'{kind}2']:.2f}x")
-    return times
+    kinds = [("pool", None)] + ([("dask", "local")] if args.dask else [])
+    ratios: dict[str, list[float]] = {kind: [] for kind, _ in kinds}
+    for _ in range(args.repeat):
+        for kind, scheduler in kinds:
+            walls = []
+            for workers in (1, 2):
+                start, wall = timed(study, scheduler and f"{scheduler}:{workers}", workers)
+                walls.append(wall)
+                print(f"{kind:5s} {workers} worker(s): study {wall:6.2f} s  "
+                      f"(start-up {start:5.2f} s)", flush=True)
+            ratios[kind].append(walls[0] / walls[1])
+            print(f"{kind}: 1 -> 2 workers speed-up {ratios[kind][-1]:.2f}x", flush=True)
+    for kind, values in ratios.items():
+        print(f"{kind}: speed-ups {' '.join(f'{r:.2f}' for r in values)}; "
+              f"median {np.median(values):.2f}x")
+    return {kind: float(np.median(v)) for kind, v in ratios.items()}
 
 
 if __name__ == "__main__":

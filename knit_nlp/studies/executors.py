@@ -110,7 +110,7 @@ def _scheduler_argument(value: str) -> str:
     try:
         parse_scheduler(value)
     except ArgumentError as err:
-        raise argparse.ArgumentTypeError(err.message) from None
+        raise argparse.ArgumentTypeError(f"{value!r}: {err.message}") from None
     return value
 
 
