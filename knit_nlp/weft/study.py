@@ -10,13 +10,14 @@
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 
 from .nlp import build_nlp
 from .params import WeftParams
 from .parametrisation import Full, Parametrisation
-from .problem import WeftProblem
+from .problem import WeftProblem, parse_problem
 from .results import WeftResult
 from .solve import SolveReport, WeftSolver, solve
 
@@ -52,5 +53,22 @@ class WeftStudy:
 from ..studies.runner import (LoadPath, Progress, point_files, point_solution,  # noqa: E402
                               print_table, run_study)
 
-__all__ = ["WeftStudy", "LoadPath", "Progress", "point_files", "point_solution", "print_table",
-           "run_study"]
+__all__ = ["WeftStudy", "LoadPath", "Progress", "animate_path", "point_files", "point_solution",
+           "print_table", "run_study"]
+
+
+def animate_path(gif: Path, path: LoadPath, study_dir: Path, fps: int = 4) -> Path:
+    """A GIF of a solved load path of a study written under ``study_dir``: the natural loops,
+    then every point's deformed loops in order (labels in the frame titles; a point without a
+    solution, its worker lost, is left out)."""
+    from .plot import animate
+    from .sampling import natural_centrelines, solution_centrelines
+    wnlp = build_nlp(parse_problem(path.doc, f"<{path.name}>"), path.parametrisation)
+    natural = natural_centrelines(wnlp.problem)
+    frames = [(f"{path.name}: natural", natural)]
+    for k in range(len(path.points)):
+        label = path.labels[k] if k < len(path.labels) else k
+        x = point_solution(study_dir, path, k)
+        if x is not None:
+            frames.append((f"{path.name}: {label}", solution_centrelines(wnlp, x)))
+    return animate(gif, natural, frames, wnlp.problem.units, fps)
