@@ -68,7 +68,23 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--force", action="store_true",
                          help="overwrite results of another problem in --out")
     sub.add_parser("list", help="list the named problems")
+    _sweep_parser(sub)
     return parser
+
+
+def _sweep_parser(sub: Any) -> None:
+    from .studies.executors import add_executor_arguments
+
+    sweep = sub.add_parser("sweep", help="solve a grid of problem-file values (README, Sweeps)")
+    sweep.add_argument("problem", help="a problem file, or the name of one in problems/")
+    sweep.add_argument("--vary", action="append", default=[], metavar="KEY=START:STOP:COUNT",
+                       help="a grid axis of independent points (repeat for a grid)")
+    sweep.add_argument("--path", action="append", default=[], metavar="KEY=START:STOP:COUNT",
+                       help="weft: a loading-path axis, solved in order and warm-started (repeat: "
+                            "the axes step together)")
+    sweep.add_argument("--name", default=None, help="study name (default: sweep_<problem>)")
+    sweep.add_argument("--out", default="results", help="output folder (default: results)")
+    add_executor_arguments(sweep)
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
@@ -150,7 +166,36 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0 if cmp.success else 1
 
 
-COMMANDS = {"list": _cmd_list, "solve": _cmd_solve, "compare": _cmd_compare}
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from .studies import overview, sweep
+    from .studies.runner import print_table, run_with_options
+    from .tomlio import load_toml
+
+    path = resolve(args.problem)
+    doc = load_toml(path)
+    problem = load_problem(path)
+    name = sweep.study_name(args.name or f"sweep_{problem.name}")
+    vary = [sweep.parse_axis("--vary", a) for a in args.vary]
+    along = [sweep.parse_axis("--path", a) for a in args.path]
+    paths = sweep.sweep_paths(doc, problem, vary, along)
+    summary = run_with_options(name, paths, Path(args.out), args)
+    keys = [a.key for a in (*vary, *along)]
+    out = Path(args.out) / name
+    rows = overview.table_rows(summary, keys)
+    csv = overview.write_table(out / "sweep.csv", rows)
+    png = overview.plot_overview(out / "sweep.png", summary, keys,
+                                 f"{problem.name}: {len(rows)} points")
+    print_table([{**r, "point": f"{r['path']}.{r['index']}"} for r in rows],
+                [("point", "point", ""), *((k, k, "") for k in keys),
+                 ("energy_total", "U total", ".6g"), ("iterations", "it", ""),
+                 ("success", "ok", "")])
+    failed = sum(not r["success"] for r in rows)
+    print(f"{len(rows) - failed} of {len(rows)} points converged; wrote {out / 'summary.json'}, "
+          f"{csv}, {png}")
+    return 0 if failed == 0 else 1
+
+
+COMMANDS = {"list": _cmd_list, "solve": _cmd_solve, "compare": _cmd_compare, "sweep": _cmd_sweep}
 
 
 def main(argv: list[str] | None = None) -> int:

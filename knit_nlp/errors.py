@@ -16,3 +16,13 @@ class ProblemError(Exception):
         where = f"[{self.table}]" if self.table else "(top level)"
         key = f" {self.key}" if self.key else ""
         return f"{self.file}: {where}{key}: {self.message}"
+
+
+class ArgumentError(ProblemError):
+    """A bad command-line argument (exit code 2): ``str(err)`` is ``ARGUMENT: message``."""
+
+    def __init__(self, argument: str, message: str) -> None:
+        super().__init__(argument, "", "", message)
+
+    def __str__(self) -> str:
+        return f"{self.file}: {self.message}"
