@@ -42,7 +42,41 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("problem")
     compare.add_argument("--out", default="results")
     sub.add_parser("list", help="list the named problems")
+    _inverse_parsers(sub)
     return parser
+
+
+def _inverse_parsers(sub) -> None:
+    """control, fit and overlay (spec/inverse_problems.md)."""
+    ctl = sub.add_parser("control", help="weft: move actuated clamps so points reach goals")
+    ctl.add_argument("problem")
+    ctl.add_argument("--out", default="results")
+    fit = sub.add_parser("fit", help="weft: fit material values to observed points")
+    fit.add_argument("problems", nargs="+", metavar="PROBLEM")
+    fit.add_argument("--observations", required=True, metavar="FILE.csv")
+    fit.add_argument("--params", nargs="+", default=["k_a", "k_b", "R_f"])
+    fit.add_argument("--out", default="results")
+    ov = sub.add_parser("overlay", help="weft: draw a result over a photograph")
+    ov.add_argument("result", metavar="RESULT.json")
+    ov.add_argument("image", metavar="IMAGE")
+    ov.add_argument("--match", action="append", default=[], metavar="C,W,POINT=PX,PY")
+    ov.add_argument("--observations", default=None, metavar="FILE.csv")
+    ov.add_argument("--problem", default=None, help="the result's problem file (to resolve point "
+                    "labels; default: found by the result's name)")
+    ov.add_argument("--out", default="results")
+
+
+def _cmd_inverse(args: argparse.Namespace) -> int:
+    from .weft.inverse import run
+    if args.command == "control":
+        path = resolve(args.problem)
+        return run.control_file(path, load_toml(path), Path(args.out))
+    if args.command == "fit":
+        return run.fit_files([resolve(p) for p in args.problems], Path(args.observations),
+                             args.params, Path(args.out))
+    return run.overlay_file(Path(args.result), Path(args.image), args.match,
+                            Path(args.observations) if args.observations else None,
+                            resolve(args.problem) if args.problem else None, Path(args.out))
 
 
 def _cmd_list() -> int:
@@ -68,6 +102,11 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         raise ProblemError(path, "", "model", f"must be 'weft' or 'jacquard'; got {model!r}")
     if args.solver is not None or args.svg:
         raise ProblemError(path, "", "model", "--solver/--svg apply to jacquard problems only")
+    from .weft.inverse.spec import has_control_keys, strip_control_keys
+    if has_control_keys(doc):
+        print(f"knit-nlp: {path}: control keys (actuated, bounds, goal, opening, control) ignored; "
+              "solving at the start targets (see 'knit-nlp control')", file=sys.stderr)
+        doc = strip_control_keys(doc)
     from .weft.run import solve_file as weft_solve
     reduced = True if args.reduced else False if args.full else None
     return weft_solve(path, doc, out, reduced=reduced, continuation=args.continuation,
@@ -88,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_list()
         if args.command == "solve":
             return _cmd_solve(args)
+        if args.command in ("control", "fit", "overlay"):
+            return _cmd_inverse(args)
         return _cmd_compare(args)
     except ProblemError as err:
         print(f"knit-nlp: {err}", file=sys.stderr)
