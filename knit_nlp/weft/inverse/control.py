@@ -141,19 +141,28 @@ class Controller:
 
     # -- the outer iteration ----------------------------------------------------------------
     def _build_qp(self) -> ca.Function:
+        """The step QP over (d, t): t ≥ 0 are elastic slacks of the linearised openings, so the
+        QP is always feasible (ℓ1 elastic mode) and t = 0 whenever the openings can be met."""
         nu, no = len(self.idx), len(self.cp.openings)
-        return ca.conic("step", "qrqp", {"h": ca.Sparsity.dense(nu, nu), "a": ca.Sparsity.dense(no, nu)},
+        return ca.conic("step", "qrqp", {"h": ca.Sparsity.dense(nu + no, nu + no),
+                                         "a": ca.Sparsity.dense(no, nu + no)},
                         {"print_iter": False, "print_header": False, "print_info": False,
                          "error_on_fail": False})
 
-    def _step(self, s: State, Jr: np.ndarray, Jg: np.ndarray, radius: float
+    def _step(self, s: State, Jr: np.ndarray, Jg: np.ndarray, radius: float, rho: float
               ) -> tuple[np.ndarray, np.ndarray]:
         """The QP step d and the multipliers of the linearised openings."""
-        H = 2.0 * Jr.T @ Jr + 1e-12 * np.eye(len(s.u)) * max(1.0, np.trace(Jr.T @ Jr))
-        lbx = np.maximum(self.lower - s.u, -radius)
-        ubx = np.minimum(self.upper - s.u, radius)
-        sol = self._qp(h=H, g=2.0 * Jr.T @ s.r, a=Jg, lba=-s.gap, uba=np.inf, lbx=lbx, ubx=ubx)
-        return np.asarray(sol["x"]).ravel(), np.asarray(sol["lam_a"]).ravel()
+        nu, no = len(s.u), len(s.gap)
+        H = np.zeros((nu + no, nu + no))
+        H[:nu, :nu] = 2.0 * Jr.T @ Jr + 1e-12 * np.eye(nu) * max(1.0, np.trace(Jr.T @ Jr))
+        g = np.r_[2.0 * Jr.T @ s.r, np.full(no, rho)]
+        lbx = np.r_[np.maximum(self.lower - s.u, -radius), np.zeros(no)]
+        ubx = np.r_[np.minimum(self.upper - s.u, radius), np.full(no, np.inf)]
+        sol = self._qp(h=H, g=g, a=np.hstack([Jg, np.eye(no)]), lba=-s.gap, uba=np.inf,
+                       lbx=lbx, ubx=ubx)
+        if not self._qp.stats()["success"]:
+            raise RuntimeError(f"step QP failed: {self._qp.stats()['return_status']}")
+        return np.asarray(sol["x"]).ravel()[:nu], np.asarray(sol["lam_a"]).ravel()
 
     def equilibrium(self, u: np.ndarray, x0: np.ndarray | None = None):
         """The forward solve at unknowns u (the built IPOPT instance; warm start x0)."""
@@ -166,11 +175,16 @@ class Controller:
         start = self._state(u, rep)
         if not rep.success:
             return self._finish(start, start, False, f"start equilibrium not found: {rep.status}", 0, t0)
-        s, radius, rho, status, it = start, self.opts.initial_radius, 1.0, "Maximum_Iterations", 0
+        s, radius, status, it = start, self.opts.initial_radius, "Maximum_Iterations", 0
+        rho = 10.0 * (1.0 + float(start.r @ start.r))
         for it in range(1, self.opts.max_iter + 1):
             dx, Jr, Jg = self.jacobians(s)
-            d, lam_o = self._step(s, Jr, Jg, radius)
-            rho = max(rho, 2.0 * float(np.abs(lam_o).max(initial=0.0)) + 1.0)
+            try:
+                d, lam_o = self._step(s, Jr, Jg, radius, rho)
+            except RuntimeError as err:
+                status = str(err)
+                break
+            rho = max(rho, 2.0 * float(np.abs(lam_o).max(initial=0.0)))
             model = s.r + Jr @ d
             pred = s.merit(rho) - float(model @ model + rho * np.sum(np.maximum(0.0, -(s.gap + Jg @ d))))
             if pred <= self.opts.objective_tol or np.abs(d).max() <= self.opts.step_tol * (1 + np.abs(s.u).max()):
