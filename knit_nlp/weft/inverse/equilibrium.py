@@ -64,9 +64,6 @@ class Equilibrium:
         z = ca.vertcat(x, lam)
         self._kkt = ca.Function("kkt", [x, lam, p], [ca.jacobian(F, z), ca.jacobian(F, p)])
         self._linsol = ca.Linsol("kkt", "mumps", self._kkt.sparsity_out(0))
-        H, J = ca.jacobian(F[:x.numel()], x), ca.jacobian(g, x)
-        JtJ = ca.mtimes(J.T, J)
-        self._penalised = ca.Function("penalised", [x, lam, p], [H, JtJ])
         self.build_s = time.perf_counter() - t0
         self.forward_solves = 0
 
@@ -109,7 +106,7 @@ class Equilibrium:
                                        "needs scipy (pip install scipy)") from None
         if method == "dense":
             return _dense_reduced_min(_dense(K), self.n)
-        negative, rho = self._penalised_inertia(x, lam, p)
+        negative, rho = _penalised_inertia(K, self.n)
         if negative:
             if self.n <= DENSE_FALLBACK:
                 found = _dense_reduced_min(_dense(K), self.n)
@@ -121,22 +118,25 @@ class Equilibrium:
         return Stability(mu, f"no negative pivot in LDL^T of H + rho J^T J (rho = {rho:.3g}); "
                          f"smallest by shift-invert Lanczos on the KKT matrix (sigma = {SHIFT:g})")
 
-    def _penalised_inertia(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray) -> tuple[int, float]:
-        """Negative eigenvalues of H + ρJᵀJ (CasADi's sparse LDLᵀ), ρ raised until none or
-        RHO_MAX; returns the count at the last ρ and that ρ."""
-        H, JtJ = self._penalised(x, lam, p)
-        scale = float(ca.mmax(ca.fabs(H))) / max(float(ca.mmax(ca.fabs(JtJ))), 1e-300)
-        factor, negative = RHO, -1
-        while factor <= RHO_MAX:
-            A = H + factor * scale * JtJ
-            ls = ca.Linsol("penalised", "ldl", A.sparsity())
-            ls.sfact(A)
-            ls.nfact(A)
-            negative = int(ls.neig(A))
-            if negative == 0:
-                break
-            factor *= 100
-        return negative, min(factor, RHO_MAX) * scale
+
+
+def _penalised_inertia(K: ca.DM, n: int) -> tuple[int, float]:
+    """Negative eigenvalues of H + ρJᵀJ (CasADi's sparse LDLᵀ; H, J the blocks of K), ρ raised
+    ×100 until none or RHO_MAX; returns the count at the last ρ and that ρ."""
+    H, J = K[:n, :n], K[n:, :n]
+    JtJ = ca.mtimes(J.T, J)
+    scale = float(ca.mmax(ca.fabs(H))) / max(float(ca.mmax(ca.fabs(JtJ))), 1e-300)
+    factor, negative = RHO, -1
+    while factor <= RHO_MAX:
+        A = H + factor * scale * JtJ
+        ls = ca.Linsol("penalised", "ldl", A.sparsity())
+        ls.sfact(A)
+        ls.nfact(A)
+        negative = int(ls.neig(A))
+        if negative == 0:
+            break
+        factor *= 100
+    return negative, min(factor, RHO_MAX) * scale
 
 
 def _dense(K: ca.DM) -> np.ndarray:
