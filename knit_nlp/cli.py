@@ -1,17 +1,24 @@
-"""The ``knit-nlp`` command line (spec/problem_files.md, "Command line").
+"""The ``knit-nlp`` command line (README, "Command line").
 
 Exit codes: 0 success, 1 solver did not converge (results still written, ``"success": false``),
 2 bad problem file or bad arguments (one line naming file, table and key; no traceback).
+Commands dispatch by the problem's model through :data:`knit_nlp.api.MODELS`; which flags
+apply to which model is said once, in :data:`FLAGS`.
 """
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
+from .api import MODELS, load_problem, parse_problem
 from .errors import ProblemError
 from .problems import named_problems, resolve
-from .tomlio import load_toml
+
+# CLI flag -> the model it applies to
+FLAGS = {"--reduced": "weft", "--full": "weft", "--continuation": "weft",
+         "--warm-from-reduced": "weft", "--solver": "jacquard", "--svg": "jacquard"}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -38,7 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument("--solver", choices=["static", "explicit"], default=None,
                        help="jacquard: override [solver] method")
     solve.add_argument("--svg", action="store_true", help="jacquard: also write an SVG picture")
-    compare = sub.add_parser("compare", help="solve full and reduced models and compare them")
+    compare = sub.add_parser("compare", help="weft: solve full and reduced models and compare them")
     compare.add_argument("problem")
     compare.add_argument("--out", default="results")
     sub.add_parser("list", help="list the named problems")
@@ -67,6 +74,8 @@ def _inverse_parsers(sub) -> None:
 
 
 def _cmd_inverse(args: argparse.Namespace) -> int:
+    """``control``, ``fit`` and ``overlay`` (weft only; knit_nlp.weft.inverse.run)."""
+    from .tomlio import load_toml
     from .weft.inverse import run
     if args.command == "control":
         path = resolve(args.problem)
@@ -79,7 +88,7 @@ def _cmd_inverse(args: argparse.Namespace) -> int:
                             resolve(args.problem) if args.problem else None, Path(args.out))
 
 
-def _cmd_list() -> int:
+def _cmd_list(args: argparse.Namespace) -> int:
     rows = named_problems()
     width = max((len(r[0]) for r in rows), default=4)
     for name, model, description in rows:
@@ -87,49 +96,83 @@ def _cmd_list() -> int:
     return 0
 
 
+def _given_flags(args: argparse.Namespace) -> list[str]:
+    """The model-specific flags given on the command line."""
+    values = {"--reduced": args.reduced, "--full": args.full,
+              "--continuation": args.continuation is not None,
+              "--warm-from-reduced": args.warm_from_reduced,
+              "--solver": args.solver is not None, "--svg": args.svg}
+    return [flag for flag, given in values.items() if given]
+
+
+def _solve_options(args: argparse.Namespace, model: str) -> dict[str, Any]:
+    if model == "weft":
+        opts: dict[str, Any] = {"continuation": args.continuation,
+                                "warm_from_reduced": args.warm_from_reduced}
+        if args.reduced or args.full:
+            opts["reduced"] = bool(args.reduced)
+        return opts
+    return {"solver": args.solver}
+
+
 def _cmd_solve(args: argparse.Namespace) -> int:
     path = resolve(args.problem)
-    doc = load_toml(path)
-    model = doc.get("model", "weft")
-    out = Path(args.out)
-    if model == "jacquard":
-        if args.reduced or args.full or args.continuation is not None or args.warm_from_reduced:
-            raise ProblemError(path, "", "model", "--reduced/--full/--continuation/"
-                               "--warm-from-reduced apply to weft problems only")
-        from .jacquard import solve_file
-        return solve_file(path, doc, out, solver=args.solver, svg=args.svg)
-    if model != "weft":
-        raise ProblemError(path, "", "model", f"must be 'weft' or 'jacquard'; got {model!r}")
-    if args.solver is not None or args.svg:
-        raise ProblemError(path, "", "model", "--solver/--svg apply to jacquard problems only")
+    problem = _problem_for_solve(path)
+    wrong = [f for f in _given_flags(args) if FLAGS[f] != problem.model]
+    if wrong:
+        raise ProblemError(path, "", "model", f"{'/'.join(wrong)} apply to {FLAGS[wrong[0]]} "
+                           f"problems only; this is a {problem.model} problem")
+    if args.warm_from_reduced and args.reduced or (
+            args.warm_from_reduced and not args.full and getattr(problem, "reduction", None)):
+        raise ProblemError(path, "", "", "--warm-from-reduced starts the full model: add --full")
+    result = MODELS[problem.model].solve(problem, **_solve_options(args, problem.model))
+    paths = result.save(Path(args.out), **({"svg": True} if args.svg else {}))
+    print(_summary(problem.model)(result, paths))
+    return 0 if result.success else 1
+
+
+def _problem_for_solve(path: Path):
+    """The problem to solve; a control file (spec/inverse_problems.md) is solved at its start
+    targets, its control keys ignored with a note."""
+    from .tomlio import load_toml
     from .weft.inverse.spec import has_control_keys, strip_control_keys
+    doc = load_toml(path)
     if has_control_keys(doc):
         print(f"knit-nlp: {path}: control keys (actuated, bounds, goal, opening, control) ignored; "
               "solving at the start targets (see 'knit-nlp control')", file=sys.stderr)
         doc = strip_control_keys(doc)
-    from .weft.run import solve_file as weft_solve
-    reduced = True if args.reduced else False if args.full else None
-    return weft_solve(path, doc, out, reduced=reduced, continuation=args.continuation,
-                      warm_from_reduced=args.warm_from_reduced)
+    return parse_problem(doc, path)
+
+
+def _summary(model: str):
+    if model == "weft":
+        from .weft.summary import solve_summary
+    else:
+        from .jacquard.summary import solve_summary
+    return solve_summary
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
     path = resolve(args.problem)
-    doc = load_toml(path)
-    from .weft.run import compare_file
-    return compare_file(path, doc, Path(args.out))
+    problem = load_problem(path)
+    compare = MODELS[problem.model].compare
+    if compare is None:
+        raise ProblemError(path, "", "model", f"compare is for weft problems; this is a "
+                           f"{problem.model} problem")
+    from .weft.summary import compare_summary
+    cmp = compare(problem)
+    print(compare_summary(cmp, cmp.save(Path(args.out))))
+    return 0 if cmp.success else 1
+
+
+COMMANDS = {"list": _cmd_list, "solve": _cmd_solve, "compare": _cmd_compare,
+            "control": _cmd_inverse, "fit": _cmd_inverse, "overlay": _cmd_inverse}
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        if args.command == "list":
-            return _cmd_list()
-        if args.command == "solve":
-            return _cmd_solve(args)
-        if args.command in ("control", "fit", "overlay"):
-            return _cmd_inverse(args)
-        return _cmd_compare(args)
+        return COMMANDS[args.command](args)
     except ProblemError as err:
         print(f"knit-nlp: {err}", file=sys.stderr)
         return 2

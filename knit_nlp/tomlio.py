@@ -1,4 +1,4 @@
-"""Reading TOML problem files with typed, key-checked access (spec/problem_files.md).
+"""Reading TOML problem files with typed, key-checked access (README, "Weft problem files").
 
 Every read goes through :class:`Table`, which knows the file and table it reads from, checks each
 value's type, and rejects keys nobody asked for. Nothing in a problem file is ever executed.

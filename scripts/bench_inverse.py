@@ -32,6 +32,7 @@ from knit_nlp.weft.inverse.observations import load_observations  # noqa: E402
 from knit_nlp.weft.inverse.spec import parse_control  # noqa: E402
 from knit_nlp.weft.nlp import build_nlp  # noqa: E402
 from knit_nlp.weft.problem import load_problem  # noqa: E402
+from knit_nlp.weft.params import WeftParams  # noqa: E402
 from knit_nlp.weft.solve import WeftSolver, solve  # noqa: E402
 
 PLACE = ROOT / "problems" / "place_stitch.toml"
@@ -55,7 +56,7 @@ def forward_once(cp, u: np.ndarray) -> tuple[float, int]:
     for a in cp.actuated:
         ctl_p[wnlp.p.slice("targets").start + 2 * a.index:][:2] = u[k:k + 2]
         k += 2
-    rep = solve(wnlp, solver, p=ctl_p)
+    rep = solve(wnlp, solver, params=WeftParams.from_vector(cp.problem, ctl_p))
     return time.perf_counter() - t0, rep.iterations
 
 

@@ -21,32 +21,29 @@ Point clamps only (no loads, rigid clamps or clamp angles). Best of three solves
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_weft import diagonal_pull_doc  # noqa: E402
-from study_reduction import course_pull_doc  # noqa: E402
-
-from knit_nlp.weft.basis import n_coeffs  # noqa: E402
-from knit_nlp.weft.energy import bending_energy, spring_pair_energy  # noqa: E402
-from knit_nlp.weft.kinematics import loop_displacements  # noqa: E402
-from knit_nlp.weft.nlp import _eval_points, _specials, build_nlp  # noqa: E402
-from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
-from knit_nlp.weft.reduction import reduction_map  # noqa: E402
-from knit_nlp.weft.solve import WeftSolver  # noqa: E402
+from knit_nlp.ipopt import ipopt_options
+from knit_nlp.weft.basis import n_coeffs
+from knit_nlp.weft.cases import course_pull, diagonal_pull
+from knit_nlp.weft.energy import bending_energy, spring_pair_energy
+from knit_nlp.weft.kinematics import loop_displacements
+from knit_nlp.weft.nlp import build_nlp, eval_points, special_points
+from knit_nlp.weft.parametrisation import Full, Reduced
+from knit_nlp.weft.problem import WeftProblem, parse_problem
+from knit_nlp.weft.reduction import reduction_map
+from knit_nlp.weft.solve import WeftSolver
 
 
 def condensed_nlp(pr: WeftProblem) -> tuple[dict, np.ndarray]:
     """The reduced model with only z and the course starts as variables (paper's count)."""
     m, n, N, nc = pr.courses, pr.wales, pr.n_loops, n_coeffs(pr.t)
-    T = reduction_map(pr)
-    specials = _specials(pr)[0]
-    evals = _eval_points(pr, specials)
+    T = reduction_map(pr, Reduced())
+    specials = special_points(pr)[0]
+    evals = eval_points(pr, specials)
     col, P = {s: q for q, s in enumerate(evals)}, len(evals)
     z, X0 = ca.MX.sym("z", T.shape[1]), ca.MX.sym("X0", 2, m)
     A = ca.reshape(ca.mtimes(ca.DM(T), z), nc, N)
@@ -71,7 +68,7 @@ def condensed_nlp(pr: WeftProblem) -> tuple[dict, np.ndarray]:
     for cl in pr.clamps:
         pos = at(cl.s, np.array([(cl.loop[0] - 1) * n + cl.loop[1] - 1]))
         g += [pos[d] - cl.target[d] for d in range(2) if cl.fix[d]]
-    lifted = build_nlp(pr, reduced=True)
+    lifted = build_nlp(pr, Reduced())
     x0 = np.concatenate([lifted.x.get(lifted.x0, "coeffs").ravel(),
                          pr.natural_starts()[:, 0, :].T.ravel(order="F")])
     return {"x": ca.vertcat(z, ca.vec(X0)), "f": f, "g": ca.vertcat(*g)}, x0
@@ -85,7 +82,7 @@ def best_of(solve, repeats: int = 3) -> tuple[float, int, float, float, str]:
 
 def lifted(pr: WeftProblem, reduced: bool):
     """A solve of the shipped NLP (full or lifted reduced), and its number of variables."""
-    w = build_nlp(pr, reduced=reduced)
+    w = build_nlp(pr, Reduced() if reduced else Full())
     solver = WeftSolver(w)
 
     def run():
@@ -97,9 +94,9 @@ def lifted(pr: WeftProblem, reduced: bool):
 def condensed(pr: WeftProblem, hessian: str):
     """A solve of the condensed reduced NLP, and its number of variables."""
     nlp, x0 = condensed_nlp(pr)
-    solver = ca.nlpsol("condensed", "ipopt", nlp, {"print_time": False, "ipopt": {
-        "tol": pr.solver.tol, "print_level": 0, "sb": "yes", "max_iter": 1000,
-        "mumps_scaling": 0, "mumps_permuting_scaling": 0, "hessian_approximation": hessian}})
+    solver = ca.nlpsol("condensed", "ipopt", nlp, ipopt_options(
+        pr.solver.tol, 1000, mumps_scaling=0, mumps_permuting_scaling=0,
+        hessian_approximation=hessian))
 
     def run():
         t0 = time.perf_counter()
@@ -118,8 +115,8 @@ def main() -> None:
     print("| case | model | variables | iterations | solve s | evaluations s | energy | status |")
     print("|---|---|---:|---:|---:|---:|---:|---|")
     for size in args.sizes:
-        for label, doc in (("diagonal", diagonal_pull_doc(size)), ("course", course_pull_doc(size))):
-            pr = parse_problem(f"{label}.toml", doc)
+        for label, doc in (("diagonal", diagonal_pull(size)), ("course", course_pull(size))):
+            pr = parse_problem(doc, f"{label}.toml")
             rows = {"full": lifted(pr, False), "reduced, lifted (shipped)": lifted(pr, True),
                     "reduced, condensed, exact Hessian": condensed(pr, "exact"),
                     "reduced, condensed, limited-memory": condensed(pr, "limited-memory")}

@@ -1,8 +1,7 @@
 """Benchmark: build and solve diagonal pulls of growing size; fit how time grows with loops.
 
 Each size runs in its own process so its peak memory (max RSS) is its own. The pull is the
-paper's eq. 28 map (the corner-to-H(1, n) chord stretched 1.883x and turned 25.26 deg), as in
-problems/diagonal_pull.toml.
+paper's eq. 28 map (``knit_nlp.weft.cases.diagonal_pull``), as in problems/diagonal_pull.toml.
 
     python scripts/bench_weft.py [--sizes 5 10 20 50 100] [--reduced]
 """
@@ -17,33 +16,19 @@ import time
 
 import numpy as np
 
-STRETCH, TURN_DEG = 1.8830761813505632, 25.25734166917165
-
-
-def diagonal_pull_doc(n: int) -> dict:
-    """The problem file (as a dict) of an n x n diagonal pull."""
-    from knit_nlp.weft.crossings import find_crossings
-    from knit_nlp.weft.natural import natural_loop, preset_coeffs
-    loop = natural_loop(preset_coeffs("jersey", 3), 10.0, 3)
-    h = np.array([(n - 1) * loop.wale_spacing, 0.0]) + loop.xy([find_crossings(loop).s["H"]])[0]
-    c, s = np.cos(np.radians(TURN_DEG)), np.sin(np.radians(TURN_DEG))
-    target = STRETCH * np.array([[c, -s], [s, c]]) @ h
-    return {"name": f"diagonal_pull_{n}x{n}", "fabric": {"courses": n, "wales": n},
-            "clamp": [{"loop": [1, 1], "point": "start", "position": [0.0, 0.0]},
-                      {"loop": [1, n], "point": "H", "position": target.tolist()}]}
-
-
 def run_one(n: int, reduced: bool) -> dict:
+    from knit_nlp.weft.api import solve
+    from knit_nlp.weft.cases import diagonal_pull
+    from knit_nlp.weft.parametrisation import Full, Reduced
     from knit_nlp.weft.problem import parse_problem
-    from knit_nlp.weft.run import solve_problem
     t0 = time.perf_counter()
-    pr = parse_problem(f"<bench {n}x{n}>", diagonal_pull_doc(n))
-    s = solve_problem(pr, reduced=reduced)
-    r = s.result
-    return {"n": n, "loops": n * n, "success": r["success"], "iterations": r["iterations"],
-            "build_s": r["timings"]["build_s"], "solve_s": r["timings"]["solve_s"],
-            "total_s": time.perf_counter() - t0, "energy": r["energy"]["total"],
-            "n_variables": r["n_variables"], "profile": r["timings"]["profile"],
+    pr = parse_problem(diagonal_pull(n), f"<bench {n}x{n}>")
+    r = solve(pr, Reduced() if reduced else Full())
+    t = r.timings
+    return {"n": n, "loops": n * n, "success": r.success, "iterations": r.iterations,
+            "build_s": t["build_s"], "solve_s": t["solve_s"],
+            "total_s": time.perf_counter() - t0, "energy": r.energy.total,
+            "n_variables": r.nlp.n_variables, "profile": t["profile"],
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 

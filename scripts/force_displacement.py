@@ -37,31 +37,27 @@ import numpy as np  # noqa: E402
 
 from matplotlib.collections import LineCollection  # noqa: E402
 
-from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
+from knit_nlp.jsonio import write_csv  # noqa: E402
+from knit_nlp.weft.cases import diagonal_pull, unclamped  # noqa: E402
 from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
-from knit_nlp.weft.results import natural_centrelines, solution_centrelines  # noqa: E402
+from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
+from knit_nlp.weft.study import (LoadPath, WeftStudy, point_solution, print_table,  # noqa: E402
+                                  run_study)
 
 STUDY = "force_displacement"
 DIRECTIONS = ("course", "wale", "diagonal")
-STRETCH, TURN_DEG = 1.8830761813505632, 25.25734166917165   # eq. 28 on 5 x 5 (bench_weft.py)
 FIELDS = ("displacement", "strain", "reaction", "energy_total", "energy_spring",
           "energy_bending", "success")
 
 
-def base_doc(m: int, n: int) -> dict[str, Any]:
-    """An m x n fabric with the paper's material and no clamps, as a problem dict."""
-    return {"fabric": {"courses": m, "wales": n},
-            "material": {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0}}
-
-
 def natural(m: int, n: int) -> WeftProblem:
     """The parsed clamp-free problem (for natural positions and spacings)."""
-    return parse_problem("<natural>", base_doc(m, n))
+    return parse_problem(unclamped(m, n), "<natural>")
 
 
 def course_doc(m: int, n: int) -> dict[str, Any]:
     """Left line clamp (starts of (i, 1)) fixed; right line clamp (ends of (i, n)) to move."""
-    doc = base_doc(m, n)
+    doc = unclamped(m, n)
     doc["rigid_clamp"] = [
         {"points": [{"loop": [i, 1], "point": "start"} for i in range(1, m + 1)]},
         {"points": [{"loop": [i, n], "point": "end"} for i in range(1, m + 1)]}]
@@ -70,7 +66,7 @@ def course_doc(m: int, n: int) -> dict[str, Any]:
 
 def wale_doc(m: int, n: int) -> dict[str, Any]:
     """Bottom line clamp (starts of (1, j)) fixed; top line clamp (starts of (m, j)) to move."""
-    doc = base_doc(m, n)
+    doc = unclamped(m, n)
     doc["rigid_clamp"] = [
         {"points": [{"loop": [1, j], "point": "start"} for j in range(1, n + 1)]},
         {"points": [{"loop": [m, j], "point": "start"} for j in range(1, n + 1)]}]
@@ -81,15 +77,13 @@ def diagonal_geometry(m: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Natural position of H of loop (1, n) and the unit direction of the eq. 28 pull."""
     pr = natural(m, n)
     h0 = pr.natural_position((1, n), pr.crossings.s["H"])
-    c, s = np.cos(np.radians(TURN_DEG)), np.sin(np.radians(TURN_DEG))
-    target = STRETCH * np.array([[c, -s], [s, c]]) @ h0
-    u = target - h0
+    u = np.array(diagonal_pull(n, m)["clamp"][1]["position"]) - h0
     return h0, u / np.linalg.norm(u)
 
 
 def diagonal_doc(m: int, n: int) -> dict[str, Any]:
     """Corner (1, 1) start pinned; H of loop (1, n) pinned at its natural place (moved later)."""
-    doc = base_doc(m, n)
+    doc = unclamped(m, n)
     doc["clamp"] = [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
                     {"loop": [1, n], "point": "H", "displacement": [0.0, 0.0]}]
     return doc
@@ -112,15 +106,15 @@ def build_paths(m: int, n: int, steps: int, max_strain: float,
     for name in directions:
         if name == "course":
             d, u, doc = strains * n * w, np.array([1.0, 0.0]), course_doc(m, n)
-            points = [{"rigid": {"1": [di, 0.0, 0.0]}} for di in d]
+            points = [{"rigid": {"2": [di, 0.0, 0.0]}} for di in d]
         elif name == "wale":
             d, u, doc = strains * (m - 1) * c, np.array([0.0, 1.0]), wale_doc(m, n)
-            points = [{"rigid": {"1": [0.0, di, 0.0]}} for di in d]
+            points = [{"rigid": {"2": [0.0, di, 0.0]}} for di in d]
         else:
             h0, u = diagonal_geometry(m, n)
             d = np.array([diagonal_displacement(h0, u, e) for e in strains])
             doc = diagonal_doc(m, n)
-            points = [{"displacements": {"1": (di * u).tolist()}} for di in d]
+            points = [{"displacements": {"2": (di * u).tolist()}} for di in d]
         out[name] = (LoadPath(name, doc, points,
                               labels=[float(e) for e in strains]),
                      {"d": d, "strain": strains, "u": u})
@@ -182,9 +176,9 @@ def plot(path: Path, tables: dict[str, list[dict[str, Any]]], title: str) -> Pat
 
 def last_lines(path: LoadPath, cache: Path) -> tuple[np.ndarray, np.ndarray, WeftStudy]:
     """Natural and deformed centrelines (m, n, S, 2) of a path's last (cached) point."""
-    study = WeftStudy(parse_problem(f"<{path.name}>", path.doc))
+    study = WeftStudy(parse_problem(path.doc, f"<{path.name}>"))
     x = point_solution(cache.parent, path, len(path.points) - 1)
-    return natural_centrelines(study.problem), solution_centrelines(study.wnlp, x), study
+    return natural_centrelines(study.problem), solution_centrelines(study.nlp, x), study
 
 
 def held_positions(path: LoadPath, study: WeftStudy) -> np.ndarray:
@@ -193,11 +187,11 @@ def held_positions(path: LoadPath, study: WeftStudy) -> np.ndarray:
     if pr.rigid_clamps:
         out = []
         for q, rc in enumerate(pr.rigid_clamps):
-            move = np.array(point.get("rigid", {}).get(str(q), [0.0, 0.0, 0.0])[:2])
+            move = np.array(point.get("rigid", {}).get(str(q + 1), [0.0, 0.0, 0.0])[:2])
             out += [pr.natural_position(lp, s) + move for lp, _, s in rc.points]
         return np.array(out)
     disp = point.get("displacements", {})
-    return np.array([pr.natural_position(c.loop, c.s) + np.array(disp.get(str(q), [0.0, 0.0]))
+    return np.array([pr.natural_position(c.loop, c.s) + np.array(disp.get(str(q + 1), [0.0, 0.0]))
                      for q, c in enumerate(pr.clamps)])
 
 
@@ -226,15 +220,13 @@ def plot_shapes(path: Path, paths: list[LoadPath], cache: Path, strain: float,
     return path
 
 
-def print_table(tables: dict[str, list[dict[str, Any]]]) -> None:
+def show_table(tables: dict[str, list[dict[str, Any]]]) -> None:
     """One screen: per direction and step, strain, displacement, reaction, energies, success."""
-    print(f"{'pull':<9}{'strain':>7}{'disp':>8}{'reaction':>10}{'U total':>9}{'U spring':>9}"
-          f"{'U bend':>9}  ok")
-    for name, rows in tables.items():
-        for r in rows:
-            print(f"{name:<9}{r['strain']:>7.3f}{r['displacement']:>8.3f}{r['reaction']:>10.4f}"
-                  f"{r['energy_total']:>9.4f}{r['energy_spring']:>9.4f}{r['energy_bending']:>9.4f}"
-                  f"  {'y' if r['success'] else 'NO'}")
+    print_table([{"pull": name, **r} for name, rows in tables.items() for r in rows],
+                [("pull", "pull", ""), ("strain", "strain", ".3f"), ("displacement", "disp", ".3f"),
+                 ("reaction", "reaction", ".4f"), ("energy_total", "U total", ".4f"),
+                 ("energy_spring", "U spring", ".4f"), ("energy_bending", "U bend", ".4f"),
+                 ("success", "ok", "")])
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -267,7 +259,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[dict[str, Any]]]:
                f"clamps, diagonal with point clamps (x on the axis: not converged)")
     shapes = plot_shapes(out / "shapes.png", [p for p, _ in built.values()], out / "points",
                          args.max_strain, [rows[-1]["success"] for rows in tables.values()])
-    print_table(tables)
+    show_table(tables)
     print(f"wrote {out}/{{{','.join(tables)}}}.csv, {png}, {shapes}, {out / 'summary.json'}")
     return tables
 

@@ -35,8 +35,9 @@ from knit_nlp.jsonio import write_json  # noqa: E402
 from knit_nlp.problems import resolve  # noqa: E402
 from knit_nlp.tomlio import load_toml  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
-from knit_nlp.weft.results import natural_centrelines  # noqa: E402
-from knit_nlp.weft.run import Solved, solve_problem  # noqa: E402
+from knit_nlp.weft.api import solve as solve_problem  # noqa: E402
+from knit_nlp.weft.results import WeftResult as Solved  # noqa: E402
+from knit_nlp.weft.sampling import natural_centrelines  # noqa: E402
 
 STUDY = "wada_fig7"
 
@@ -50,7 +51,7 @@ def line_doc(doc: dict[str, Any], grip: int) -> dict[str, Any]:
     """The same pull with the two point clamps replaced by rigid jaws of ``grip`` points each."""
     fixed, moving = doc["clamp"]
     n = doc["fabric"]["wales"]
-    pr = parse_problem("<wada_fig7>", doc)
+    pr = parse_problem(doc, "<wada_fig7>")
     target = np.array(moving["position"])
     h0 = pr.natural_position(tuple(moving["loop"]), pr.crossings.s[moving["point"]])
     origin = pr.natural_position(tuple(fixed["loop"]), 0.0)
@@ -69,16 +70,16 @@ def line_doc(doc: dict[str, Any], grip: int) -> dict[str, Any]:
 
 def lines(s: Solved, samples: int = 81) -> np.ndarray:
     """Deformed centrelines (m, n, S, 2)."""
-    return s.lines(samples)
+    return s.centrelines(samples)
 
 
 def held_points(s: Solved) -> tuple[np.ndarray, np.ndarray]:
     """Positions and reactions of every held point (point clamps and rigid-jaw points)."""
-    pos = [c["position"] for c in s.result["clamps"]]
-    force = [c["reaction"] for c in s.result["clamps"]]
-    for rc in s.result["rigid_clamps"]:
-        pos += [p["position"] for p in rc["points"]]
-        force += [p["reaction"] for p in rc["points"]]
+    pos = [c.position for c in s.clamps]
+    force = [c.reaction for c in s.clamps]
+    for rc in s.rigid_clamps:
+        pos += list(rc.positions)
+        force += list(rc.reactions)
     return np.array(pos).reshape(-1, 2), np.array(force).reshape(-1, 2)
 
 
@@ -99,14 +100,14 @@ def draw_panel(ax, s: Solved, nat: np.ndarray, title: str, ghost: np.ndarray | N
     ax.plot(pos[:, 0], pos[:, 1], "s", color="crimson", ms=6, zorder=5, label="held point")
     ax.quiver(pos[:, 0], pos[:, 1], force[:, 0] * fscale, force[:, 1] * fscale, angles="xy",
               scale_units="xy", scale=1, color="crimson", width=0.005, zorder=6)
-    if len(s.result["rigid_clamps"]):
-        for rc in s.result["rigid_clamps"]:
-            p = np.array([q["position"] for q in rc["points"]])
+    if len(s.rigid_clamps):
+        for rc in s.rigid_clamps:
+            p = rc.positions
             ax.plot(p[:, 0], p[:, 1], "-", color="crimson", lw=4, alpha=0.5, solid_capstyle="round")
-    e = s.result["energy"]
-    ok = "converged" if s.result["success"] else "NOT CONVERGED"
-    ax.set_title(f"{title}\nU = {e['total']:.4f} (spring {e['spring']:.4f}, bending "
-                 f"{e['bending']:.4f}), {ok}", fontsize=9.5)
+    e = s.energy
+    ok = "converged" if s.success else "NOT CONVERGED"
+    ax.set_title(f"{title}\nU = {e.total:.4f} (spring {e.spring:.4f}, bending "
+                 f"{e.bending:.4f}), {ok}", fontsize=9.5)
     ax.set_aspect("equal")
     ax.grid(alpha=0.2)
 
@@ -141,15 +142,14 @@ def plot(path: Path, point: Solved, line: Solved, nat: np.ndarray, grip: int) ->
 def compare(point: Solved, line: Solved) -> dict[str, Any]:
     """Energies, reactions at the pulled side, and distances between the two centrelines."""
     d = np.linalg.norm(lines(point) - lines(line), axis=-1)
-    moved = line.result["rigid_clamps"][1]
-    return {"point_clamps": {"success": point.result["success"], "energy": point.result["energy"],
-                             "pull_reaction": point.result["clamps"][1]["reaction"],
-                             "fixed_reaction": point.result["clamps"][0]["reaction"]},
-            "line_clamps": {"success": line.result["success"], "energy": line.result["energy"],
-                            "pull_force": moved["force"], "pull_moment": moved["moment"],
-                            "fixed_force": line.result["rigid_clamps"][0]["force"],
-                            "fixed_moment": line.result["rigid_clamps"][0]["moment"],
-                            "translation": moved["translation"]},
+    fixed, moved = line.rigid_clamps
+    return {"point_clamps": {"success": point.success, "energy": point.energy.to_json(),
+                             "pull_reaction": point.clamps[1].reaction.tolist(),
+                             "fixed_reaction": point.clamps[0].reaction.tolist()},
+            "line_clamps": {"success": line.success, "energy": line.energy.to_json(),
+                            "pull_force": moved.force.tolist(), "pull_moment": moved.moment,
+                            "fixed_force": fixed.force.tolist(), "fixed_moment": fixed.moment,
+                            "translation": moved.translation.tolist()},
             "centreline_distance": {"max": float(d.max()), "rms": float(np.sqrt(np.mean(d ** 2))),
                                     "argmax_loop": [int(v) + 1 for v in
                                                     np.unravel_index(d.max(axis=-1).argmax(),
@@ -188,11 +188,11 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     """Solve both, draw them, write comparison.json and print the comparison."""
     args = parse_args(argv)
     doc = point_doc()
-    point = solve_problem(parse_problem("wada_fig7", doc))
+    point = solve_problem(parse_problem(doc, "wada_fig7"))
     ldoc = line_doc(doc, args.grip)
-    line = solve_problem(parse_problem("wada_fig7_line", ldoc))
+    line = solve_problem(parse_problem(ldoc, "wada_fig7_line"))
     out = args.out / STUDY
-    png = plot(out / f"{STUDY}.png", point, line, natural_centrelines(point.wnlp.problem, 81), args.grip)
+    png = plot(out / f"{STUDY}.png", point, line, natural_centrelines(point.problem, 81), args.grip)
     comp = compare(point, line)
     comp["grip"] = args.grip
     comp["line_problem"] = ldoc

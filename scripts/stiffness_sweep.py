@@ -27,29 +27,21 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
-from knit_nlp.study import LoadPath, WeftStudy, point_solution, run_study, write_csv  # noqa: E402
+from knit_nlp.jsonio import write_csv  # noqa: E402
+from knit_nlp.weft.cases import diagonal_pull  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
-from knit_nlp.weft.results import natural_centrelines, solution_centrelines  # noqa: E402
+from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
+from knit_nlp.weft.study import (LoadPath, WeftStudy, point_solution, print_table,  # noqa: E402
+                                  run_study)
 
 STUDY = "stiffness_sweep"
-STRETCH, TURN_DEG = 1.8830761813505632, 25.25734166917165   # eq. 28 on 5 x 5
 FIELDS = ("k_b_over_k_a", "R_f", "energy_total", "energy_spring", "energy_bending",
           "reaction_x", "reaction_y", "reaction_norm", "success")
 
 
 def pull_doc(n: int) -> dict[str, Any]:
     """The eq. 28 pull on an n x n fabric (paper's material; k_b and R_f are varied later)."""
-    if n == 5:
-        target = [16.2, 13.9]
-    else:
-        pr = parse_problem("<natural>", {"fabric": {"courses": n, "wales": n}})
-        h0 = pr.natural_position((1, n), pr.crossings.s["H"])
-        c, s = np.cos(np.radians(TURN_DEG)), np.sin(np.radians(TURN_DEG))
-        target = (STRETCH * np.array([[c, -s], [s, c]]) @ h0).tolist()
-    return {"fabric": {"courses": n, "wales": n},
-            "material": {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0},
-            "clamp": [{"loop": [1, 1], "point": "start", "position": [0.0, 0.0]},
-                      {"loop": [1, n], "point": "H", "position": target}]}
+    return diagonal_pull(n)
 
 
 def build_paths(n: int, kbs: Sequence[float], rfs: Sequence[float]) -> list[LoadPath]:
@@ -79,11 +71,11 @@ def tabulate(summary: dict[str, Any]) -> list[dict[str, Any]]:
 def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cache: Path,
               title: str) -> Path:
     """Rows k_b/k_a, columns R_f: deformed loops (one colour per course) over grey natural ones."""
-    study = WeftStudy(parse_problem("<draw>", paths[0].doc))
+    study = WeftStudy(parse_problem(paths[0].doc, "<draw>"))
     nat = natural_centrelines(study.problem)
     nr, nc = len(paths), len(paths[0].points)
     fig, axes = plt.subplots(nr, nc, figsize=(3.3 * nc, 3.1 * nr + 0.6), squeeze=False)
-    lines = [[solution_centrelines(study.wnlp, point_solution(cache.parent, p, k)) for k in range(nc)]
+    lines = [[solution_centrelines(study.nlp, point_solution(cache.parent, p, k)) for k in range(nc)]
              for p in paths]
     every = np.concatenate([nat.reshape(-1, 2)] + [ln.reshape(-1, 2) for r in lines for ln in r])
     lo, hi = every.min(axis=0), every.max(axis=0)
@@ -116,14 +108,13 @@ def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cac
     return path
 
 
-def print_table(rows: list[dict[str, Any]]) -> None:
+def show_table(rows: list[dict[str, Any]]) -> None:
     """The table on one screen."""
-    print(f"{'kb/ka':>7}{'R_f':>7}{'U total':>9}{'U spring':>9}{'U bend':>9}{'F_x':>9}{'F_y':>9}"
-          f"{'|F|':>8}  ok")
-    for r in rows:
-        print(f"{r['k_b_over_k_a']:>7g}{r['R_f']:>7g}{r['energy_total']:>9.4f}"
-              f"{r['energy_spring']:>9.4f}{r['energy_bending']:>9.4f}{r['reaction_x']:>9.4f}"
-              f"{r['reaction_y']:>9.4f}{r['reaction_norm']:>8.4f}  {'y' if r['success'] else 'NO'}")
+    print_table(rows, [("k_b_over_k_a", "kb/ka", "g"), ("R_f", "R_f", "g"),
+                       ("energy_total", "U total", ".4f"), ("energy_spring", "U spring", ".4f"),
+                       ("energy_bending", "U bend", ".4f"), ("reaction_x", "F_x", ".4f"),
+                       ("reaction_y", "F_y", ".4f"), ("reaction_norm", "|F|", ".4f"),
+                       ("success", "ok", "")])
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -154,7 +145,7 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
                     f"{args.size} x {args.size} diagonal pull (eq. 28: H of loop (1, {args.size}) "
                     f"to ({target[0]:.1f}, {target[1]:.1f})), k_a = 1; "
                     f"|F| = reaction at the pulled point")
-    print_table(rows)
+    show_table(rows)
     print(f"wrote {out / (STUDY + '.csv')}, {png}, {out / 'summary.json'}")
     return rows
 

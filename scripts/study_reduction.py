@@ -10,7 +10,6 @@ centreline error against parameter count and against time.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -19,25 +18,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_weft import diagonal_pull_doc  # noqa: E402
-
-from knit_nlp.study import write_csv  # noqa: E402
-from knit_nlp.weft.natural import natural_loop, preset_coeffs  # noqa: E402
+from knit_nlp.jsonio import write_csv  # noqa: E402
+from knit_nlp.weft.api import solve  # noqa: E402
+from knit_nlp.weft.cases import course_pull, diagonal_pull  # noqa: E402
+from knit_nlp.weft.parametrisation import Full, Reduced  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
-from knit_nlp.weft.run import solve_problem  # noqa: E402
-
-
-def course_pull_doc(n: int, strain: float = 0.25) -> dict:
-    """Left edge held in x (course 1 also in y), right edge pulled by ``strain`` along x."""
-    w = natural_loop(preset_coeffs("jersey", 3), 10.0, 3).wale_spacing
-    clamps = []
-    for i in range(1, n + 1):
-        clamps.append({"loop": [i, 1], "point": "start", "displacement": [0.0, 0.0],
-                       "fix": ["x", "y"] if i == 1 else ["x"]})
-        clamps.append({"loop": [i, n], "point": "end", "displacement": [strain * n * w, 0.0],
-                       "fix": ["x"]})
-    return {"name": f"course_pull_{n}x{n}", "fabric": {"courses": n, "wales": n}, "clamp": clamps}
 
 
 def even(count: int, n: int) -> list[int]:
@@ -66,22 +51,17 @@ def grids(doc: dict) -> list[tuple[str, list[int], list[int]]]:
 
 
 def run_case(case: str, doc: dict) -> list[dict]:
-    full = solve_problem(parse_problem(f"<{case}>", doc))
-    ft = full.result["timings"]
-    rows = [{"case": case, "model": "full", "n_parameters": full.result["n_parameters"],
-             "success": full.report.success, "energy": full.result["energy"]["total"],
-             "iterations": full.result["iterations"], "time_s": ft["build_s"] + ft["solve_s"],
-             "max_dist": 0.0, "rms_dist": 0.0}]
-    lines = full.lines()
-    for label, courses, wales in grids(doc):
-        d = dict(doc, reduction={"representative_courses": courses, "representative_wales": wales})
-        red = solve_problem(parse_problem(f"<{case} {label}>", d), reduced=True)
-        dist = np.linalg.norm(red.lines() - lines, axis=-1)
-        rt = red.result["timings"]
-        rows.append({"case": case, "model": f"{label} ({len(courses)}x{len(wales)})",
-                     "n_parameters": red.result["n_parameters"], "success": red.report.success,
-                     "energy": red.result["energy"]["total"], "iterations": red.result["iterations"],
-                     "time_s": rt["build_s"] + rt["solve_s"], "max_dist": float(dist.max()),
+    pr = parse_problem(doc, f"<{case}>")
+    models = [("full", Full())] + [(f"{label} ({len(c)}x{len(w)})", Reduced(tuple(c), tuple(w)))
+                                   for label, c, w in grids(doc)]
+    rows, lines = [], None
+    for label, param in models:
+        r = solve(pr, param)
+        dist = np.zeros(1) if lines is None else np.linalg.norm(r.centrelines() - lines, axis=-1)
+        lines = r.centrelines() if lines is None else lines
+        rows.append({"case": case, "model": label, "n_parameters": r.nlp.n_parameters,
+                     "success": r.success, "energy": r.energy.total, "iterations": r.iterations,
+                     "time_s": r.build_s + r.report.solve_s, "max_dist": float(dist.max()),
                      "rms_dist": float(np.sqrt(np.mean(dist ** 2)))})
     return rows
 
@@ -115,7 +95,7 @@ def main(argv: list[str] | None = None) -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     for n in args.sizes:
-        for case, doc in ((f"diagonal {n}x{n}", diagonal_pull_doc(n)), (f"course {n}x{n}", course_pull_doc(n))):
+        for case, doc in ((f"diagonal {n}x{n}", diagonal_pull(n)), (f"course {n}x{n}", course_pull(n))):
             new = run_case(case, doc)
             rows += new
             for r in new:

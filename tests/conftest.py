@@ -9,7 +9,9 @@ from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
 from knit_nlp.weft.problem import load_problem
-from knit_nlp.weft.run import Solved, solve_problem
+from knit_nlp.weft.api import solve as solve_problem
+from knit_nlp.weft.parametrisation import Full, Reduced
+from knit_nlp.weft.results import WeftResult
 
 ROOT = Path(__file__).resolve().parent.parent
 PROBLEMS = ROOT / "problems"
@@ -25,8 +27,9 @@ def write_problem(tmp_path: Path):
     return write
 
 
-def solve_text(path: Path, reduced: bool = False) -> Solved:
-    return solve_problem(load_problem(path), reduced=reduced)
+def solve_text(path: Path, reduced: bool = False) -> WeftResult:
+    pr = load_problem(path)
+    return solve_problem(pr, (pr.reduction or Reduced()) if reduced else Full())
 
 
 def elastica_force(length: float, chord: float, R_f: float) -> float:

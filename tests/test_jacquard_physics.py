@@ -1,4 +1,4 @@
-"""Physics of the double-jacquard mass-spring model (spec/jacquard_mass_spring.md)."""
+"""Physics of the double-jacquard mass-spring model (docs/jacquard.md)."""
 from __future__ import annotations
 
 import dataclasses

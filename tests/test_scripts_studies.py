@@ -85,11 +85,11 @@ def test_condensed_reduced_model_reaches_the_lifted_reduced_minimum():
     and the shipped lifted reduced model are independent transcriptions of one model: same
     energy at the solution, and the condensed one has the paper's parameter count."""
     bound = _script("bench_reduction_bound")
-    pr = bound.parse_problem("d.toml", bound.diagonal_pull_doc(4))
+    pr = bound.parse_problem(bound.diagonal_pull(4), "d.toml")
     run_lifted, _ = bound.lifted(pr, True)
     run_condensed, n_condensed = bound.condensed(pr, "exact")
     _, _, _, e_lifted, status_lifted = run_lifted()
     _, _, _, e_condensed, status_condensed = run_condensed()
     assert status_lifted == status_condensed == "Solve_Succeeded"
     assert abs(e_condensed - e_lifted) < 1e-7 * abs(e_lifted)
-    assert n_condensed == bound.build_nlp(pr, reduced=True).n_parameters
+    assert n_condensed == bound.build_nlp(pr, bound.Reduced()).n_parameters

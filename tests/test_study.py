@@ -4,9 +4,9 @@ import json
 import numpy as np
 import pytest
 
-from knit_nlp.study import LoadPath, WeftStudy, run_study
+from knit_nlp.weft.study import LoadPath, WeftStudy, run_study
 from knit_nlp.weft.problem import parse_problem
-from knit_nlp.weft.run import solve_problem
+from knit_nlp.weft.api import solve as solve_problem
 
 from conftest import elastica_force
 
@@ -18,27 +18,27 @@ def _doc(dx=0.0, k_b=0.01):
 
 
 def test_one_build_many_solves_matches_fresh_solves():
-    study = WeftStudy(parse_problem("<s>", _doc()))
+    study = WeftStudy(parse_problem(_doc(), "<s>"))
     x = None
     for dx, k_b in ((0.5, 0.01), (1.0, 0.01), (1.5, 0.05)):
-        p = study.params(displacements={1: [dx, 0.5 * dx]}, material={"k_b": k_b})
+        p = study.params.with_(displacements={2: [dx, 0.5 * dx]}, material={"k_b": k_b})
         rep = study.solve(p, x0=x)
         x = rep.x
-        fresh = solve_problem(parse_problem("<f>", _doc(dx, k_b)))
-        assert rep.success and fresh.report.success
+        fresh = solve_problem(parse_problem(_doc(dx, k_b), "<f>"))
+        assert rep.success and fresh.success
         res = study.result(rep, p)
-        assert res["energy"]["total"] == pytest.approx(fresh.result["energy"]["total"], rel=1e-8)
-        np.testing.assert_allclose(res["clamps"][1]["reaction"], fresh.result["clamps"][1]["reaction"],
+        assert res.energy.total == pytest.approx(fresh.energy.total, rel=1e-8)
+        np.testing.assert_allclose(res.clamps[1].reaction, fresh.clamps[1].reaction,
                                    atol=1e-8)
-        np.testing.assert_allclose(res["clamps"][1]["position"], fresh.result["clamps"][1]["target"],
+        np.testing.assert_allclose(res.clamps[1].position, fresh.clamps[1].target,
                                    atol=1e-8)
     assert study.builds == 1
 
 
 def _paths():
-    return [LoadPath("soft", _doc(), [{"displacements": {"1": [d, 0.5 * d]}} for d in (0.4, 0.8, 1.2)]),
+    return [LoadPath("soft", _doc(), [{"displacements": {"2": [d, 0.5 * d]}} for d in (0.4, 0.8, 1.2)]),
             LoadPath("stiff", _doc(k_b=0.1),
-                     [{"displacements": {"1": [d, 0.5 * d]}} for d in (0.4, 0.8, 1.2)])]
+                     [{"displacements": {"2": [d, 0.5 * d]}} for d in (0.4, 0.8, 1.2)])]
 
 
 def test_resumed_study_gives_the_same_summary(tmp_path, capsys):
@@ -60,7 +60,7 @@ def test_resumed_study_gives_the_same_summary(tmp_path, capsys):
 
 def test_changed_settings_are_not_served_from_the_cache(tmp_path):
     first = run_study("s", _paths(), tmp_path, workers=1)
-    moved = [LoadPath("soft", _doc(), [{"displacements": {"1": [d, 0.5 * d]}} for d in (0.5, 0.9, 1.3)])]
+    moved = [LoadPath("soft", _doc(), [{"displacements": {"2": [d, 0.5 * d]}} for d in (0.5, 0.9, 1.3)])]
     second = run_study("s", moved, tmp_path, workers=1)
     e1 = [r["energy"]["total"] for r in first["points"] if r["path"] == "soft"]
     e2 = [r["energy"]["total"] for r in second["points"]]
@@ -74,9 +74,9 @@ def test_study_of_a_straight_yarn_buckles_from_a_natural_problem():
                                                           "harmonics": 6},
            "clamp": [{"loop": [1, 1], "point": "start", "position": [0.0, 0.0]},
                      {"loop": [1, 1], "point": "end", "position": [40.0, 0.0]}]}
-    study = WeftStudy(parse_problem("<rod>", doc))
-    p = study.params(targets={1: [36.0, 0.0]})
+    study = WeftStudy(parse_problem(doc, "<rod>"))
+    p = study.params.with_(targets={2: [36.0, 0.0]})
     rep = study.solve(p)
     assert rep.success and any(a.startswith("perturbed") for a in rep.attempts)
-    force = study.result(rep, p)["clamps"][1]["reaction"][0]
+    force = study.result(rep, p).clamps[1].reaction[0]
     assert -force == pytest.approx(elastica_force(40.0, 36.0, 1.0), rel=2e-3)

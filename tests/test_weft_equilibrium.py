@@ -5,7 +5,7 @@ import pytest
 from knit_nlp.weft.basis import phi
 from knit_nlp.weft.nlp import build_nlp
 from knit_nlp.weft.problem import load_problem
-from knit_nlp.weft.run import solve_problem
+from knit_nlp.weft.api import solve as solve_problem
 from knit_nlp.weft.solve import WeftSolver
 
 from conftest import PROBLEMS, elastica_force, solve_text
@@ -37,13 +37,13 @@ angle = 0.0
 
 def test_natural_state_is_the_minimum_with_zero_energy_and_reactions(write_problem):
     s = solve_text(write_problem(NATURAL_CLAMPS))
-    assert s.report.success
-    assert s.result["energy"]["total"] == pytest.approx(0.0, abs=1e-12)
-    for c in s.result["clamps"]:
-        assert np.allclose(c["reaction"], 0.0, atol=1e-9)
-    assert s.result["clamps"][3]["reaction_moment"] == pytest.approx(0.0, abs=1e-9)
-    pr = s.wnlp.problem
-    np.testing.assert_allclose(s.wnlp.coefficients(s.report.x),
+    assert s.success
+    assert s.energy.total == pytest.approx(0.0, abs=1e-12)
+    for c in s.clamps:
+        assert np.allclose(c.reaction, 0.0, atol=1e-9)
+    assert s.clamps[3].reaction_moment == pytest.approx(0.0, abs=1e-9)
+    pr = s.nlp.problem
+    np.testing.assert_allclose(s.coefficients,
                                np.broadcast_to(pr.natural.coeffs, (3, 4, 8)), atol=1e-8)
 
 
@@ -69,28 +69,27 @@ def _diagonal(write_problem, shift=(0.0, 0.0), nodes=16, courses=4, wales=4, nam
 def test_translating_every_clamp_translates_the_solution(write_problem):
     base = solve_text(_diagonal(write_problem))
     moved = solve_text(_diagonal(write_problem, (3.25, -1.5), name="q.toml"))
-    assert base.report.success and moved.report.success
-    assert moved.result["energy"]["total"] == pytest.approx(base.result["energy"]["total"], rel=1e-7)
-    np.testing.assert_allclose(moved.lines(), base.lines() + [3.25, -1.5], atol=1e-6)
-    for a, b in zip(base.result["clamps"], moved.result["clamps"]):
-        np.testing.assert_allclose(a["reaction"], b["reaction"], atol=1e-7)
+    assert base.success and moved.success
+    assert moved.energy.total == pytest.approx(base.energy.total, rel=1e-7)
+    np.testing.assert_allclose(moved.centrelines(), base.centrelines() + [3.25, -1.5], atol=1e-6)
+    for a, b in zip(base.clamps, moved.clamps):
+        np.testing.assert_allclose(a.reaction, b.reaction, atol=1e-7)
 
 
 def test_continuity_and_clamps_hold(write_problem):
     s = solve_text(_diagonal(write_problem))
-    pr, w = s.wnlp.problem, s.wnlp
-    coeffs = w.coefficients(s.report.x)
-    lines = s.lines()
+    pr, coeffs = s.problem, s.coefficients
+    lines = s.centrelines()
     for i in range(pr.courses):
         for j in range(pr.wales - 1):
             a, b = coeffs[i, j], coeffs[i, j + 1]
             assert phi(pr.L, pr.L, pr.t)[0] @ a == pytest.approx(phi(0.0, pr.L, pr.t)[0] @ b, abs=1e-8)
             np.testing.assert_allclose(lines[i, j, -1], lines[i, j + 1, 0], atol=1e-8)
-    for c in s.result["clamps"]:
-        np.testing.assert_allclose(c["position"], c["target"], atol=1e-8)
-    assert s.result["max_constraint_violation"] < 1e-8
+    for c in s.clamps:
+        np.testing.assert_allclose(c.position, c.target, atol=1e-8)
+    assert s.violation < 1e-8
     # the two clamps are the only external forces: their reactions balance
-    r = np.array([c["reaction"] for c in s.result["clamps"]])
+    r = np.array([c.reaction for c in s.clamps])
     np.testing.assert_allclose(r.sum(axis=0), 0.0, atol=1e-8)
     assert np.linalg.norm(r[1]) > 1e-3
 
@@ -98,12 +97,12 @@ def test_continuity_and_clamps_hold(write_problem):
 def test_reaction_sign_is_the_force_on_the_fabric(write_problem):
     """Pulling the right clamp away: the clamp pulls the fabric outward (along the pull)."""
     s = solve_text(_diagonal(write_problem))
-    pull = np.array([9.5, 7.0]) - s.wnlp.problem.natural_position((1, 4), s.wnlp.problem.crossings.s["H"])
-    assert np.dot(s.result["clamps"][1]["reaction"], pull) > 0
+    pull = np.array([9.5, 7.0]) - s.nlp.problem.natural_position((1, 4), s.nlp.problem.crossings.s["H"])
+    assert np.dot(s.clamps[1].reaction, pull) > 0
 
 
 def test_energy_converges_as_quadrature_nodes_grow(write_problem):
-    energies = [solve_text(_diagonal(write_problem, nodes=k, name=f"n{k}.toml")).result["energy"]["total"]
+    energies = [solve_text(_diagonal(write_problem, nodes=k, name=f"n{k}.toml")).energy.total
                 for k in (2, 3, 4, 8, 16)]
     errors = [abs(e - energies[-1]) for e in energies[:-1]]
     assert errors[0] > errors[1] > errors[2] > errors[3] >= 0
@@ -112,14 +111,14 @@ def test_energy_converges_as_quadrature_nodes_grow(write_problem):
 
 def test_end_moment_closes_a_straight_yarn_into_a_circle():
     s = solve_problem(load_problem(PROBLEMS / "single_loop_moment.toml"))
-    pr = s.wnlp.problem
-    assert s.report.success
-    lines = s.lines(201)[0, 0]
+    pr = s.nlp.problem
+    assert s.success
+    lines = s.centrelines(201)[0, 0]
     np.testing.assert_allclose(lines[-1], lines[0], atol=1e-9)          # the loop closes
     centre = np.array([0.0, pr.L / (2 * np.pi)])                        # radius R_f / M = L / 2π
     np.testing.assert_allclose(np.linalg.norm(lines - centre, axis=1), pr.L / (2 * np.pi), atol=1e-9)
-    assert s.result["energy"]["bending"] == pytest.approx(2 * np.pi ** 2 * pr.R_f / pr.L, rel=1e-9)
-    assert s.result["energy"]["load_work"] == pytest.approx(4 * np.pi ** 2 * pr.R_f / pr.L, rel=1e-9)
+    assert s.energy.bending == pytest.approx(2 * np.pi ** 2 * pr.R_f / pr.L, rel=1e-9)
+    assert s.energy.load_work == pytest.approx(4 * np.pi ** 2 * pr.R_f / pr.L, rel=1e-9)
 
 
 def _buckling(write_problem, t: int):
@@ -149,11 +148,11 @@ def test_compressed_straight_yarn_buckles_into_the_first_euler_mode(write_proble
     errors = []
     for t in (3, 6, 12):
         s = _buckling(write_problem, t)
-        assert s.report.success, s.report.attempts
-        fx = s.result["clamps"][1]["reaction"][0]
+        assert s.success, s.report.attempts
+        fx = s.clamps[1].reaction[0]
         assert fx < 0                                        # the clamp pushes the yarn back
         errors.append(abs(-fx / exact - 1))
-        y = s.lines(101)[0, 0, 1:-1, 1]
+        y = s.centrelines(101)[0, 0, 1:-1, 1]
         assert np.all(y > 0) or np.all(y < 0)                # first mode: one arch, no crossing
     assert errors[0] > errors[1] > errors[2]
     assert errors[2] < 1e-4
@@ -170,7 +169,7 @@ def test_solver_is_reused_across_parameters(write_problem):
     w.p.put(p, "targets", t)
     reused = solver.once(p, w.x0)
     fresh = solve_text(_diagonal_shifted(write_problem))
-    assert reused.success and fresh.report.success
+    assert reused.success and fresh.success
     assert reused.objective == pytest.approx(fresh.report.objective, rel=1e-8)
 
 
@@ -197,15 +196,15 @@ def test_continuation_fallback_reaches_the_direct_solution(tmp_path):
     starved = tmp_path / "starved.toml"
     starved.write_text(base + "\n[solver]\nmax_iter = 4\n")
     s = solve_problem(load_problem(starved))
-    assert s.report.success
-    assert s.result["attempts"][0].startswith("direct: Maximum_Iterations_Exceeded")
-    assert s.result["continuation_steps"] > 4                       # a step had to be halved
-    assert s.result["energy"]["total"] == pytest.approx(direct.result["energy"]["total"], rel=1e-7)
+    assert s.success
+    assert s.report.attempts[0].startswith("direct: Maximum_Iterations_Exceeded")
+    assert s.report.continuation_steps > 4                       # a step had to be halved
+    assert s.energy.total == pytest.approx(direct.energy.total, rel=1e-7)
 
 
 def test_continuation_on_request_takes_the_asked_steps():
     direct = solve_problem(load_problem(PROBLEMS / "wada_fig7.toml"))
     stepped = solve_problem(load_problem(PROBLEMS / "wada_fig7.toml"), continuation=3)
-    assert stepped.report.success and stepped.result["continuation_steps"] == 3
-    assert stepped.result["energy"]["total"] == pytest.approx(direct.result["energy"]["total"], rel=1e-7)
-    np.testing.assert_allclose(stepped.lines(), direct.lines(), atol=1e-5)
+    assert stepped.success and stepped.report.continuation_steps == 3
+    assert stepped.energy.total == pytest.approx(direct.energy.total, rel=1e-7)
+    np.testing.assert_allclose(stepped.centrelines(), direct.centrelines(), atol=1e-5)

@@ -92,6 +92,6 @@ def test_user_natural_shape_with_other_harmonics(write_problem):
         displacement = [0.0, 0.0]
         """)
     s = solve_text(path)
-    c = s.wnlp.problem.crossings
+    c = s.nlp.problem.crossings
     assert 0 < c.s["A"] < c.s["C"] < 4.0 < c.s["Q"] < c.s["S"] < 8.0
-    assert s.report.success and s.result["energy"]["total"] == pytest.approx(0.0, abs=1e-12)
+    assert s.success and s.energy.total == pytest.approx(0.0, abs=1e-12)

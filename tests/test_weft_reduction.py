@@ -4,6 +4,7 @@ import pytest
 
 from knit_nlp.weft.basis import continuity_rows
 from knit_nlp.weft.nlp import n_parameters
+from knit_nlp.weft.parametrisation import Full, Reduced
 from knit_nlp.weft.problem import load_problem
 from knit_nlp.weft.reduction import reduction_map
 
@@ -34,13 +35,13 @@ def _pull(write_problem, m=4, n=5, courses=None, wales=None, name="p.toml"):
 
 def test_parameter_counts_as_the_paper_counts():
     pr = load_problem(PROBLEMS / "diagonal_pull.toml")
-    assert n_parameters(pr, reduced=False) == 820
-    assert n_parameters(pr, reduced=True) == 48
+    assert n_parameters(pr, Full()) == 820
+    assert n_parameters(pr, Reduced()) == 48
 
 
 def test_map_is_linear_exact_and_continuous_by_construction(write_problem):
     pr = load_problem(_pull(write_problem, courses=[1, 3, 4], wales=[1, 2, 5]))
-    T = reduction_map(pr)
+    T = reduction_map(pr, pr.reduction or Reduced())
     assert T.shape == (4 * 5 * 8, 3 * 3 * 6 + 2 * 3)
     rng = np.random.default_rng(3)
     z1, z2 = rng.normal(size=T.shape[1]), rng.normal(size=T.shape[1])
@@ -57,7 +58,7 @@ def test_map_is_linear_exact_and_continuous_by_construction(write_problem):
 def test_corner_form_is_the_papers_bilinear_interpolation(write_problem):
     """Eq. (22): â_ij = (1−λ)(1−μ)â11 + (1−λ)μ â1n + λ(1−μ)âm1 + λμ âmn; eq. (23) for a_i1."""
     pr = load_problem(_pull(write_problem))
-    T = reduction_map(pr)
+    T = reduction_map(pr, pr.reduction or Reduced())
     z = np.random.default_rng(5).normal(size=T.shape[1])
     a = (T @ z).reshape(4, 5, 8)
     h = z[:24].reshape(2, 2, 6)
@@ -75,11 +76,11 @@ def test_every_loop_representative_reproduces_the_full_model(write_problem):
     full = solve_text(_pull(write_problem))
     red = solve_text(_pull(write_problem, courses=[1, 2, 3, 4], wales=[1, 2, 3, 4, 5], name="r.toml"),
                      reduced=True)
-    assert full.report.success and red.report.success
-    assert red.result["n_parameters"] == full.result["n_parameters"] - 2 * 4 * (5 - 1)
-    np.testing.assert_allclose(red.wnlp.coefficients(red.report.x),
-                               full.wnlp.coefficients(full.report.x), atol=1e-6)
-    assert red.result["energy"]["total"] == pytest.approx(full.result["energy"]["total"], rel=1e-8)
+    assert full.success and red.success
+    assert red.nlp.n_parameters == full.nlp.n_parameters - 2 * 4 * (5 - 1)
+    np.testing.assert_allclose(red.coefficients,
+                               full.coefficients, atol=1e-6)
+    assert red.energy.total == pytest.approx(full.energy.total, rel=1e-8)
 
 
 @pytest.mark.parametrize("grid", [None, ([1, 4], [1, 3, 5]), ([1, 2, 4], [1, 5])])
@@ -87,8 +88,8 @@ def test_reduced_energy_is_never_below_full(write_problem, grid):
     full = solve_text(_pull(write_problem))
     courses, wales = grid or (None, None)
     red = solve_text(_pull(write_problem, courses=courses, wales=wales, name="r.toml"), reduced=True)
-    assert full.report.success and red.report.success
-    assert red.result["energy"]["total"] >= full.result["energy"]["total"] - 1e-9
+    assert full.success and red.success
+    assert red.energy.total >= full.energy.total - 1e-9
 
 
 def test_compare_writes_counts_energies_distances_and_warm_start(write_problem, tmp_path, capsys):

@@ -81,7 +81,7 @@ def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
                    max_steps: int | None = None, move_tol: float | None = None,
                    record_energy: bool = False, force_tol: float | None = None,
                    check_every: int = 20) -> JacquardResult:
-    """Relax from the natural grid with the explicit midpoint method (eqs. 9-11) until the
+    """Relax from the natural grid (pulled edges already moved) with the explicit midpoint method (eqs. 9-11) until the
     largest particle move in a step is below ``move_tol * w`` or ``max_steps`` is reached.
 
     With ``force_tol`` the stopping test is instead the residual force (largest net spring force
@@ -96,7 +96,7 @@ def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
     mobile = ~net.fixed
     mob = mobile[:, None].astype(float)
     groups = _order_groups(net, problem.wales)
-    x, v = net.natural.copy(), np.zeros_like(net.natural)
+    x, v = net.held.copy(), np.zeros_like(net.natural)   # pulled edges start moved (a step)
 
     def accel(xx: np.ndarray, vv: np.ndarray) -> np.ndarray:
         return spring_forces(xx, net.springs, vv, kd) * (mob / m)

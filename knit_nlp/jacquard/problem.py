@@ -1,14 +1,14 @@
 """Parse and validate a ``model = "jacquard"`` problem file into plain dataclasses.
 
 Everything a user can get wrong is checked here, before any numerics, and reported as a
-:class:`~knit_nlp.errors.ProblemError` naming file, table and key (spec/problem_files.md).
-The model itself is spec/jacquard_mass_spring.md; docs/jacquard.md is the key reference.
+:class:`~knit_nlp.errors.ProblemError` naming file, table and key (README, "Command line").
+The model and the key reference are in docs/jacquard.md.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -19,7 +19,7 @@ STRUCTURES = ("thick", "thin", "net")
 SYSTEMS = ("fall_plate", "inlay")
 EDGES = ("bottom", "top", "left", "right")
 
-# Defaults (spec: spans; the rest are this project's choices, docs/jacquard.md).
+# Defaults (the paper's spans, docs/jacquard.md; the rest are this project's choices, docs/jacquard.md).
 DEFAULT_SPAN = {"fall_plate": {"thick": 4, "thin": 2, "net": 1},
                 "inlay": {"thick": 3, "thin": 2, "net": 1}}
 DEFAULT_STIFFNESS = {"fall_plate": {"longitudinal": 0.5, "thick": 1.0, "thin": 0.7},
@@ -57,8 +57,19 @@ class SolverOptions:
 
 
 @dataclass(frozen=True)
+class Pull:
+    """``[[pull]]``: a held edge moved by ``displacement`` (dx, dy) in mm from its natural place
+    (docs/jacquard.md, "Pulling an edge")."""
+
+    edge: str
+    displacement: tuple[float, float]
+
+
+@dataclass(frozen=True)
 class JacquardProblem:
-    """A validated double-jacquard problem (spec/jacquard_mass_spring.md)."""
+    """A validated double-jacquard problem (docs/jacquard.md)."""
+
+    model: ClassVar[str] = "jacquard"
 
     name: str
     description: str
@@ -77,6 +88,7 @@ class JacquardProblem:
     boundary: str = "periodic"
     fixed_edges: tuple[str, ...] = ()
     loop_width_stiffness: float = 0.0   # extension: compression-only course springs (0 = off)
+    pulls: tuple[Pull, ...] = ()     # extension: held edges that move ([[pull]])
     solver: SolverOptions = field(default_factory=SolverOptions)
     source: str = ""
 
@@ -254,9 +266,29 @@ def _read_solver(top: Table) -> SolverOptions:
     return opts
 
 
-def parse_problem(doc: dict[str, Any], path: Path | str) -> JacquardProblem:
-    """Validate a parsed TOML document into a :class:`JacquardProblem` (no numerics)."""
-    path = Path(path)
+def _read_pulls(top: Table, boundary: str, edges: tuple[str, ...]) -> tuple[Pull, ...]:
+    """``[[pull]]`` tables: ``edge`` (a held edge) and ``displacement = [dx, dy]`` in mm."""
+    pulls: list[Pull] = []
+    for t in top.tables("pull"):
+        edge = t.string("edge", choices=EDGES)
+        if boundary != "fixed":
+            raise t.error("edge", 'pulling an edge needs boundary = "fixed" in [fabric]')
+        if edge not in edges:
+            raise t.error("edge", f"edge {edge!r} is not held: add it to [fabric] fixed_edges")
+        if edge in (q.edge for q in pulls):
+            raise t.error("edge", f"edge {edge!r} is pulled twice")
+        dx, dy = t.numbers("displacement", length=2)
+        t.finish()
+        pulls.append(Pull(edge, (dx, dy)))
+    return tuple(pulls)
+
+
+def parse_problem(doc: dict[str, Any], source: Path | str) -> JacquardProblem:
+    """Validate a parsed TOML document into a :class:`JacquardProblem` (no numerics).
+
+    ``source`` names the document in messages (its file), gives the default ``name`` and the
+    folder that design files are read from."""
+    path = Path(source)
     top = Table(doc, path, "")
     name = top.string("name", path.stem)
     description = top.string("description", "")
@@ -292,6 +324,7 @@ def parse_problem(doc: dict[str, Any], path: Path | str) -> JacquardProblem:
     gp = _ratio(gr, "pretension", DEFAULT_PRETENSION)
     gr.finish()
     systems = tuple(_read_system(top, s, path.parent, (n, m)) for s in SYSTEMS)
+    pulls = _read_pulls(top, boundary, edges)
     solver = _read_solver(top)
     top.finish()
     return JacquardProblem(
@@ -299,7 +332,7 @@ def parse_problem(doc: dict[str, Any], path: Path | str) -> JacquardProblem:
         ground_stiffness=gk, ground_pretension=gp, systems=systems, mass=mass, damping=damping,
         dt=dt, lambda_max=lam, zigzag=1 if zig == "right" else -1, boundary=boundary,
         fixed_edges=edges if boundary == "fixed" else (), loop_width_stiffness=loop_k,
-        solver=solver, source=str(path))
+        pulls=pulls, solver=solver, source=str(path))
 
 
 def load_problem(path: Path | str) -> JacquardProblem:

@@ -1,63 +1,100 @@
-"""Pictures of the fabric (spec "Rendering"; paper Fig. 2 stitch models).
+"""Pictures of the fabric (docs/jacquard.md, "Rendering"; paper Fig. 2 stitch models).
 
-Each pillar loop is a closed smooth yarn through 6 points (P1-P6), each inlay underlap a smooth
-yarn through 4 points and each fall-plate underlap a 2-point yarn, all placed in the frame of
-the displaced particles: the loop of P(i,j) spans P(i,j) -> P(i,j+1), its lateral unit is
-perpendicular to that, scaled by the wale spacing w. Several repeats are tiled; natural and
-simulated fabric are drawn side by side. Proportions: docs/jacquard.md, "Rendering".
+One figure: the two design grids (fall-plate, the front, over inlay, the back) beside the natural
+and the simulated fabric. In the fabric panels each pillar loop is a closed smooth yarn through
+6 points (P1-P6), each inlay underlap a smooth yarn through 4 points and each fall-plate underlap
+a 2-point yarn, all placed in the frame of the displaced particles: the loop of P(i,j) spans
+P(i,j) -> P(i,j+1), its lateral unit is perpendicular to that, scaled by the wale spacing w.
+So that the motif reads as it does on a real fabric's face, a bar's underlaps are drawn as wide
+as their structure (thick wide, thin narrow, net not at all: a net cell's jacquard yarn stays
+in its own wale, hidden by the pillar loop) and each cell is tinted by its front (fall-plate)
+structure. Periodic repeats are tiled; a fixed patch is drawn once.
+
+Curves are cubic Bezier paths (the exact form of a uniform Catmull-Rom spline), one compound
+path per bar and structure, so the SVG holds a few dozen path elements instead of one per yarn.
 """
 from __future__ import annotations
 
+import io
+import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.patches import Patch, PathPatch  # noqa: E402
+from matplotlib.path import Path as MplPath  # noqa: E402
 
-from .problem import JacquardProblem  # noqa: E402
+from .problem import JacquardProblem, JacquardSystem  # noqa: E402
 from .springs import zigzag_direction  # noqa: E402
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from .result import JacquardResult
 
 # Local stitch points (u in units of w to the right, v in units of the loop's height).
 PILLAR = np.array([[0.06, 0.0], [-0.22, 0.30], [-0.20, 0.95], [0.20, 0.95], [0.22, 0.30],
                    [-0.06, 0.0]])                      # 6-point pillar loop, closed
 INLAY_END = np.array([[0.0, 0.167], [0.0, 0.40]])     # 4-point inlay: start, pull-out ...
 FALL_PLATE_V = 0.5                                     # 2-point fall-plate underlap height
-COLOURS = {"ground": "#efe9d8", "fall_plate": "#c0392b", "inlay": "#2e6fb5"}
-OUTLINE = "#3a3a3a"
-WIDTH = {"ground": 0.13, "thick": 0.11, "thin": 0.07, "net": 0.06}   # yarn widths, units of w
+CELL = np.array([[-0.5, 0.0], [0.5, 0.0], [0.5, 1.0], [-0.5, 1.0]])   # a cell, loop frame
+COLOURS = {"ground": "#8c8577", "fall_plate": "#b0281a", "inlay": "#8fb3dd"}
+OUTLINE = {"fall_plate": "#4a0d06", "inlay": None}     # the back bar: pale, no outline
+BACKGROUND = "#fbf8f1"
+# Yarn widths in units of w: thick underlaps wide, thin narrow, net not drawn (docs/jacquard.md);
+# the inlay (back bar, mostly hidden behind the face) at INLAY_SCALE of these.
+WIDTH = {"ground": 0.05, "thick": 0.16, "thin": 0.07}
+INLAY_SCALE = 0.5
+# Tint of a cell by its fall-plate structure (alpha of the fall-plate colour); net untinted.
+TINT = {"thick": 0.75, "thin": 0.25}
+DESIGN_GREYS = {0: "#ffffff", 1: "#a6a6a6", 2: "#1a1a1a"}      # net, thin, thick (as in PNGs)
+STRUCTURE_CODES = {"thick": 2, "thin": 1}
 MAX_LOOPS = 24    # largest number of wales / courses drawn per panel
 
 
-def catmull_rom(ctrl: np.ndarray, closed: bool, samples: int = 8) -> np.ndarray:
-    """Sample centripetal-free (uniform) Catmull-Rom splines through ``ctrl`` (n, K, 2)."""
+def bezier_path(ctrl: np.ndarray, closed: bool) -> MplPath:
+    """One compound path of uniform Catmull-Rom splines through ``ctrl`` (n curves, K points),
+    each segment p1 -> p2 written exactly as the cubic Bezier with control points
+    p1 + (p2 - p0)/6 and p2 - (p3 - p1)/6 (ends of open curves mirrored)."""
     if closed:
         pts = np.concatenate([ctrl[:, -1:], ctrl, ctrl[:, :2]], axis=1)
     else:
         pts = np.concatenate([2 * ctrl[:, :1] - ctrl[:, 1:2], ctrl,
                               2 * ctrl[:, -1:] - ctrl[:, -2:-1]], axis=1)
-    t = np.linspace(0, 1, samples, endpoint=False)[:, None]
-    basis = 0.5 * np.stack([-t**3 + 2 * t**2 - t, 3 * t**3 - 5 * t**2 + 2,
-                            -3 * t**3 + 4 * t**2 + t, t**3 - t**2], axis=0)   # (4, S, 1)
-    segs = []
-    for k in range(pts.shape[1] - 3):
-        p = pts[:, k:k + 4]                                                   # (n, 4, 2)
-        segs.append(np.einsum("bsx,nbc->nsc", basis, p))
-    out = np.concatenate(segs, axis=1)
-    last = ctrl[:, :1] if closed else ctrl[:, -1:]
-    return np.concatenate([out, last], axis=1)
+    p0, p1, p2, p3 = (pts[:, k:k + pts.shape[1] - 3] for k in range(4))
+    c1, c2 = p1 + (p2 - p0) / 6.0, p2 - (p3 - p1) / 6.0
+    n, segs = p1.shape[:2]
+    verts = np.concatenate([p1[:, :1], np.stack([c1, c2, p2], axis=2).reshape(n, 3 * segs, 2)],
+                           axis=1)
+    codes = np.full(verts.shape[1], MplPath.CURVE4, dtype=MplPath.code_type)
+    codes[0] = MplPath.MOVETO
+    return MplPath(verts.reshape(-1, 2), np.tile(codes, n))
+
+
+def polygon_path(corners: np.ndarray) -> MplPath:
+    """One compound path of closed polygons ``corners`` (n, K, 2)."""
+    n, k = corners.shape[:2]
+    codes = np.full(k + 1, MplPath.LINETO, dtype=MplPath.code_type)
+    codes[0], codes[-1] = MplPath.MOVETO, MplPath.CLOSEPOLY
+    verts = np.concatenate([corners, corners[:, :1]], axis=1)
+    return MplPath(verts.reshape(-1, 2), np.tile(codes, n))
 
 
 class _Tiling:
-    """Positions of the drawn loops: repeats tiled, and the frame of each loop."""
+    """Positions of the drawn loops: repeats tiled (periodic) or the patch once (fixed), and
+    the frame of each loop."""
 
     def __init__(self, p: JacquardProblem, x: np.ndarray) -> None:
         self.p = p
         m, n = p.wales, p.courses
-        self.nw = min(MAX_LOOPS, m * min(3, max(1, MAX_LOOPS // m)))
-        self.nc = min(MAX_LOOPS, n * min(3, max(1, MAX_LOOPS // n)))
+        tiles = (lambda k: 1) if p.boundary == "fixed" else (lambda k: min(3, max(1, MAX_LOOPS // k)))
+        self.nw = min(MAX_LOOPS, m * tiles(m))
+        self.nc = min(MAX_LOOPS, n * tiles(n))
         self.x = x.reshape(n, m, 2)
 
     def root(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -66,7 +103,7 @@ class _Tiling:
         im, jm = np.mod(i, p.wales), np.mod(j, p.courses)
         base = self.x[jm, im]
         shift = np.stack([(i - im) * p.w, (j - jm) * p.h], axis=-1)
-        return base + shift     # a fixed patch is tiled the same way, copies side by side
+        return base + shift
 
     def frame(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Root, loop axis (root -> next root) and lateral unit * w of loop (i, j)."""
@@ -86,86 +123,140 @@ class _Tiling:
         r, axis, lat = self.frame(i, j)
         return (r[:, None] + uv[None, :, 1:2] * axis[:, None] + uv[None, :, 0:1] * lat[:, None])
 
-
-def _yarns(ax, curves: np.ndarray, colour: str, width_pts: float) -> None:
-    """Draw curves as yarns: a dark outline under a coloured core."""
-    segs = list(curves)
-    ax.add_collection(LineCollection(segs, colors=OUTLINE, linewidths=width_pts * 1.35,
-                                     capstyle="round", joinstyle="round"))
-    ax.add_collection(LineCollection(segs, colors=colour, linewidths=width_pts,
-                                     capstyle="round", joinstyle="round"))
+    def codes(self, sys: JacquardSystem, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        return sys.codes[np.mod(j, self.p.courses), np.mod(i, self.p.wales)]
 
 
-def _underlaps(t: _Tiling, sys, i, j) -> dict[str, np.ndarray]:
-    """Control points of one system's underlaps, grouped by structure."""
+def _stroke(ax: "Axes", path: MplPath, colour: str, width_pts: float,
+            outline: str | None = None) -> None:
+    """A yarn: one compound path, optionally over a darker, slightly wider outline."""
+    for c, lw in ([(outline, width_pts * 1.3)] if outline else []) + [(colour, width_pts)]:
+        ax.add_patch(PathPatch(path, facecolor="none", edgecolor=c, linewidth=lw,
+                               capstyle="round", joinstyle="round"))
+
+
+def _underlaps(t: _Tiling, sys: JacquardSystem, i, j) -> dict[str, np.ndarray]:
+    """Control points of one system's thick and thin underlaps (net cells draw none; a fixed
+    patch has none leaving it, as springs.build_springs drops those springs)."""
     p = t.p
-    codes = sys.codes[np.mod(j, p.courses), np.mod(i, p.wales)]
-    d = zigzag_direction(p, np.mod(j, p.courses))
+    codes, d = t.codes(sys, i, j), zigzag_direction(p, np.mod(j, p.courses))
     out = {}
-    for code, struct in ((2, "thick"), (1, "thin"), (0, "net")):
+    for struct, code in STRUCTURE_CODES.items():
         sel = codes == code
-        if not sel.any():
+        if p.boundary == "fixed":
+            far = i + (sys.span[struct] - 1) * d
+            sel &= (far >= 0) & (far < p.wales) & (j + 1 < p.courses)
+        if not sel.any() or sys.span[struct] == 1:
             continue
-        ci, cj = i[sel], j[sel]
-        o = (sys.span[struct] - 1) * d[sel]
-        side = -0.32 if sys.name == "inlay" else 0.32
+        ci, cj, o = i[sel], j[sel], (sys.span[struct] - 1) * d[sel]
         if sys.name == "inlay":
-            start = t.local(ci, cj, INLAY_END)
-            end = t.local(ci + o, cj + 1, INLAY_END[::-1])
-            if struct == "net":
-                start = t.local(ci, cj, np.array([[side, 0.167], [side + 0.04, 0.5]]))
-                end = t.local(ci, cj + 1, np.array([[side - 0.04, -0.2], [side, 0.167]]))
-            out[struct] = np.concatenate([start, end], axis=1)          # 4 points
+            out[struct] = np.concatenate([t.local(ci, cj, INLAY_END),
+                                          t.local(ci + o, cj + 1, INLAY_END[::-1])], axis=1)
         else:
-            a = t.local(ci, cj, np.array([[0.0 if struct != "net" else side, FALL_PLATE_V]]))
-            b = t.local(ci + o, cj + 1, np.array([[0.0 if struct != "net" else side,
-                                                    FALL_PLATE_V - (0.6 if struct == "net" else 0.0)]]))
-            out[struct] = np.concatenate([a, b], axis=1)                # 2 points
+            v = np.array([[0.0, FALL_PLATE_V]])
+            out[struct] = np.concatenate([t.local(ci, cj, v), t.local(ci + o, cj + 1, v)], axis=1)
     return out
 
 
-def draw_fabric(ax, p: JacquardProblem, x: np.ndarray, title: str) -> None:
-    """Tiled repeats of the fabric with particle positions ``x`` ((M*N, 2), row j*M + i)."""
+def draw_fabric(ax: "Axes", p: JacquardProblem, x: np.ndarray, title: str) -> None:
+    """The fabric with particle positions ``x`` ((M*N, 2), row j*M + i): cells tinted by the
+    front structure, inlay underlaps (back), pillar loops, fall-plate underlaps (front)."""
     t = _Tiling(p, x)
     jj, ii = np.meshgrid(np.arange(t.nc), np.arange(t.nw), indexing="ij")
     i, j = ii.ravel(), jj.ravel()
-    roots = t.root(i, j)
-    pad = 1.5 * p.w
-    ax.set_xlim(roots[:, 0].min() - pad, roots[:, 0].max() + pad)
-    ax.set_ylim(roots[:, 1].min() - 0.6 * p.h, roots[:, 1].max() + 1.4 * p.h)
+    cells = t.local(i, j, CELL)
+    pad = 0.3 * p.w
+    ax.set_xlim(cells[..., 0].min() - pad, cells[..., 0].max() + pad)
+    ax.set_ylim(cells[..., 1].min() - pad, cells[..., 1].max() + pad)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=10)
-    ax.set_xlabel("mm")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_facecolor(BACKGROUND)
     ax.figure.canvas.draw()
     dpp = ax.transData.transform([(p.w, 0), (0, 0)])
     pts_per_w = abs(dpp[0, 0] - dpp[1, 0]) * 72.0 / ax.figure.dpi
-    layers = {s.name: _underlaps(t, s, i, j) for s in p.systems}
-    for struct, ctrl in layers.get("inlay", {}).items():          # back bar first
-        _yarns(ax, catmull_rom(ctrl, False), COLOURS["inlay"], WIDTH[struct] * pts_per_w)
-    loops = catmull_rom(t.local(i, j, PILLAR), True)
-    _yarns(ax, loops, COLOURS["ground"], WIDTH["ground"] * pts_per_w)
-    for struct, ctrl in layers.get("fall_plate", {}).items():     # front bar on top
-        _yarns(ax, catmull_rom(ctrl, False, samples=2), COLOURS["fall_plate"],
-               WIDTH[struct] * pts_per_w)
-    ax.set_facecolor("#20242a")
+    systems = {s.name: s for s in p.systems}
+    front = t.codes(systems["fall_plate"], i, j)
+    for struct, code in STRUCTURE_CODES.items():
+        if (front == code).any():
+            ax.add_patch(PathPatch(polygon_path(cells[front == code]), linewidth=0,
+                                   facecolor=COLOURS["fall_plate"], alpha=TINT[struct]))
+    layers = {name: _underlaps(t, s, i, j) for name, s in systems.items()}
+    for struct, ctrl in layers["inlay"].items():                       # back bar first
+        _stroke(ax, bezier_path(ctrl, False), COLOURS["inlay"],
+                INLAY_SCALE * WIDTH[struct] * pts_per_w, OUTLINE["inlay"])
+    _stroke(ax, bezier_path(t.local(i, j, PILLAR), True), COLOURS["ground"],
+            WIDTH["ground"] * pts_per_w)
+    for struct, ctrl in layers["fall_plate"].items():                  # front bar on top
+        _stroke(ax, MplPath(ctrl.reshape(-1, 2), np.tile([MplPath.MOVETO, MplPath.LINETO],
+                                                         ctrl.shape[0])),
+                COLOURS["fall_plate"], WIDTH[struct] * pts_per_w, OUTLINE["fall_plate"])
 
 
-def render(p: JacquardProblem, natural: np.ndarray, final: np.ndarray, path: Path,
-           solver: str, svg: bool = False) -> list[Path]:
-    """Natural and simulated fabric side by side: ``path`` (PNG) and, if asked, the SVG."""
-    t = _Tiling(p, natural)
-    aspect = (t.nc * p.h + 2 * p.h) / (t.nw * p.w + 3 * p.w)
-    fig, axes = plt.subplots(1, 2, figsize=(12, max(3.5, min(12, 6 * aspect + 1))), dpi=110)
-    reps = (f"{t.nw // p.wales} x {t.nc // p.courses} repeats" if t.nw >= p.wales and
-            t.nc >= p.courses else f"{t.nw} x {t.nc} window of the {p.wales} x {p.courses} repeat")
-    draw_fabric(axes[0], p, natural, f"{p.name}: natural ({reps})")
-    draw_fabric(axes[1], p, final, f"simulated ({solver})")
-    fig.tight_layout()
+def draw_design(ax: "Axes", sys: JacquardSystem, title: str) -> None:
+    """One repeat's design grid: black thick, grey thin, white net; top row = top course."""
+    grey = np.array([matplotlib.colors.to_rgb(DESIGN_GREYS[c]) for c in range(3)])
+    m, n = sys.codes.shape[1], sys.codes.shape[0]
+    ax.imshow(grey[sys.codes], origin="lower", extent=(0.5, m + 0.5, 0.5, n + 0.5),
+              interpolation="nearest")
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel("wale", fontsize=8)
+    ax.set_ylabel("course", fontsize=8)
+    ax.tick_params(labelsize=7)
+    for spine in ax.spines.values():
+        spine.set_color("#777777")
+
+
+def figure(result: "JacquardResult") -> tuple["Figure", dict[str, "Axes"]]:
+    """The picture: design grids | natural fabric | simulated fabric (axes by those names)."""
+    p = result.problem
+    t = _Tiling(p, result.network.natural)
+    aspect = (t.nc * p.h) / (t.nw * p.w)
+    height = max(4.0, min(11.0, 5.2 * aspect + 1.2))
+    fig = plt.figure(figsize=(13, height), dpi=100, layout="constrained")
+    grid = fig.add_gridspec(2, 3, width_ratios=[0.55, 1, 1])
+    axes = {"fall_plate": fig.add_subplot(grid[0, 0]), "inlay": fig.add_subplot(grid[1, 0]),
+            "natural": fig.add_subplot(grid[:, 1]), "simulated": fig.add_subplot(grid[:, 2])}
+    systems = {s.name: s for s in p.systems}
+    draw_design(axes["fall_plate"], systems["fall_plate"], "fall-plate design (front, red)")
+    draw_design(axes["inlay"], systems["inlay"], "inlay design (back, blue)")
+    axes["inlay"].legend(handles=[Patch(facecolor=DESIGN_GREYS[c], edgecolor="#777777",
+                                        label=s) for s, c in (("thick", 2), ("thin", 1),
+                                                              ("net", 0))],
+                         loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=3, fontsize=8,
+                         frameon=False)
+    reps = ("the fixed patch" if p.boundary == "fixed" and t.nw == p.wales and t.nc == p.courses
+            else f"{t.nw // p.wales} x {t.nc // p.courses} repeats" if t.nw >= p.wales
+            and t.nc >= p.courses else f"{t.nw} x {t.nc} window of the {p.wales} x {p.courses}")
+    draw_fabric(axes["natural"], p, result.network.natural, f"{p.name}: natural ({reps})")
+    pulled = "; ".join(f"{q.edge} moved ({q.displacement[0]:g}, {q.displacement[1]:g}) mm"
+                       for q in p.pulls)
+    draw_fabric(axes["simulated"], p, result.positions,
+                f"simulated ({result.solver})" + (f": {pulled}" if pulled else ""))
+    return fig, axes
+
+
+def compact_svg(text: str) -> str:
+    """Path data with coordinates to 0.01 pt (matplotlib writes 6 decimals) and no line breaks
+    between commands: the same drawing in about half the bytes."""
+    def shorten(match: re.Match) -> str:
+        data = re.sub(r"(\d\.\d\d)\d+", r"\1", match.group(1))
+        return ' d="' + " ".join(data.split()) + '"'
+    return re.sub(r' d="([^"]*)"', shorten, text)
+
+
+def render(result: "JacquardResult", path: Path, svg: bool = False) -> list[Path]:
+    """Write the picture to ``path`` (PNG) and, if asked, the SVG beside it."""
+    fig, _ = figure(result)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     written = [path]
     if svg:
-        fig.savefig(path.with_suffix(".svg"))
+        buffer = io.StringIO()
+        with matplotlib.rc_context({"svg.fonttype": "none"}):     # text as text, not glyphs
+            fig.savefig(buffer, format="svg")
+        path.with_suffix(".svg").write_text(compact_svg(buffer.getvalue()))
         written.append(path.with_suffix(".svg"))
     plt.close(fig)
     return written

@@ -1,17 +1,27 @@
-"""What a jacquard solve returns, and the derived quantities the result JSON reports."""
+"""What a jacquard solve returns, the derived quantities, and the result JSON and files
+(``to_json`` is the JSON's only producer; ``save`` writes what ``knit-nlp solve`` writes)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from ..jsonio import write_json
+from ..outcome import Energy, Outcome
 from .problem import JacquardProblem
-from .springs import Network, spring_energy, spring_geometry, residual_force
+from .springs import (Network, edge_particles, edge_reaction, residual_force, spring_energy,
+                      spring_geometry)
+
+ZERO_MODE_TREATMENT = ("each floating component of the spring graph has its centroid held at "
+                       "its natural centroid (what the explicit dynamics conserves)")
 
 
-@dataclass
-class JacquardResult:
-    """Final particle positions and how they were obtained."""
+@dataclass(repr=False)
+class JacquardResult(Outcome):
+    """Final particle positions and how they were obtained (SciPy-like: ``success``,
+    ``status``/``message``, ``nit``, ``x`` the positions (M*N, 2), row j*M + i)."""
 
     problem: JacquardProblem
     network: Network
@@ -31,8 +41,26 @@ class JacquardResult:
         return residual_force(self.positions, self.network)
 
     @property
-    def energy(self) -> float:
-        return spring_energy(self.positions, self.network.springs)
+    def energy(self) -> Energy:
+        """The rope springs' stored energy (all of it is spring energy)."""
+        value = spring_energy(self.positions, self.network.springs)
+        return Energy(value, value)
+
+    @property
+    def x(self) -> np.ndarray:
+        return self.positions
+
+    @property
+    def iterations_or_steps(self) -> int:
+        return int(self.steps if self.solver == "explicit" else self.iterations or 0)
+
+    @property
+    def nit(self) -> int:
+        """IPOPT iterations (static) or explicit steps."""
+        return self.iterations_or_steps
+
+    def _repr_fields(self) -> dict[str, object]:
+        return {"solver": self.solver, "residual_force": self.residual_force}
 
     def displacement(self) -> np.ndarray:
         return self.positions - self.network.natural
@@ -43,6 +71,14 @@ class JacquardResult:
         _, length = spring_geometry(self.positions, s)
         yarn = ~s.compress
         return float(np.max(length[yarn] / s.l_init[yarn])) if yarn.any() else 1.0
+
+    def pulls(self) -> list[dict[str, Any]]:
+        """Per ``[[pull]]``: the edge, its displacement (mm) and the reaction, the force the
+        grip applies to the fabric (minus the net spring force on the edge's particles)."""
+        p = self.problem
+        return [{"edge": q.edge, "displacement": list(q.displacement),
+                 "reaction": edge_reaction(self.positions, self.network,
+                                           edge_particles(p, q.edge))} for q in p.pulls]
 
     def min_order_gap(self) -> float:
         """Smallest X(i+1,j) - X(i,j) (must stay >= 0)."""
@@ -66,3 +102,33 @@ class JacquardResult:
         angle = np.degrees(np.arctan2(seg[..., 0], seg[..., 1]))
         return {"mean_dx_mm": dx.mean(axis=0), "mean_angle_deg": angle.mean(axis=0),
                 "max_abs_angle_deg": np.abs(angle).max(axis=0)}
+
+    def to_json(self) -> dict[str, Any]:
+        """The result JSON (docs/jacquard.md, "Result JSON")."""
+        p, net = self.problem, self.network
+        return {
+            "problem": p.name, "model": "jacquard", "solver": self.solver,
+            "success": self.success, "status": self.status,
+            "residual_force": self.residual_force,
+            "steps": self.steps, "iterations": self.iterations, "constraints": self.constraints,
+            "timings": self.timings,
+            "energy": self.energy.total,
+            "max_stretch": self.max_stretch(), "lambda_max": p.lambda_max,
+            "min_order_gap": self.min_order_gap(),
+            "zero_modes": {"count": net.zero_modes, "floating_components": len(net.floating),
+                           "treatment": ZERO_MODE_TREATMENT if self.solver == "static" else
+                           "none needed: floating components keep their momentum (zero)"},
+            "wales": p.wales, "courses": p.courses, "w_mm": p.w, "h_mm": p.h,
+            "boundary": p.boundary, "n_particles": p.n_particles, "n_springs": net.springs.n,
+            "pulls": self.pulls(),
+            "particles": {"index": "j*M + i", "natural": net.natural, "final": self.positions},
+            "skew": self.wale_skew(),
+        }
+
+    def save(self, out_dir: Path | str, svg: bool = False) -> list[Path]:
+        """``DIR/<problem>.jacquard.json`` and ``.png`` (and ``.svg`` on request)."""
+        from .render import render
+        out = Path(out_dir)
+        js = write_json(out / f"{self.problem.name}.jacquard.json", self.to_json())
+        pictures = render(self, out / f"{self.problem.name}.jacquard.png", svg=svg)
+        return [js, *pictures]

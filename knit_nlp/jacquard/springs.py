@@ -1,4 +1,4 @@
-"""The spring network generated from the designs, and its forces (spec: "Fabric, particles",
+"""The spring network generated from the designs, and its forces (docs/jacquard.md: "Fabric, particles",
 "Bars and designs", "Springs, forces, mass", "Boundaries", "Zero-energy modes").
 
 Particles are numbered ``j*M + i`` (wale ``i``, course ``j``). A spring joins particle ``a`` to
@@ -48,6 +48,7 @@ class Network:
     order_offset: np.ndarray
     components: np.ndarray     # (M,) label of each wale's connected component
     floating: list[np.ndarray]  # particle indices of each component holding no fixed particle
+    held: np.ndarray           # (Np, 2) where fixed particles are held (natural, or pulled)
 
     @property
     def zero_modes(self) -> int:
@@ -78,7 +79,7 @@ def zigzag_direction(p: JacquardProblem, j: np.ndarray) -> np.ndarray:
 
 
 def build_springs(p: JacquardProblem) -> SpringSet:
-    """Pillar springs, each system's longitudinal springs and underlaps (spec "Bars and designs")."""
+    """Pillar springs, each system's longitudinal springs and underlaps (docs/jacquard.md, "Bars and designs")."""
     m, n = p.wales, p.courses
     jj, ii = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
     i_all, j_all = ii.ravel(), jj.ravel()
@@ -125,16 +126,30 @@ def _order_pairs(p: JacquardProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return j * m + i, j * m + right, np.where(i + 1 >= m, m * p.w, 0.0)
 
 
+def edge_particles(p: JacquardProblem, edge: str) -> np.ndarray:
+    """Particle indices of a fabric edge. A corner belongs to the bottom or top edge (both are
+    always held with a fixed boundary), so a left or right edge is courses 1..N-2 only."""
+    grid = np.arange(p.n_particles).reshape(p.courses, p.wales)
+    rows = {"bottom": grid[0], "top": grid[-1], "left": grid[1:-1, 0], "right": grid[1:-1, -1]}
+    return rows[edge]
+
+
 def _fixed_mask(p: JacquardProblem) -> np.ndarray:
-    fixed = np.zeros((p.courses, p.wales), dtype=bool)
+    fixed = np.zeros(p.n_particles, dtype=bool)
     if p.boundary == "periodic":
-        fixed[0, 0] = True            # removes the rigid translation
+        fixed[0] = True               # P(0,0): removes the rigid translation
     else:
-        edge = {"bottom": (0, slice(None)), "top": (-1, slice(None)),
-                "left": (slice(None), 0), "right": (slice(None), -1)}
         for e in p.fixed_edges:
-            fixed[edge[e]] = True
-    return fixed.ravel()
+            fixed[edge_particles(p, e)] = True
+    return fixed
+
+
+def held_positions(p: JacquardProblem) -> np.ndarray:
+    """Natural positions with every pulled edge moved by its displacement ([[pull]])."""
+    x = natural_positions(p)
+    for pull in p.pulls:
+        x[edge_particles(p, pull.edge)] += pull.displacement
+    return x
 
 
 def wale_components(p: JacquardProblem, s: SpringSet) -> np.ndarray:
@@ -169,7 +184,8 @@ def build_network(p: JacquardProblem) -> Network:
     floating = [np.flatnonzero(comp[wale_of] == c) for c in sorted(set(comp.tolist()))
                 if c not in anchored]
     left, right, off = _order_pairs(p)
-    return Network(natural_positions(p), s, fixed, left, right, off, comp, floating)
+    return Network(natural_positions(p), s, fixed, left, right, off, comp, floating,
+                   held_positions(p))
 
 
 def spring_geometry(x: np.ndarray, s: SpringSet) -> tuple[np.ndarray, np.ndarray]:
@@ -205,6 +221,13 @@ def spring_forces(x: np.ndarray, s: SpringSet, v: np.ndarray | None = None,
     if v is not None and damping > 0:
         f = f + damping * (v[s.b] - v[s.a])
     return accumulate(x.shape[0], s, f)
+
+
+def edge_reaction(x: np.ndarray, net: Network, particles: np.ndarray) -> np.ndarray:
+    """The force a grip holding ``particles`` applies to the fabric: minus the net spring force
+    on them (= dE/d(displacement) at equilibrium, the envelope theorem, while no order or
+    length constraint on them is active)."""
+    return -spring_forces(x, net.springs)[particles].sum(axis=0)
 
 
 def residual_force(x: np.ndarray, net: Network) -> float:

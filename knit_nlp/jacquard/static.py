@@ -1,4 +1,4 @@
-"""The static equilibrium as a CasADi NLP solved with IPOPT (spec "Solvers", `static`).
+"""The static equilibrium as a CasADi NLP solved with IPOPT (docs/jacquard.md, "Solvers", `static`).
 
 Formulation (docs/jacquard.md, "Static NLP"): the variables are the particle positions ``x``
 only. With ``d_s = x[b_s] + shift_s - x[a_s]`` (``d = B x + c``, ``B`` the sparse incidence
@@ -25,7 +25,8 @@ to ``nlpsol`` in exactly that form (one small SX Function for the blocks, mapped
 springs, then ``A``), so CasADi never has to discover the sparsity of, or colour, a
 whole-fabric Hessian — that discovery took a minute at 500 x 500.
 
-Boundary particles are fixed by equal bounds (IPOPT ``make_parameter``); each floating
+Boundary particles are fixed by equal bounds at their natural or pulled (``[[pull]]``) places
+(IPOPT ``make_parameter``); each floating
 component of the spring graph (a zero-energy mode, see springs.build_network) has its centroid
 held at its natural centroid by two linear equalities, which is what the explicit dynamics
 conserves. Springs that go slack can leave further flat directions; the tiny regularisation
@@ -40,6 +41,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from ..ipopt import ipopt_options, succeeded
 from .problem import JacquardProblem
 from .result import JacquardResult
 from .springs import Network, SpringSet, build_network, spring_geometry
@@ -82,9 +84,11 @@ def _spring_law() -> ca.Function:
     """Energy of one spring and the 3 entries (xx, xy, yy) of its Hessian in d.
 
     ``sign = +1``: rope, 1/2 k (|d| - l0)+^2; ``sign = -1``: loop-width, 1/2 k (l0 - |d|)+^2.
+    A spring of zero length (an edge pushed onto the next course) has zero force, not NaN.
     """
     d, k, l0, sign = ca.SX.sym("d", 2), ca.SX.sym("k"), ca.SX.sym("l0"), ca.SX.sym("sign")
-    stretch = ca.fmax(sign * (ca.norm_2(d) - l0), 0)
+    length = ca.sqrt(ca.sumsqr(d) + 1e-300)    # not norm_2: its gradient is NaN at d = 0
+    stretch = ca.fmax(sign * (length - l0), 0)
     energy = 0.5 * k * stretch ** 2
     hess = ca.hessian(energy, d)[0]
     return ca.Function("spring_law", [d, k, l0, sign],
@@ -227,7 +231,7 @@ def build_nlp(problem: JacquardProblem, net: Network, s: SpringSet, inc: Inciden
     hess_lag = ca.Function("hess_lag", [x, p, lam_f, lam_g], [ca.MX(inc.hess_sparsity, hnz)],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
     fixed = np.repeat(net.fixed, 2)
-    flat = net.natural.ravel()
+    flat = net.held.ravel()                                   # pulled edges moved ([[pull]])
     bounds = {"lbx": np.where(fixed, flat, -np.inf), "ubx": np.where(fixed, flat, np.inf),
               "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg)}
     return {"x": x, "f": f, "g": g}, {"hess_lag": hess_lag}, bounds
@@ -249,14 +253,11 @@ def violations(x: np.ndarray, net: Network, s: SpringSet, work: WorkingSet,
 
 def _ipopt_options(problem: JacquardProblem, print_level: int, extra: dict | None) -> dict:
     opts = problem.solver
-    ipopt = {"tol": opts.tol, "max_iter": opts.max_iter, "print_level": print_level,
-             "sb": "yes", "linear_solver": "mumps",
-             "mumps_pivot_order": 5,             # METIS (see docs/jacquard.md)
-             "hessian_approximation": opts.hessian,
-             "fixed_variable_treatment": "make_parameter", "mu_strategy": "adaptive",
-             "acceptable_iter": 0}               # success means Solve_Succeeded, nothing less
-    ipopt.update(extra or {})
-    return ipopt
+    return ipopt_options(opts.tol, opts.max_iter, print_level,
+                         mumps_pivot_order=5,             # METIS (see docs/jacquard.md)
+                         hessian_approximation=opts.hessian,
+                         fixed_variable_treatment="make_parameter", mu_strategy="adaptive",
+                         **(extra or {}))
 
 
 def solve_static(problem: JacquardProblem, network: Network | None = None, *,
@@ -268,21 +269,21 @@ def solve_static(problem: JacquardProblem, network: Network | None = None, *,
     inc = incidence(s, net.natural.shape[0])
     ipopt = _ipopt_options(problem, print_level, extra_options)
     work = WorkingSet(np.zeros(0, dtype=int), np.zeros(0, dtype=int))
-    x = net.natural.ravel().copy()
+    x = net.held.ravel().copy()
     timings = {"build_s": time.perf_counter() - t0, "solve_s": 0.0}
     iterations, status, success = 0, "", False
     for rounds in range(1, MAX_ROUNDS + 1):
         tb = time.perf_counter()
         nlp, custom, bounds = build_nlp(problem, net, s, inc, work)
-        solver = ca.nlpsol("jacquard_static", "ipopt", nlp,
-                           {**custom, "ipopt": ipopt, "print_time": False})
+        solver = ca.nlpsol("jacquard_static", "ipopt", nlp, {**custom, **ipopt})
         ts = time.perf_counter()
         sol = solver(x0=x, **bounds)
         timings["build_s"] += ts - tb
         timings["solve_s"] += time.perf_counter() - ts
         stats = solver.stats()
         iterations += int(stats["iter_count"])
-        status, success = str(stats["return_status"]), bool(stats["success"])
+        status = str(stats["return_status"])
+        success = succeeded(status)
         x = np.array(sol["x"]).ravel()
         new = violations(x.reshape(-1, 2), net, s, work)
         if not success or (new.limits.size == 0 and new.orders.size == 0):

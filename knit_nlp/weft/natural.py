@@ -1,7 +1,7 @@
 """The natural (unloaded) loop and the natural configuration of the fabric.
 
 Default preset ``jersey``: θ0(s) = ω sin(2πs/L), L = 10, ω = 2 rad; wale spacing w = x(L) − x(0),
-loop height H = max y − min y, course spacing c = H/2 (spec, "Natural state").
+loop height H = max y − min y, course spacing c = H/2 (docs/weft_model.md, "Natural state").
 """
 from __future__ import annotations
 

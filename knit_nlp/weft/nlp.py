@@ -19,7 +19,7 @@ stiffnesses and loads are NLP parameters: one build serves many solves.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -27,36 +27,14 @@ import numpy as np
 from .basis import continuity_rows, n_coeffs, phi
 from .energy import bending_energy, spring_pair_energy
 from .kinematics import loop_displacements
+from ..layout import Layout
+from .params import WeftParams, param_layout
+from .parametrisation import Full, Parametrisation, Reduced
 from .problem import WeftProblem
-from .reduction import default_reduction, reduction_map
+from .reduction import reduction_map
 
 SPRING_POINTS = ("B", "R", "E", "H")
 SPRINGS = (("SL", "B", "E"), ("SR", "R", "H"))   # block, upper point, lower point
-
-
-@dataclass
-class Layout:
-    """Where each block lives in a flat vector: name -> (start, stop) and block shape."""
-
-    blocks: dict[str, tuple[int, int, tuple[int, int]]] = field(default_factory=dict)
-    size: int = 0
-
-    def add(self, name: str, rows: int, cols: int) -> None:
-        self.blocks[name] = (self.size, self.size + rows * cols, (rows, cols))
-        self.size += rows * cols
-
-    def slice(self, name: str) -> slice:
-        start, stop, _ = self.blocks[name]
-        return slice(start, stop)
-
-    def get(self, vec: np.ndarray, name: str) -> np.ndarray:
-        """The block of ``vec`` as an array of its shape (column-major, like CasADi)."""
-        start, stop, shape = self.blocks[name]
-        return np.asarray(vec, dtype=float).ravel()[start:stop].reshape(shape, order="F")
-
-    def put(self, vec: np.ndarray, name: str, value: np.ndarray) -> None:
-        start, stop, _ = self.blocks[name]
-        vec[start:stop] = np.asarray(value, dtype=float).ravel(order="F")
 
 
 @dataclass
@@ -67,25 +45,50 @@ class SpecialPoint:
     s: float
 
 
+@dataclass(frozen=True)
+class ClampRows:
+    """The constraint rows of one clamp: its held coordinates (``dims``) and its angle."""
+
+    position: slice | None
+    dims: tuple[int, ...]
+    angle: slice | None
+
+
 @dataclass
 class WeftNLP:
-    """An assembled NLP with everything needed to solve it and read its solution."""
+    """An assembled NLP with everything needed to solve it and read its solution.
+
+    ``clamp_rows[q]`` and ``rigid_rows[q]`` locate clamp q's and rigid clamp q's constraint rows
+    (0-based positions in the problem's lists), so multipliers are read by slice, not by name.
+    """
 
     problem: WeftProblem
-    reduced: bool
+    parametrisation: Parametrisation
     nlp: dict[str, ca.MX]
     x: Layout
     p: Layout
     g: Layout
     x0: np.ndarray
-    p0: np.ndarray
+    params: WeftParams
     specials: list[SpecialPoint]
     clamp_points: list[int]
     load_points: list[int]
     rigid_points: list[list[int]]
+    clamp_rows: list[ClampRows]
+    rigid_rows: list[slice]
     energy: ca.Function
     coeff_map: np.ndarray | None
     n_parameters: int
+
+    @property
+    def model(self) -> str:
+        """``full`` or ``reduced``: the name results and files use."""
+        return self.parametrisation.name
+
+    @property
+    def p0(self) -> np.ndarray:
+        """The problem's own parameter vector."""
+        return self.params.vector()
 
     @property
     def n_variables(self) -> int:
@@ -130,7 +133,7 @@ def _loop_index(pr: WeftProblem, loop: tuple[int, int]) -> int:
     return (loop[0] - 1) * pr.wales + (loop[1] - 1)
 
 
-def _eval_points(pr: WeftProblem, specials: list[SpecialPoint]) -> list[float]:
+def eval_points(pr: WeftProblem, specials: list[SpecialPoint]) -> list[float]:
     """The s-values each loop's Function reports: L, the spring points, then special points."""
     pts = [pr.L]
     if pr.crossings is not None and pr.courses > 1:
@@ -141,7 +144,7 @@ def _eval_points(pr: WeftProblem, specials: list[SpecialPoint]) -> list[float]:
     return pts
 
 
-def _specials(pr: WeftProblem) -> tuple[list[SpecialPoint], list[int], list[int], list[list[int]]]:
+def special_points(pr: WeftProblem) -> tuple[list[SpecialPoint], list[int], list[int], list[list[int]]]:
     """Distinct clamped/loaded material points, and each clamp's, load's and rigid clamp's
     point indices among them."""
     specials: list[SpecialPoint] = []
@@ -163,11 +166,11 @@ def _specials(pr: WeftProblem) -> tuple[list[SpecialPoint], list[int], list[int]
 def _point_positions(pr: WeftProblem, a: np.ndarray, starts: np.ndarray,
                      specials: list[SpecialPoint]) -> dict[str, np.ndarray]:
     """Numeric values of the lifted points for coefficients a (nc × N) and starts (2 × N)."""
-    disp = loop_displacements(pr.L, pr.t, np.array(_eval_points(pr, specials)),
+    disp = loop_displacements(pr.L, pr.t, np.array(eval_points(pr, specials)),
                               pr.quadrature_nodes).map(pr.n_loops)
     d_all = np.asarray(disp(a))
     n_pts = d_all.shape[1] // pr.n_loops
-    col = {s: q for q, s in enumerate(_eval_points(pr, specials))}
+    col = {s: q for q, s in enumerate(eval_points(pr, specials))}
     out: dict[str, np.ndarray] = {}
     n, N = pr.wales, pr.n_loops
     if _spring_blocks(pr):
@@ -188,23 +191,26 @@ def _spring_blocks(pr: WeftProblem) -> list[str]:
     return [name for name, _, _ in SPRINGS] if pr.courses > 1 and pr.crossings is not None else []
 
 
-def build_nlp(pr: WeftProblem, reduced: bool = False) -> WeftNLP:
-    """Assemble the NLP of a problem, full or reduced (the same model, two parametrisations)."""
+def build_nlp(pr: WeftProblem, parametrisation: Parametrisation = Full()) -> WeftNLP:
+    """Assemble the NLP of a problem in a parametrisation (``Full()`` or ``Reduced(...)``: the
+    same model, two parametrisations)."""
     m, n, nc = pr.courses, pr.wales, n_coeffs(pr.t)
-    specials, clamp_pts, load_pts, rigid_pts = _specials(pr)
-    coeff_map = reduction_map(pr) if reduced else None
+    parametrisation = parametrisation.resolve(m, n)
+    specials, clamp_pts, load_pts, rigid_pts = special_points(pr)
+    coeff_map = reduction_map(pr, parametrisation) if isinstance(parametrisation, Reduced) else None
     xl, xsym, xb, A = _variables(pr, coeff_map, specials)
-    pl = _param_layout(pr)
+    pl = param_layout(pr)
     psym = ca.MX.sym("p", pl.size)
     pb = {name: ca.reshape(psym[pl.slice(name)], *shape) for name, (_, _, shape) in pl.blocks.items()}
-    gl, g = _constraints(pr, A, xb, pb, specials, clamp_pts, rigid_pts, continuity=coeff_map is None)
+    gl, g, clamp_rows, rigid_rows = _constraints(pr, A, xb, pb, specials, clamp_pts, rigid_pts,
+                                                 continuity=coeff_map is None)
     spring, bend, work = _energy_terms(pr, A, xb, pb, specials, load_pts)
     nlp = {"x": xsym, "p": psym, "f": spring + bend - work, "g": g}
     energy = ca.Function("energy", [xsym, psym], [spring, bend, work],
                          ["x", "p"], ["spring", "bending", "load_work"])
-    result = WeftNLP(pr, reduced, nlp, xl, pl, gl, np.zeros(xl.size), _param_values(pr, pl),
-                     specials, clamp_pts, load_pts, rigid_pts, energy, coeff_map,
-                     n_parameters(pr, reduced))
+    result = WeftNLP(pr, parametrisation, nlp, xl, pl, gl, np.zeros(xl.size), WeftParams.of(pr),
+                     specials, clamp_pts, load_pts, rigid_pts, clamp_rows, rigid_rows, energy,
+                     coeff_map, n_parameters(pr, parametrisation))
     result.x0 = result.lift(np.broadcast_to(pr.natural.coeffs, (m, n, nc)).copy(),
                             pr.natural_starts())
     return result
@@ -231,11 +237,12 @@ def _variables(pr: WeftProblem, coeff_map: np.ndarray | None, specials: list[Spe
 
 def _constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
                  specials: list[SpecialPoint], clamp_pts: list[int], rigid_pts: list[list[int]],
-                 continuity: bool) -> tuple[Layout, ca.MX]:
+                 continuity: bool) -> tuple[Layout, ca.MX, list[ClampRows], list[slice]]:
     """All equality constraints g = 0: chaining (eq. 1), lifted spring vectors and points,
-    continuity (18)-(19) unless the parametrisation has it built in, clamps."""
+    continuity (18)-(19) unless the parametrisation has it built in, clamps; with the rows of
+    each clamp and rigid clamp."""
     n, N, X = pr.wales, pr.n_loops, xb["starts"]
-    evals = _eval_points(pr, specials)
+    evals = eval_points(pr, specials)
     col, P = {s: q for q, s in enumerate(evals)}, len(evals)
     D = loop_displacements(pr.L, pr.t, np.array(evals), pr.quadrature_nodes).map(N, "serial")(A)
 
@@ -245,10 +252,11 @@ def _constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, 
 
     g, gl = [], Layout()
 
-    def add_g(name: str, expr: ca.MX) -> None:
-        if expr.numel():
-            g.append(ca.vec(expr))
-            gl.add(name, expr.numel(), 1)
+    def add_g(name: str, expr: ca.MX) -> slice | None:
+        if not expr.numel():
+            return None
+        g.append(ca.vec(expr))
+        return gl.add(name, expr.numel(), 1)
 
     left = np.array([k for k in range(N) if k % n != n - 1], dtype=int)
     add_g("chain", X[:, (left + 1).tolist()] - at(pr.L, left))
@@ -263,9 +271,9 @@ def _constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, 
         E, S = continuity_rows(pr.L, pr.t)
         add_g("continuity", ca.mtimes(ca.DM(E), A[:, left.tolist()])
               - ca.mtimes(ca.DM(S), A[:, (left + 1).tolist()]))
-    _clamp_constraints(pr, A, xb, pb, clamp_pts, add_g)
-    _rigid_constraints(pr, xb, pb, rigid_pts, add_g)
-    return gl, ca.vertcat(*g)
+    clamp_rows = _clamp_constraints(pr, A, xb, pb, clamp_pts, add_g)
+    rigid_rows = _rigid_constraints(pr, xb, pb, rigid_pts, add_g)
+    return gl, ca.vertcat(*g), clamp_rows, rigid_rows
 
 
 def _energy_terms(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
@@ -290,45 +298,21 @@ def _sparse_dm(mat: np.ndarray) -> ca.DM:
     return ca.DM(sp, mat[rows, cols].tolist())
 
 
-def _param_layout(pr: WeftProblem) -> Layout:
-    pl = Layout()
-    pl.add("targets", 2, len(pr.clamps))
-    pl.add("angles", sum(c.angle is not None for c in pr.clamps), 1)
-    pl.add("k_a", 1, 1)
-    pl.add("k_b", 1, 1)
-    pl.add("R_f", 1, 1)
-    pl.add("forces", 2, len(pr.loads))
-    pl.add("moments", len(pr.loads), 1)
-    pl.add("rigid", 3, len(pr.rigid_clamps))          # translation x, y and rotation
-    return pl
-
-
-def _param_values(pr: WeftProblem, pl: Layout) -> np.ndarray:
-    p = np.zeros(pl.size)
-    pl.put(p, "targets", np.array([c.target for c in pr.clamps]).T.reshape(2, -1))
-    pl.put(p, "angles", [c.angle for c in pr.clamps if c.angle is not None])
-    pl.put(p, "k_a", pr.k_a)
-    pl.put(p, "k_b", pr.k_b)
-    pl.put(p, "R_f", pr.R_f)
-    pl.put(p, "forces", np.array([ld.force for ld in pr.loads]).T.reshape(2, -1))
-    pl.put(p, "moments", [ld.moment for ld in pr.loads])
-    pl.put(p, "rigid", np.array([[*r.translation, r.rotation] for r in pr.rigid_clamps]).T.reshape(3, -1))
-    return p
-
-
 def _clamp_constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
-                       clamp_pts: list[int], add_g) -> None:
+                       clamp_pts: list[int], add_g) -> list[ClampRows]:
     """Position rows P[dim] − target[dim] and angle rows θ(s) − angle, one block per clamp."""
-    n_angle = 0
+    n_angle, rows = 0, []
     for q, (c, sp) in enumerate(zip(pr.clamps, clamp_pts)):
         dims = [d for d in range(2) if c.fix[d]]
-        if dims:
-            add_g(f"clamp{q}_pos", xb["PC"][dims, sp] - pb["targets"][dims, q])
+        pos = add_g(f"clamp{q}_pos", xb["PC"][dims, sp] - pb["targets"][dims, q]) if dims else None
+        angle = None
         if c.angle is not None:
             row = ca.DM(phi(c.s, pr.L, pr.t))
-            add_g(f"clamp{q}_angle", ca.mtimes(row, A[:, _loop_index(pr, c.loop)])
-                  - pb["angles"][n_angle])
+            angle = add_g(f"clamp{q}_angle", ca.mtimes(row, A[:, _loop_index(pr, c.loop)])
+                          - pb["angles"][n_angle])
             n_angle += 1
+        rows.append(ClampRows(pos, tuple(dims), angle))
+    return rows
 
 
 def rigid_natural_points(pr: WeftProblem) -> list[np.ndarray]:
@@ -338,14 +322,16 @@ def rigid_natural_points(pr: WeftProblem) -> list[np.ndarray]:
 
 
 def _rigid_constraints(pr: WeftProblem, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
-                       rigid_pts: list[list[int]], add_g) -> None:
+                       rigid_pts: list[list[int]], add_g) -> list[slice]:
     """Rows P − (c + R(φ)(P0 − c) + t) for every point of every rigid clamp."""
+    rows = []
     for q, (rc, idx, p0) in enumerate(zip(pr.rigid_clamps, rigid_pts, rigid_natural_points(pr))):
         tx, ty, phi_ = pb["rigid"][0, q], pb["rigid"][1, q], pb["rigid"][2, q]
         rot = ca.vertcat(ca.horzcat(ca.cos(phi_), -ca.sin(phi_)), ca.horzcat(ca.sin(phi_), ca.cos(phi_)))
         c = ca.DM(rc.centre)
         target = c + ca.mtimes(rot, ca.DM((p0 - rc.centre).T)) + ca.vertcat(tx, ty)
-        add_g(f"rigid{q}", xb["PC"][:, idx] - target)
+        rows.append(add_g(f"rigid{q}", xb["PC"][:, idx] - target))
+    return rows
 
 
 def _load_work(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
@@ -361,14 +347,14 @@ def _load_work(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca
     return work
 
 
-def n_parameters(pr: WeftProblem, reduced: bool) -> int:
-    """Parameter count as the paper counts it (spec, "Parameter counts").
+def n_parameters(pr: WeftProblem, parametrisation: Parametrisation) -> int:
+    """Parameter count as the paper counts it (docs/weft_model.md, "Parameter counts").
 
     Full: m·n·(2t+2) + 2m. Reduced over p × q representatives: p·q·2t + 2p + 2m.
     """
     nc = n_coeffs(pr.t)
-    if not reduced:
+    if not isinstance(parametrisation, Reduced):
         return pr.courses * pr.wales * nc + 2 * pr.courses
-    red = pr.reduction or default_reduction(pr)
+    red = parametrisation.resolve(pr.courses, pr.wales)
     p, q = len(red.courses), len(red.wales)
     return p * q * 2 * pr.t + 2 * p + 2 * pr.courses

@@ -3,6 +3,7 @@ their reaction arrows; and full-versus-reduced overlays coloured by local distan
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -11,25 +12,33 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
+if TYPE_CHECKING:
+    from .results import WeftResult
+
 
 def _course_lines(lines: np.ndarray) -> list[np.ndarray]:
     """One polyline per course from (m, n, S, 2) loop samples."""
     return [np.concatenate(list(course), axis=0) for course in lines]
 
 
-def plot_solution(path: Path, natural: np.ndarray, deformed: np.ndarray,
-                  clamps: list[dict], title: str) -> Path:
-    """PNG of natural (grey) vs deformed loops with clamps (squares) and reactions (arrows)."""
+def plot_solution(path: Path, result: "WeftResult", natural: np.ndarray,
+                  deformed: np.ndarray) -> Path:
+    """PNG of natural (grey) vs deformed loops (centrelines as sampled by the caller) with the
+    clamped points (squares) and their reactions (arrows)."""
+    title = (f"{result.problem.name} ({result.model}): E = {result.energy.total:.4g}, "
+             f"{'converged' if result.success else 'NOT CONVERGED'}")
+    held = [(c.position, c.reaction) for c in result.clamps] + [
+        (pos, f) for rc in result.rigid_clamps for pos, f in zip(rc.positions, rc.reactions)]
     fig, ax = plt.subplots(figsize=(7, 7))
     ax.add_collection(LineCollection(_course_lines(natural), colors="0.75", linewidths=1.0,
                                      label="natural"))
     colours = plt.cm.viridis(np.linspace(0.05, 0.85, max(len(deformed), 1)))
     ax.add_collection(LineCollection(_course_lines(deformed), colors=colours, linewidths=1.6,
                                      label="deformed"))
-    pts = np.array([c["position"] for c in clamps]) if clamps else np.zeros((0, 2))
+    pts = np.array([pos for pos, _ in held]) if held else np.zeros((0, 2))
     if len(pts):
         ax.plot(pts[:, 0], pts[:, 1], "s", color="crimson", ms=7, label="clamp")
-        forces = np.array([c["reaction"] for c in clamps])
+        forces = np.array([f for _, f in held])
         size = np.ptp(np.concatenate([natural.reshape(-1, 2), deformed.reshape(-1, 2)]), axis=0).max()
         fmax = np.abs(forces).max()
         if fmax > 0:

@@ -1,13 +1,13 @@
 """A weft-knit problem: read from TOML, checked completely before any symbolic work.
 
-The contract is spec/problem_files.md; every rule a bad file can break raises
+The contract is the README's "Weft problem files"; every rule a bad file can break raises
 :class:`~knit_nlp.errors.ProblemError` naming file, table and key.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -15,6 +15,7 @@ from ..errors import ProblemError
 from ..tomlio import Table, load_toml
 from .basis import n_coeffs
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
+from .parametrisation import Full, Parametrisation, Reduced
 from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
 
 # Gauss-Legendre nodes per panel. Panels break at every material point the model needs and are
@@ -62,14 +63,6 @@ class Load:
 
 
 @dataclass(frozen=True)
-class Reduction:
-    """Representative courses and wales (1-based, increasing, first and last included)."""
-
-    courses: tuple[int, ...]
-    wales: tuple[int, ...]
-
-
-@dataclass(frozen=True)
 class SolverOptions:
     """IPOPT tolerance and iteration limit; continuation steps (None: only when needed)."""
 
@@ -81,6 +74,8 @@ class SolverOptions:
 @dataclass(frozen=True)
 class WeftProblem:
     """Everything needed to build and solve one weft-knit NLP."""
+
+    model: ClassVar[str] = "weft"
 
     name: str
     description: str
@@ -95,9 +90,9 @@ class WeftProblem:
     clamps: tuple[Clamp, ...] = ()
     loads: tuple[Load, ...] = ()
     rigid_clamps: tuple[RigidClamp, ...] = ()
-    reduction: Reduction | None = None
+    reduction: Reduced | None = None
     solver: SolverOptions = field(default_factory=SolverOptions)
-    file: str = "<memory>"
+    source: str = "<memory>"
 
     @property
     def t(self) -> int:
@@ -110,6 +105,11 @@ class WeftProblem:
     @property
     def n_loops(self) -> int:
         return self.courses * self.wales
+
+    @property
+    def parametrisation(self) -> Parametrisation:
+        """The file's default: ``Reduced`` when it has a ``[reduction]`` table, else ``Full``."""
+        return self.reduction or Full()
 
     def natural_starts(self) -> np.ndarray:
         """Natural start point of every loop, (m, n, 2)."""
@@ -124,13 +124,15 @@ class WeftProblem:
 def load_problem(path: Path | str) -> WeftProblem:
     """Read and check a weft problem file."""
     path = Path(path)
-    return parse_problem(path, load_toml(path))
+    return parse_problem(load_toml(path), path)
 
 
-def parse_problem(path: Path | str, doc: dict[str, Any]) -> WeftProblem:
-    """Check a parsed TOML document against the contract and build a :class:`WeftProblem`."""
-    top = Table(doc, path, "")
-    name = top.string("name", Path(path).stem)
+def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
+    """Check a parsed TOML document against the contract and build a :class:`WeftProblem`.
+
+    ``source`` names the document in messages (its file) and gives the default ``name``."""
+    top = Table(doc, source, "")
+    name = top.string("name", Path(source).stem)
     description = top.string("description", "")
     top.string("model", "weft", choices=("weft",))
     fab = top.table("fabric", required=True)
@@ -158,7 +160,7 @@ def parse_problem(path: Path | str, doc: dict[str, Any]) -> WeftProblem:
     solver = _read_solver(top.table("solver"))
     top.finish()
     return WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
-                       clamps, loads, rigid, reduction, solver, str(path))
+                       clamps, loads, rigid, reduction, solver, str(source))
 
 
 def _read_loop(tab: Table) -> tuple[NaturalLoop, int, str, Table]:
@@ -306,7 +308,7 @@ def _check_overconstraint(top: Table, clamps: tuple[Clamp, ...], rigid: tuple[Ri
                 hold(f"rigid_clamp[{k + 1}]", f"points[{q + 1}]", loop, s, label, dof)
 
 
-def _read_reduction(top: Table, m: int, n: int) -> Reduction:
+def _read_reduction(top: Table, m: int, n: int) -> Reduced:
     tab = top.table("reduction")
     courses = tab.integers("representative_courses", [1, m] if m > 1 else [1])
     wales = tab.integers("representative_wales", [1, n] if n > 1 else [1])
@@ -317,12 +319,13 @@ def _read_reduction(top: Table, m: int, n: int) -> Reduction:
         if any(b <= a for a, b in zip(values[:-1], values[1:])):
             raise tab.error(key, "must be strictly increasing")
     tab.finish()
-    return Reduction(tuple(courses), tuple(wales))
+    return Reduced(tuple(courses), tuple(wales))
 
 
 def _read_solver(tab: Table) -> SolverOptions:
-    tol = tab.number("tol", 1e-8, positive=True)
-    max_iter = tab.integer("max_iter", 3000, minimum=1)
-    steps = tab.integer("continuation", None, minimum=1)
+    d = SolverOptions()
+    tol = tab.number("tol", d.tol, positive=True)
+    max_iter = tab.integer("max_iter", d.max_iter, minimum=1)
+    steps = tab.integer("continuation", d.continuation, minimum=1)
     tab.finish()
     return SolverOptions(tol, max_iter, steps)

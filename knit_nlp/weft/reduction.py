@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from .basis import n_coeffs
-from .problem import Reduction, WeftProblem
+from .parametrisation import Reduced
+from .problem import WeftProblem
 
 
 def hat_weights(index: int, reps: tuple[int, ...]) -> np.ndarray:
@@ -27,16 +28,9 @@ def hat_weights(index: int, reps: tuple[int, ...]) -> np.ndarray:
     return np.array([np.interp(index, reps, eye[r]) for r in range(len(reps))])
 
 
-def default_reduction(pr: WeftProblem) -> Reduction:
-    """The paper's corner form: representatives at the first and last course and wale."""
-    courses = (1, pr.courses) if pr.courses > 1 else (1,)
-    wales = (1, pr.wales) if pr.wales > 1 else (1,)
-    return Reduction(courses, wales)
-
-
-def reduction_map(pr: WeftProblem) -> np.ndarray:
+def reduction_map(pr: WeftProblem, reduced: Reduced) -> np.ndarray:
     """T with vec(coeffs) = T·z, coeffs (2t+2 × N) column-major by loop k = (i−1)·n + (j−1)."""
-    red = pr.reduction or default_reduction(pr)
+    red = reduced.resolve(pr.courses, pr.wales)
     m, n, t, L = pr.courses, pr.wales, pr.t, pr.L
     nc, p, q = n_coeffs(t), len(red.courses), len(red.wales)
     nz = p * q * 2 * t + 2 * p

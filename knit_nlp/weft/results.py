@@ -1,134 +1,250 @@
-"""Reading a solved NLP: the contract's result JSON and the sampled centrelines (NPZ)."""
+"""A solved weft model as a typed result: energies, clamp reactions, loops, and the contract's
+result JSON (``to_json``, its only producer) and files (``save``).
+
+Sign convention (eqs. 13, 18-19 with clamp rows g = P − target): CasADi's multipliers make
+∇f + Jᵀλ = 0, so the force a clamp applies to the fabric, which balances the elastic force
+−∂U/∂P, is −λ. Clamps, loads and rigid clamps are numbered from 1 in ``number``.
+"""
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..jsonio import write_json
-from .basis import n_coeffs, phi
+from ..jsonio import write_json, write_npz
+from ..outcome import Energy, Outcome
+from .basis import phi
 from .nlp import WeftNLP
+from .params import WeftParams
 from .problem import WeftProblem
-from .quadrature import positions
+from .sampling import SAMPLES, natural_centrelines, solution_centrelines
 from .solve import SolveReport
 
 
-def clamp_reactions(wnlp: WeftNLP, lam_g: np.ndarray) -> list[tuple[np.ndarray, float | None]]:
-    """(force, moment) the clamps apply to the fabric: minus the constraint multipliers.
+@dataclass(frozen=True)
+class ClampReaction:
+    """One clamp after the solve: where its point ended, its target and the clamp's force
+    (and moment, for an angle clamp) on the fabric."""
 
-    CasADi's multipliers make ∇f + Jᵀλ = 0 with rows g = P − target, so the clamp's force on
-    the fabric, which balances the elastic force −∂U/∂P, is −λ.
+    number: int
+    loop: tuple[int, int]
+    point: str | float
+    position: np.ndarray
+    target: np.ndarray
+    fix: tuple[str, ...]
+    reaction: np.ndarray
+    angle: float | None = None
+    reaction_moment: float | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"loop": list(self.loop), "point": self.point, "position": self.position.tolist(),
+               "reaction": self.reaction.tolist(), "target": self.target.tolist(),
+               "fix": list(self.fix)}
+        if self.angle is not None:
+            out.update(angle=self.angle, reaction_moment=self.reaction_moment)
+        return out
+
+
+@dataclass(frozen=True)
+class RigidClampReaction:
+    """One rigid clamp: its points' positions and reactions, its motion, the total force and
+    the moment of the reactions about the moved centre."""
+
+    number: int
+    points: tuple[tuple[tuple[int, int], str | float], ...]
+    positions: np.ndarray            # (k, 2)
+    reactions: np.ndarray            # (k, 2)
+    translation: np.ndarray
+    rotation: float
+    centre: np.ndarray
+
+    @property
+    def force(self) -> np.ndarray:
+        return self.reactions.sum(axis=0)
+
+    @property
+    def moment(self) -> float:
+        arm = self.positions - (self.centre + self.translation)
+        return float(np.sum(arm[:, 0] * self.reactions[:, 1] - arm[:, 1] * self.reactions[:, 0]))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"points": [{"loop": list(lp), "point": label, "position": pos.tolist(),
+                            "reaction": f.tolist()}
+                           for (lp, label), pos, f in zip(self.points, self.positions,
+                                                           self.reactions)],
+                "translation": self.translation.tolist(), "rotation": self.rotation,
+                "centre": self.centre.tolist(), "force": self.force.tolist(),
+                "moment": self.moment}
+
+
+@dataclass(frozen=True)
+class LoadResult:
+    """One point load and where its point ended."""
+
+    number: int
+    loop: tuple[int, int]
+    point: str | float
+    force: np.ndarray
+    moment: float
+    position: np.ndarray
+
+    def to_json(self) -> dict[str, Any]:
+        return {"loop": list(self.loop), "point": self.point, "force": self.force.tolist(),
+                "moment": self.moment, "position": self.position.tolist()}
+
+
+@dataclass(repr=False)
+class WeftResult(Outcome):
+    """A solved weft model (full or reduced) at parameters ``params``.
+
+    SciPy-like: ``success``, ``status`` (IPOPT's text; also ``message``), ``nit``, ``x`` (the
+    NLP's solution vector), ``fun`` (the minimised ``total − load_work``).
     """
-    out = []
-    for q, c in enumerate(wnlp.problem.clamps):
-        force = np.zeros(2)
-        name = f"clamp{q}_pos"
-        if name in wnlp.g.blocks:
-            force[[d for d in range(2) if c.fix[d]]] = -lam_g[wnlp.g.slice(name)]
-        moment = None
-        if c.angle is not None:
-            moment = float(-lam_g[wnlp.g.slice(f"clamp{q}_angle")][0])
-        out.append((force, moment))
-    return out
 
+    nlp: WeftNLP
+    report: SolveReport
+    params: WeftParams
+    build_s: float
+    violation: float
+    extra: dict[str, Any] = field(default_factory=dict)
 
-def rigid_clamp_results(wnlp: WeftNLP, x: np.ndarray, lam_g: np.ndarray,
-                        p: np.ndarray) -> list[dict[str, Any]]:
-    """Per rigid clamp: its points' positions and reactions, the total force, and the moment of
-    the reactions about the moved centre."""
-    out = []
-    pc = wnlp.x.get(x, "PC") if wnlp.specials else np.zeros((2, 0))
-    par = wnlp.p.get(p, "rigid")
-    for q, (rc, idx) in enumerate(zip(wnlp.problem.rigid_clamps, wnlp.rigid_points)):
-        forces = -lam_g[wnlp.g.slice(f"rigid{q}")].reshape(2, -1, order="F")
-        pos = pc[:, idx]
-        centre = rc.centre + par[:2, q]
-        arm = pos - centre[:, None]
-        out.append({"points": [{"loop": list(lp), "point": label, "position": pos[:, k].tolist(),
-                                "reaction": forces[:, k].tolist()}
-                               for k, (lp, label, _) in enumerate(rc.points)],
-                    "translation": par[:2, q].tolist(), "rotation": float(par[2, q]),
-                    "centre": rc.centre.tolist(), "force": forces.sum(axis=1).tolist(),
-                    "moment": float(np.sum(arm[0] * forces[1] - arm[1] * forces[0]))})
-    return out
+    @property
+    def problem(self) -> WeftProblem:
+        return self.nlp.problem
 
+    @property
+    def model(self) -> str:
+        return self.nlp.model
 
-def result_dict(wnlp: WeftNLP, rep: SolveReport, violation: float, build_s: float,
-                extra: dict[str, Any] | None = None, p: np.ndarray | None = None) -> dict[str, Any]:
-    """The contract's result JSON (spec/problem_files.md) plus documented extensions, for a
-    solution at parameters ``p`` (the problem's own by default)."""
-    pr = wnlp.problem
-    p = wnlp.p0 if p is None else p
-    spring, bending, work = (float(v) for v in wnlp.energy(rep.x, p))
-    coeffs, starts = wnlp.coefficients(rep.x), wnlp.starts(rep.x)
-    pc = wnlp.x.get(rep.x, "PC") if wnlp.specials else np.zeros((2, 0))
-    clamps = []
-    targets = wnlp.p.get(p, "targets")
-    for q_c, (c, q, (force, moment)) in enumerate(zip(pr.clamps, wnlp.clamp_points,
-                                                       clamp_reactions(wnlp, rep.lam_g))):
-        entry: dict[str, Any] = {"loop": list(c.loop), "point": c.point,
-                                 "position": pc[:, q].tolist(), "reaction": force.tolist(),
-                                 "target": targets[:, q_c].tolist(),
-                                 "fix": [d for d, f in zip("xy", c.fix) if f]}
-        if c.angle is not None:
-            k = (c.loop[0] - 1, c.loop[1] - 1)
-            entry["angle"] = float(phi(c.s, pr.L, pr.t)[0] @ coeffs[k])
-            entry["reaction_moment"] = moment
-        clamps.append(entry)
-    result = {
-        "problem": pr.name, "model": "reduced" if wnlp.reduced else "full",
-        "success": rep.success, "status": rep.status,
-        "energy": {"total": spring + bending, "spring": spring, "bending": bending,
-                   "load_work": work},
-        "n_parameters": wnlp.n_parameters, "n_variables": wnlp.n_variables,
-        "n_constraints": wnlp.n_constraints, "iterations": rep.iterations,
-        "max_constraint_violation": violation,
-        "timings": {"build_s": build_s, "solve_s": rep.solve_s,
-                    "profile": {k.removeprefix("t_wall_"): v for k, v in sorted(rep.stats.items())}},
-        "continuation_steps": rep.continuation_steps, "attempts": rep.attempts,
-        "clamps": clamps,
-        "loads": [{"loop": list(ld.loop), "point": ld.point, "force": ld.force.tolist(),
-                   "moment": ld.moment, "position": pc[:, q].tolist()}
-                  for ld, q in zip(pr.loads, wnlp.load_points)],
-        "rigid_clamps": rigid_clamp_results(wnlp, rep.x, rep.lam_g, p),
-        "loops": {"course_starts": starts[:, 0].tolist(), "coefficients": coeffs.tolist()},
-    }
-    result.update(extra or {})
-    return result
+    @property
+    def success(self) -> bool:      # type: ignore[override]
+        return self.report.success
 
+    @property
+    def status(self) -> str:        # type: ignore[override]
+        return self.report.status
 
-def centrelines(coeffs: np.ndarray, starts: np.ndarray, L: float, t: int,
-                samples: int = 61) -> tuple[np.ndarray, np.ndarray]:
-    """Sampled centrelines (m, n, samples, 2) of every loop and the s-values used."""
-    m, n = coeffs.shape[:2]
-    s = np.linspace(0.0, L, samples)
-    disp = positions(coeffs.reshape(m * n, n_coeffs(t)), s, L, t).reshape(m, n, samples, 2)
-    return disp + starts[:, :, None, :], s
+    @property
+    def iterations(self) -> int:
+        return self.report.iterations
 
+    @property
+    def x(self) -> np.ndarray:
+        return self.report.x
 
-def natural_centrelines(pr: WeftProblem, samples: int = 61) -> np.ndarray:
-    """Sampled centrelines (m, n, samples, 2) of the natural configuration."""
-    coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, n_coeffs(pr.t)))
-    return centrelines(coeffs, pr.natural_starts(), pr.L, pr.t, samples)[0]
+    @property
+    def fun(self) -> float:
+        return self.report.objective
 
+    @cached_property
+    def energy(self) -> Energy:
+        spring, bending, work = (float(v) for v in self.nlp.energy(self.x, self.params.vector()))
+        return Energy(spring + bending, spring, bending, work)
 
-def solution_centrelines(wnlp: WeftNLP, x: np.ndarray, samples: int = 61) -> np.ndarray:
-    """Sampled centrelines (m, n, samples, 2) of a solution vector."""
-    pr = wnlp.problem
-    return centrelines(wnlp.coefficients(x), wnlp.starts(x), pr.L, pr.t, samples)[0]
+    @property
+    def timings(self) -> dict[str, Any]:
+        return {"build_s": self.build_s, "solve_s": self.report.solve_s,
+                "profile": {k.removeprefix("t_wall_"): v
+                            for k, v in sorted(self.report.stats.items())}}
 
+    @property
+    def coefficients(self) -> np.ndarray:
+        """Loop coefficients (m, n, 2t+2)."""
+        return self.nlp.coefficients(self.x)
 
-def write_arrays(path: Path, wnlp: WeftNLP, x: np.ndarray, natural: np.ndarray,
-                 deformed: np.ndarray) -> Path:
-    """NPZ beside the JSON: s, natural and deformed centrelines, coefficients, starts."""
-    s = np.linspace(0.0, wnlp.problem.L, deformed.shape[2])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, s=s, natural=natural, deformed=deformed,
-                        coefficients=wnlp.coefficients(x), starts=wnlp.starts(x))
-    return path
+    @property
+    def starts(self) -> np.ndarray:
+        """Loop start points (m, n, 2)."""
+        return self.nlp.starts(self.x)
 
+    def _points(self) -> np.ndarray:
+        """Positions (2, k) of the lifted clamped and loaded points."""
+        return self.nlp.x.get(self.x, "PC") if self.nlp.specials else np.zeros((2, 0))
 
-def write_result(out_dir: Path, wnlp: WeftNLP, result: dict[str, Any]) -> Path:
-    """``DIR/<problem>.<model>.json``."""
-    return write_json(out_dir / f"{wnlp.problem.name}.{result['model']}.json", result)
+    @cached_property
+    def clamps(self) -> list[ClampReaction]:
+        pr, lam, pc = self.problem, self.report.lam_g, self._points()
+        out = []
+        for q, (c, sp, rows) in enumerate(zip(pr.clamps, self.nlp.clamp_points,
+                                              self.nlp.clamp_rows)):
+            force = np.zeros(2)
+            if rows.position is not None:
+                force[list(rows.dims)] = -lam[rows.position]
+            angle = moment = None
+            if rows.angle is not None:
+                k = (c.loop[0] - 1, c.loop[1] - 1)
+                angle = float(phi(c.s, pr.L, pr.t)[0] @ self.coefficients[k])
+                moment = float(-lam[rows.angle][0])
+            out.append(ClampReaction(q + 1, c.loop, c.point, pc[:, sp].copy(),
+                                     self.params.targets[q].copy(),
+                                     tuple(d for d, f in zip("xy", c.fix) if f), force,
+                                     angle, moment))
+        return out
+
+    @cached_property
+    def rigid_clamps(self) -> list[RigidClampReaction]:
+        pc, out = self._points(), []
+        for q, (rc, idx, rows) in enumerate(zip(self.problem.rigid_clamps, self.nlp.rigid_points,
+                                                self.nlp.rigid_rows)):
+            forces = -self.report.lam_g[rows].reshape(2, -1, order="F")
+            motion = self.params.rigid[q]
+            out.append(RigidClampReaction(q + 1, tuple((lp, label) for lp, label, _ in rc.points),
+                                          pc[:, idx].T.copy(), forces.T.copy(), motion[:2].copy(),
+                                          float(motion[2]), rc.centre.copy()))
+        return out
+
+    @cached_property
+    def loads(self) -> list[LoadResult]:
+        pc = self._points()
+        return [LoadResult(q + 1, ld.loop, ld.point, self.params.forces[q].copy(),
+                           float(self.params.moments[q]), pc[:, sp].copy())
+                for q, (ld, sp) in enumerate(zip(self.problem.loads, self.nlp.load_points))]
+
+    def centrelines(self, samples: int = SAMPLES) -> np.ndarray:
+        """Sampled deformed centrelines (m, n, samples, 2)."""
+        return solution_centrelines(self.nlp, self.x, samples)
+
+    def natural_centrelines(self, samples: int = SAMPLES) -> np.ndarray:
+        """Sampled natural centrelines (m, n, samples, 2)."""
+        return natural_centrelines(self.problem, samples)
+
+    def _repr_fields(self) -> dict[str, object]:
+        return {"model": self.model, "n_parameters": self.nlp.n_parameters,
+                "reactions": [c.reaction.round(6).tolist() for c in self.clamps]}
+
+    def to_json(self) -> dict[str, Any]:
+        """The contract's result JSON (README, "Result JSON") with its documented extensions."""
+        rep = self.report
+        result = {
+            "problem": self.problem.name, "model": self.model,
+            "success": self.success, "status": self.status,
+            "energy": self.energy.to_json(),
+            "n_parameters": self.nlp.n_parameters, "n_variables": self.nlp.n_variables,
+            "n_constraints": self.nlp.n_constraints, "iterations": rep.iterations,
+            "max_constraint_violation": self.violation,
+            "timings": self.timings,
+            "continuation_steps": rep.continuation_steps, "attempts": rep.attempts,
+            "clamps": [c.to_json() for c in self.clamps],
+            "loads": [ld.to_json() for ld in self.loads],
+            "rigid_clamps": [r.to_json() for r in self.rigid_clamps],
+            "loops": {"course_starts": self.starts[:, 0].tolist(),
+                      "coefficients": self.coefficients.tolist()},
+        }
+        result.update(self.extra)
+        return result
+
+    def save(self, out_dir: Path | str, samples: int = SAMPLES) -> list[Path]:
+        """``DIR/<problem>.<model>.json``, ``.npz`` (s, natural and deformed centrelines,
+        coefficients, starts) and ``.png``, as ``knit-nlp solve`` writes them."""
+        from .plot import plot_solution
+        stem = Path(out_dir) / f"{self.problem.name}.{self.model}"
+        js = write_json(stem.with_name(stem.name + ".json"), self.to_json())
+        natural, deformed = self.natural_centrelines(samples), self.centrelines(samples)
+        npz = write_npz(stem.with_name(stem.name + ".npz"),
+                        s=np.linspace(0.0, self.problem.L, samples), natural=natural,
+                        deformed=deformed, coefficients=self.coefficients, starts=self.starts)
+        png = plot_solution(stem.with_name(stem.name + ".png"), self, natural, deformed)
+        return [js, npz, png]

@@ -19,11 +19,10 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .basis import n_coeffs, phi
+from ..ipopt import ipopt_options, succeeded
+from .guesses import needs_perturbation, perturbed_starts
 from .nlp import WeftNLP
-from .quadrature import positions
-
-SUCCESS = "Solve_Succeeded"
+from .params import WeftParams
 
 
 @dataclass
@@ -57,13 +56,11 @@ class WeftSolver:
         opts = wnlp.problem.solver
         self.wnlp = wnlp
         t0 = time.perf_counter()
-        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, {
-            "print_time": False,
-            "ipopt": {"tol": tol or opts.tol, "max_iter": max_iter or opts.max_iter,
-                      "print_level": print_level, "sb": "yes", "linear_solver": "mumps",
-                      # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of
-                      # IPOPT's own time and the KKT systems here are well scaled without them
-                      "mumps_scaling": 0, "mumps_permuting_scaling": 0}})
+        # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of IPOPT's own
+        # time and the KKT systems here are well scaled without them
+        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, ipopt_options(
+            tol or opts.tol, max_iter or opts.max_iter, print_level,
+            mumps_scaling=0, mumps_permuting_scaling=0))
         self.setup_s = time.perf_counter() - t0
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
 
@@ -73,7 +70,7 @@ class WeftSolver:
         sol = self.solver(x0=x0, p=p, lbg=0.0, ubg=0.0)
         stats = self.solver.stats()
         status = str(stats["return_status"])
-        return SolveReport(status == SUCCESS, status, np.asarray(sol["x"]).ravel(),
+        return SolveReport(succeeded(status), status, np.asarray(sol["x"]).ravel(),
                            np.asarray(sol["lam_g"]).ravel(), float(sol["f"]),
                            int(stats["iter_count"]), time.perf_counter() - t0,
                            stats={k: float(v) for k, v in stats.items() if k.startswith("t_wall")})
@@ -86,7 +83,7 @@ class WeftSolver:
     def continuation(self, p: np.ndarray, x0: np.ndarray, steps: int,
                      max_halvings: int = 6) -> SolveReport:
         """Step the parameters from their natural values to ``p``, warm-starting each solve."""
-        p_nat = natural_parameters(self.wnlp)
+        p_nat = WeftParams.natural(self.wnlp.problem).vector()
         x, tau, dtau = x0, 0.0, 1.0 / steps
         total = SolveReport(False, "", x0, np.zeros(self.wnlp.n_constraints), np.nan, 0, 0.0)
         halvings = 0
@@ -108,60 +105,12 @@ class WeftSolver:
         return total
 
 
-def natural_parameters(wnlp: WeftNLP) -> np.ndarray:
-    """Parameters that leave the natural configuration in equilibrium: clamp targets at the
-    natural positions, clamp angles at the natural angles, loads zero; stiffnesses unchanged."""
-    pr, pl = wnlp.problem, wnlp.p
-    p = wnlp.p0.copy()
-    pl.put(p, "targets", np.array([pr.natural_position(c.loop, c.s) for c in pr.clamps]).T.reshape(2, -1))
-    pl.put(p, "angles", [float(phi(c.s, pr.L, pr.t)[0] @ pr.natural.coeffs)
-                         for c in pr.clamps if c.angle is not None])
-    pl.put(p, "forces", np.zeros(pl.get(p, "forces").shape))
-    pl.put(p, "moments", np.zeros(pl.get(p, "moments").shape))
-    pl.put(p, "rigid", np.zeros(pl.get(p, "rigid").shape))
-    return p
-
-
-def perturbed_starts(wnlp: WeftNLP, amplitude: float = 0.05) -> list[tuple[str, np.ndarray]]:
-    """Smooth low-mode perturbations of the natural shape, as decision vectors.
-
-    Along each course (global arc length S in [0, ℓ], ℓ = n·L) θ gets + ε·f(πS/ℓ) with f one of
-    cos, sin and their second harmonics; each loop's share is fitted to the basis by least
-    squares and the loop starts are re-chained so the start is consistent.
-    """
-    pr = wnlp.problem
-    m, n, L, t = pr.courses, pr.wales, pr.L, pr.t
-    ell = n * L
-    s = np.linspace(0.0, L, 8 * n_coeffs(t))
-    basis = phi(s, L, t)
-    out = []
-    for name, f in (("cos1", lambda u: np.cos(u)), ("sin1", lambda u: np.sin(u)),
-                    ("cos2", lambda u: np.cos(2 * u)), ("sin2", lambda u: np.sin(2 * u))):
-        coeffs = np.broadcast_to(pr.natural.coeffs, (m, n, n_coeffs(t))).copy()
-        for j in range(n):
-            fit, *_ = np.linalg.lstsq(basis, amplitude * f(np.pi * (j * L + s) / ell), rcond=None)
-            coeffs[:, j] += fit
-        starts = pr.natural_starts().copy()
-        ends = positions(coeffs.reshape(-1, n_coeffs(t)), [L], L, t).reshape(m, n, 2)
-        for j in range(1, n):
-            starts[:, j] = starts[:, j - 1] + ends[:, j - 1]
-        out.append((name, wnlp.lift(coeffs, starts)))
-    return out
-
-
-def needs_perturbation(wnlp: WeftNLP, p: np.ndarray) -> bool:
-    """A straight natural yarn with any clamp moved off its natural position (or any load) is
-    degenerate at parameters p."""
-    if not wnlp.problem.natural.is_straight:
-        return False
-    return not np.allclose(natural_parameters(wnlp), p)
-
-
-def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, p: np.ndarray | None = None,
+def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, params: WeftParams | None = None,
           x0: np.ndarray | None = None, continuation: int | None = None) -> SolveReport:
-    """Solve robustly: direct, then continuation; from perturbed starts where degenerate."""
+    """Solve robustly at ``params`` (the problem's own by default): direct, then continuation;
+    from perturbed starts where degenerate."""
     solver = solver or WeftSolver(wnlp)
-    p = wnlp.p0 if p is None else p
+    p = (params or wnlp.params).vector()
     continuation = continuation or wnlp.problem.solver.continuation
     if needs_perturbation(wnlp, p) and x0 is None:
         return _best_of_perturbed(wnlp, solver, p, continuation)

@@ -20,7 +20,9 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..results import result_dict, solution_centrelines
+from ..params import WeftParams
+from ..results import WeftResult
+from ..sampling import solution_centrelines
 from ..solve import SolveReport
 from .equilibrium import Equilibrium, Stability
 from .points import point_function, point_jacobian
@@ -265,4 +267,5 @@ def answer_dict(ans: ControlAnswer) -> dict:
             "stability_method": ans.stability.method,
             "forward_check": {"success": ans.forward_success, "max_distance": ans.forward_distance},
             "travel_weight": cp.travel_weight,
-            "equilibrium": result_dict(eq.wnlp, rep, eq.solver.violation(rep.x, ans.p), eq.build_s, p=ans.p)}
+            "equilibrium": WeftResult(eq.wnlp, rep, WeftParams.from_vector(cp.problem, ans.p), eq.build_s,
+                                      eq.solver.violation(rep.x, ans.p)).to_json()}

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..nlp import WeftNLP, build_nlp
 from ..problem import WeftProblem
+from ..params import WeftParams
 from ..solve import SolveReport, WeftSolver, solve
 
 SHIFT = -1e-6               # σ of the shift-invert Lanczos: just below zero
@@ -74,7 +75,7 @@ class Equilibrium:
     def solve(self, p: np.ndarray, x0: np.ndarray | None = None) -> SolveReport:
         """The forward solve at parameters p (direct, then continuation; see weft.solve)."""
         self.forward_solves += 1
-        return solve(self.wnlp, self.solver, p=p, x0=x0)
+        return solve(self.wnlp, self.solver, params=WeftParams.from_vector(self.problem, p), x0=x0)
 
     def kkt(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray) -> tuple[ca.DM, ca.DM]:
         """The KKT matrix K = ∂F/∂(x, λ) and ∂F/∂p at a solution."""

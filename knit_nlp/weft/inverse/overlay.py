@@ -92,7 +92,7 @@ def load_result(path: Path) -> SolvedShape:
 
 
 def point_reader(problem_path: Path) -> tuple[_PointReader, WeftProblem]:
-    pr = parse_problem(problem_path, strip_control_keys(load_toml(problem_path)))
+    pr = parse_problem(strip_control_keys(load_toml(problem_path)), problem_path)
     return _PointReader(pr.courses, pr.wales, pr.natural, pr.crossings), pr
 
 

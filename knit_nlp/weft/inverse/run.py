@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from ...jsonio import write_json
-from ..results import natural_centrelines, solution_centrelines
+from ..sampling import natural_centrelines, solution_centrelines
 from ...errors import ProblemError
 from ...tomlio import load_toml
 from ..problem import parse_problem
@@ -69,7 +69,7 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
         raise ProblemError("--params", "", " ".join(params), f"choose distinct values among {', '.join(MATERIAL)}")
     problems = {}
     for path in paths:
-        pr = parse_problem(path, strip_control_keys(load_toml(path)))
+        pr = parse_problem(strip_control_keys(load_toml(path)), path)
         if pr.name in problems:
             raise ProblemError(path, "", "name", f"two load cases are named {pr.name!r}")
         problems[pr.name] = pr

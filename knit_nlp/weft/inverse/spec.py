@@ -103,7 +103,7 @@ def load_control(path: Path | str) -> ControlProblem:
 
 def parse_control(path: Path | str, doc: dict[str, Any]) -> ControlProblem:
     """Check the control keys and the forward problem; bad input raises ProblemError."""
-    pr = parse_problem(path, strip_control_keys(doc))
+    pr = parse_problem(strip_control_keys(doc), path)
     top = Table(doc, path, "")
     actuated = [a for k, t in enumerate(top.tables("clamp")) if (a := _read_actuated_clamp(t, k, pr))]
     actuated += [a for k, t in enumerate(top.tables("rigid_clamp")) if (a := _read_actuated_rigid(t, k, pr))]

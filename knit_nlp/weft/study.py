@@ -1,8 +1,9 @@
 """Studies: one NLP built once and re-solved for many clamp targets or material values.
 
-- :class:`WeftStudy` builds a weft problem's NLP once; :meth:`WeftStudy.params` turns named
-  changes (clamp targets or displacements, rigid-clamp motions, material values, loads) into the
-  NLP's parameter vector; :meth:`WeftStudy.solve` re-solves, warm-started from a given point.
+- :class:`WeftStudy` builds a weft problem's NLP once; ``study.params`` is the problem's
+  :class:`~knit_nlp.weft.params.WeftParams`, whose ``with_`` names changes (clamp targets or
+  displacements, rigid-clamp motions, material values, loads; numbered from 1);
+  :meth:`WeftStudy.solve` re-solves, warm-started from a given point.
 - :func:`run_study` runs named loading paths: points along one path run in order, each
   warm-started from the last; independent paths run in parallel processes. Each point's result
   is cached under ``results/<study>/points/``, so an interrupted study resumes where it stopped;
@@ -11,7 +12,6 @@
 """
 from __future__ import annotations
 
-import csv
 import hashlib
 import json
 import multiprocessing as mp
@@ -25,71 +25,40 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from .jsonio import write_json
-from .weft.nlp import build_nlp
-from .weft.problem import WeftProblem, parse_problem
-from .weft.results import result_dict
-from .weft.solve import SolveReport, WeftSolver, solve
+from ..jsonio import write_json
+from .nlp import build_nlp
+from .params import WeftParams
+from .parametrisation import Full, Parametrisation
+from .problem import WeftProblem, parse_problem
+from .results import WeftResult
+from .solve import SolveReport, WeftSolver, solve
 
 
 class WeftStudy:
     """A weft problem's NLP, built once and re-solved for many parameter values."""
 
-    def __init__(self, problem: WeftProblem, reduced: bool = False) -> None:
+    def __init__(self, problem: WeftProblem, parametrisation: Parametrisation = Full()) -> None:
         t0 = time.perf_counter()
         self.problem = problem
-        self.wnlp = build_nlp(problem, reduced=reduced)
-        self.solver = WeftSolver(self.wnlp)
+        self.nlp = build_nlp(problem, parametrisation)
+        self.solver = WeftSolver(self.nlp)
         self.build_s = time.perf_counter() - t0
         self.builds = 1
 
-    def params(self, targets: Mapping[int, Sequence[float]] | None = None,
-               displacements: Mapping[int, Sequence[float]] | None = None,
-               rigid: Mapping[int, Sequence[float]] | None = None,
-               material: Mapping[str, float] | None = None,
-               forces: Mapping[int, Sequence[float]] | None = None,
-               moments: Mapping[int, float] | None = None) -> np.ndarray:
-        """The parameter vector with the problem's values changed where named.
+    @property
+    def params(self) -> WeftParams:
+        """The problem's own parameter values; change them with ``with_(...)``."""
+        return self.nlp.params
 
-        ``targets`` / ``displacements``: clamp index -> absolute target / displacement from the
-        natural position; ``rigid``: rigid-clamp index -> (tx, ty, rotation); ``material``:
-        any of k_a, k_b, R_f; ``forces`` / ``moments``: load index -> value.
-        """
-        pr, pl = self.problem, self.wnlp.p
-        p = self.wnlp.p0.copy()
-        tgt = pl.get(p, "targets")
-        for k, v in (targets or {}).items():
-            tgt[:, int(k)] = v
-        for k, v in (displacements or {}).items():
-            c = pr.clamps[int(k)]
-            tgt[:, int(k)] = pr.natural_position(c.loop, c.s) + np.asarray(v, dtype=float)
-        pl.put(p, "targets", tgt)
-        rig = pl.get(p, "rigid")
-        for k, v in (rigid or {}).items():
-            rig[:, int(k)] = v
-        pl.put(p, "rigid", rig)
-        for name, v in (material or {}).items():
-            if name not in ("k_a", "k_b", "R_f"):
-                raise KeyError(f"unknown material value {name!r}")
-            pl.put(p, name, v)
-        f = pl.get(p, "forces")
-        for k, v in (forces or {}).items():
-            f[:, int(k)] = v
-        pl.put(p, "forces", f)
-        mo = pl.get(p, "moments").ravel()
-        for k, v in (moments or {}).items():
-            mo[int(k)] = v
-        pl.put(p, "moments", mo)
-        return p
-
-    def solve(self, p: np.ndarray, x0: np.ndarray | None = None) -> SolveReport:
-        """Solve at parameters ``p`` from ``x0`` (the natural state if None); falls back to
+    def solve(self, params: WeftParams, x0: np.ndarray | None = None) -> SolveReport:
+        """Solve at ``params`` from ``x0`` (the natural state if None); falls back to
         continuation from the natural parameters when the direct solve fails."""
-        return solve(self.wnlp, self.solver, p=p, x0=x0)
+        return solve(self.nlp, self.solver, params=params, x0=x0)
 
-    def result(self, rep: SolveReport, p: np.ndarray) -> dict[str, Any]:
-        """The contract's result JSON for a solution at parameters ``p``."""
-        return result_dict(self.wnlp, rep, self.solver.violation(rep.x, p), self.build_s, p=p)
+    def result(self, rep: SolveReport, params: WeftParams) -> WeftResult:
+        """The typed result of a solution at ``params``."""
+        return WeftResult(self.nlp, rep, params, self.build_s,
+                          self.solver.violation(rep.x, params.vector()))
 
 
 @dataclass
@@ -97,19 +66,21 @@ class LoadPath:
     """Points solved in order, each warm-started from the last, on one problem.
 
     ``doc`` is the problem as a TOML-like dict (plain data, so it travels to worker processes);
-    each point is a dict of :meth:`WeftStudy.params` keyword arguments (JSON-able).
+    each point is a dict of :meth:`WeftParams.with_` keyword arguments (JSON-able; clamps,
+    loads and rigid clamps numbered from 1).
     """
 
     name: str
     doc: dict[str, Any]
     points: list[dict[str, Any]]
-    reduced: bool = False
+    parametrisation: Parametrisation = Full()
     labels: list[Any] = field(default_factory=list)
 
 
 def _key(path: LoadPath, index: int) -> str:
     """A hash of everything that determines a point: problem, model and the path up to it."""
-    blob = json.dumps([path.doc, path.reduced, path.points[:index + 1]], sort_keys=True, default=str)
+    blob = json.dumps([path.doc, repr(path.parametrisation), path.points[:index + 1]],
+                      sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -149,10 +120,11 @@ def run_path(path: LoadPath, cache: Path, limit: int | None = None,
             if limit is not None and new >= limit:
                 break
             if study is None:
-                study = WeftStudy(parse_problem(f"<study {path.name}>", path.doc), path.reduced)
-            p = study.params(**path.points[index])
+                study = WeftStudy(parse_problem(path.doc, f"<study {path.name}>"),
+                                  path.parametrisation)
+            p = study.params.with_(**path.points[index])
             rep = study.solve(p, x0=x_prev)
-            result = study.result(rep, p)
+            result = study.result(rep, p).to_json()
             np.save(npy, rep.x)
             write_json(js, result)
             x_prev, new = rep.x, new + 1
@@ -167,15 +139,15 @@ def _worker(args: tuple[LoadPath, Path, int | None, Any]) -> list[dict[str, Any]
     return run_path(path, cache, limit, tick=(lambda: queue.put(1)) if queue is not None else None)
 
 
-def write_csv(path: Path, rows: Sequence[Mapping[str, Any]],
-              fields: Sequence[str] | None = None) -> Path:
-    """A study table as CSV (columns ``fields``, default the first row's keys)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(fields or rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    return path
+def print_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str, str]]) -> None:
+    """A study table on one screen: ``columns`` are (key, header, format spec); booleans print as
+    ``y`` / ``NO``."""
+    widths = [max(len(head) + 1, 7) for _, head, _ in columns]
+    print("".join(f"{head:>{w}}" for (_, head, _), w in zip(columns, widths)))
+    for r in rows:
+        cells = [("y" if r[key] else "NO") if isinstance(r[key], bool) else format(r[key], fmt)
+                 for key, _, fmt in columns]
+        print("".join(f"{c:>{w}}" for c, w in zip(cells, widths)))
 
 
 class Progress:

@@ -1,0 +1,50 @@
+"""How the loops' coefficients are parametrised: every loop free (:class:`Full`), or
+interpolated from representative loops (:class:`Reduced`, eqs. 22-27; the map is in
+``reduction``).
+
+Both are plain values: ``build_nlp(problem, Reduced((1, 5, 10), (1, 10)))``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Union
+
+
+@dataclass(frozen=True)
+class Full:
+    """Every loop's 2t+2 coefficients are decision variables (continuity as constraints)."""
+
+    name = "full"
+
+    def resolve(self, courses: int, wales: int) -> "Full":
+        return self
+
+
+@dataclass(frozen=True)
+class Reduced:
+    """Representative courses and wales (1-based, strictly increasing, from 1 to m and n).
+
+    ``None`` means the paper's corner form: the first and last course (wale).
+    """
+
+    courses: tuple[int, ...] | None = None
+    wales: tuple[int, ...] | None = None
+    name = "reduced"
+
+    def resolve(self, courses: int, wales: int) -> "Reduced":
+        """Concrete representatives for an m × n fabric (corners where not given), checked."""
+        reps = []
+        for given, last, what in ((self.courses, courses, "courses"), (self.wales, wales, "wales")):
+            values = tuple(int(v) for v in given) if given is not None else (
+                (1, last) if last > 1 else (1,))
+            if not values or values[0] != 1 or values[-1] != last:
+                raise ValueError(f"representative {what} must start at 1 and end at {last}; "
+                                 f"got {list(values)}")
+            if any(b <= a for a, b in zip(values[:-1], values[1:])):
+                raise ValueError(f"representative {what} must be strictly increasing; "
+                                 f"got {list(values)}")
+            reps.append(values)
+        return Reduced(*reps)
+
+
+Parametrisation = Union[Full, Reduced]

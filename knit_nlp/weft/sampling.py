@@ -1,0 +1,32 @@
+"""Sampled centrelines: each loop's points at evenly spaced s, from coefficients and starts (eq. 1)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .basis import n_coeffs
+from .nlp import WeftNLP
+from .problem import WeftProblem
+from .quadrature import positions
+
+SAMPLES = 61
+
+
+def centrelines(coeffs: np.ndarray, starts: np.ndarray, L: float, t: int,
+                samples: int = SAMPLES) -> tuple[np.ndarray, np.ndarray]:
+    """Sampled centrelines (m, n, samples, 2) of every loop and the s-values used."""
+    m, n = coeffs.shape[:2]
+    s = np.linspace(0.0, L, samples)
+    disp = positions(coeffs.reshape(m * n, n_coeffs(t)), s, L, t).reshape(m, n, samples, 2)
+    return disp + starts[:, :, None, :], s
+
+
+def natural_centrelines(pr: WeftProblem, samples: int = SAMPLES) -> np.ndarray:
+    """Sampled centrelines (m, n, samples, 2) of the natural configuration."""
+    coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, n_coeffs(pr.t)))
+    return centrelines(coeffs, pr.natural_starts(), pr.L, pr.t, samples)[0]
+
+
+def solution_centrelines(nlp: WeftNLP, x: np.ndarray, samples: int = SAMPLES) -> np.ndarray:
+    """Sampled centrelines (m, n, samples, 2) of a solution vector of an NLP."""
+    pr = nlp.problem
+    return centrelines(nlp.coefficients(x), nlp.starts(x), pr.L, pr.t, samples)[0]

@@ -1,0 +1,44 @@
+"""What ``knit-nlp solve`` and ``knit-nlp compare`` print for weft problems."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .api import Comparison
+from .results import WeftResult
+
+
+def solve_summary(r: WeftResult, paths: list[Path]) -> str:
+    """A few lines: status, energy, sizes, reactions, files written."""
+    e, nlp, t = r.energy, r.nlp, r.timings
+    lines = [f"{r.problem.name} ({r.model}): {r.status} in {r.iterations} iterations"
+             f" (build {t['build_s']:.2f} s, solve {t['solve_s']:.2f} s)",
+             f"  energy {e.total:.6g} = spring {e.spring:.6g} + bending {e.bending:.6g};"
+             f" load work {e.load_work:.6g}",
+             f"  {nlp.n_parameters} parameters, {nlp.n_variables} variables, "
+             f"{nlp.n_constraints} constraints, max violation {r.violation:.2e}"]
+    for c in r.clamps:
+        lines.append(f"  clamp {c.number} {list(c.loop)} {c.point}: reaction "
+                     f"({c.reaction[0]:.4g}, {c.reaction[1]:.4g})")
+    for rc in r.rigid_clamps:
+        lines.append(f"  rigid clamp {rc.number} ({len(rc.points)} points): force "
+                     f"({rc.force[0]:.4g}, {rc.force[1]:.4g}), moment {rc.moment:.4g}")
+    if not r.success:
+        lines.append("  NOT CONVERGED: " + "; ".join(r.report.attempts))
+    lines.append("  wrote " + ", ".join(str(p) for p in paths))
+    return "\n".join(lines)
+
+
+def compare_summary(cmp: Comparison, paths: list[Path]) -> str:
+    """One line per model, the distances, the speed ratio and the files written."""
+    lines = [f"{cmp.full.problem.name}: full vs reduced"]
+    for key, r in cmp.models().items():
+        lines.append(f"  {key:<24} {r.status:<18} params {r.nlp.n_parameters:>6}  energy "
+                     f"{r.energy.total:.6g}  iterations {r.iterations:>4}  build+solve "
+                     f"{r.build_s + r.report.solve_s:.3f} s")
+    lines.append(f"  centreline distance: max {cmp.distance_max:.4g}, rms {cmp.distance_rms:.4g}")
+    speed = cmp.speedup_reduced
+    pace = f"{speed:.1f}x faster" if speed >= 1 else f"{1 / speed:.1f}x slower"
+    lines.append(f"  reduced is {pace} than full (build + solve); energy gap (reduced - full) "
+                 f"{cmp.energy_gap:.4g}")
+    lines.append("  wrote " + ", ".join(str(p) for p in paths))
+    return "\n".join(lines)
