@@ -55,7 +55,8 @@ class Model:
 
 MODELS: dict[str, Model] = {
     "weft": Model("weft", parse_weft, _solve_weft, _compare_weft,
-                  ("reduced", "params", "continuation", "start", "warm_from_reduced")),
+                  ("reduced", "params", "continuation", "start", "warm_from_reduced",
+                   "verbose")),
     "jacquard": Model("jacquard", parse_jacquard, _solve_jacquard, None, ("solver",)),
 }
 

@@ -12,13 +12,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from . import __version__
 from .api import MODELS, load_problem, parse_problem
 from .errors import ProblemError
 from .problems import named_problems, resolve
+from .provenance import check_overwrite
+from .weft.export import EXPORTS
+from .weft.plot import COLOURINGS
 
 # CLI flag -> the model it applies to
 FLAGS = {"--reduced": "weft", "--full": "weft", "--continuation": "weft",
-         "--warm-from-reduced": "weft", "--solver": "jacquard", "--svg": "jacquard"}
+         "--warm-from-reduced": "weft", "--verbose": "weft", "--colour": "weft",
+         "--animate": "weft", "--export": "weft", "--solver": "jacquard", "--svg": "jacquard"}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -31,6 +36,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="knit-nlp", description="Mechanics of knitted fabrics as nonlinear programs.")
+    parser.add_argument("--version", action="version", version=f"knit-nlp {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     solve = sub.add_parser("solve", help="solve a problem file and write results")
     solve.add_argument("problem", help="a problem file, or the name of one in problems/")
@@ -42,12 +48,25 @@ def _parser() -> argparse.ArgumentParser:
                        help="weft: always reach the clamp targets in this many warm-started steps")
     solve.add_argument("--warm-from-reduced", action="store_true",
                        help="weft: start the full model from the lifted reduced solution")
+    solve.add_argument("--verbose", action="store_true",
+                       help="weft: show IPOPT's iterations on one updating line (stderr)")
+    solve.add_argument("--colour", choices=COLOURINGS, default=None,
+                       help="weft: colour the deformed loops by course (default) or by "
+                       "displacement magnitude")
+    solve.add_argument("--animate", action="store_true",
+                       help="weft: with a continuation, also write a GIF of the loading path")
+    solve.add_argument("--export", nargs="+", choices=EXPORTS, default=[],
+                       help="weft: also write the deformed centrelines as CSV and/or SVG")
+    solve.add_argument("--force", action="store_true",
+                       help="overwrite results of another problem in --out")
     solve.add_argument("--solver", choices=["static", "explicit"], default=None,
                        help="jacquard: override [solver] method")
     solve.add_argument("--svg", action="store_true", help="jacquard: also write an SVG picture")
     compare = sub.add_parser("compare", help="weft: solve full and reduced models and compare them")
     compare.add_argument("problem")
     compare.add_argument("--out", default="results")
+    compare.add_argument("--force", action="store_true",
+                         help="overwrite results of another problem in --out")
     sub.add_parser("list", help="list the named problems")
     _inverse_parsers(sub)
     return parser
@@ -100,7 +119,9 @@ def _given_flags(args: argparse.Namespace) -> list[str]:
     """The model-specific flags given on the command line."""
     values = {"--reduced": args.reduced, "--full": args.full,
               "--continuation": args.continuation is not None,
-              "--warm-from-reduced": args.warm_from_reduced,
+              "--warm-from-reduced": args.warm_from_reduced, "--verbose": args.verbose,
+              "--colour": args.colour is not None, "--animate": args.animate,
+              "--export": bool(args.export),
               "--solver": args.solver is not None, "--svg": args.svg}
     return [flag for flag, given in values.items() if given]
 
@@ -108,7 +129,8 @@ def _given_flags(args: argparse.Namespace) -> list[str]:
 def _solve_options(args: argparse.Namespace, model: str) -> dict[str, Any]:
     if model == "weft":
         opts: dict[str, Any] = {"continuation": args.continuation,
-                                "warm_from_reduced": args.warm_from_reduced}
+                                "warm_from_reduced": args.warm_from_reduced,
+                                "verbose": args.verbose}
         if args.reduced or args.full:
             opts["reduced"] = bool(args.reduced)
         return opts
@@ -125,8 +147,12 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     if args.warm_from_reduced and args.reduced or (
             args.warm_from_reduced and not args.full and getattr(problem, "reduction", None)):
         raise ProblemError(path, "", "", "--warm-from-reduced starts the full model: add --full")
+    if args.animate and not (args.continuation or getattr(problem.solver, "continuation", None)):
+        raise ProblemError(path, "", "", "--animate draws a loading path: add --continuation N")
+    out = Path(args.out)
+    check_overwrite(out.glob(f"{problem.name}.*.json"), path, args.force)
     result = MODELS[problem.model].solve(problem, **_solve_options(args, problem.model))
-    paths = result.save(Path(args.out), **({"svg": True} if args.svg else {}))
+    paths = result.save(out, **_save_options(args, problem.model))
     print(_summary(problem.model)(result, paths))
     return 0 if result.success else 1
 
@@ -142,6 +168,13 @@ def _problem_for_solve(path: Path):
               "solving at the start targets (see 'knit-nlp control')", file=sys.stderr)
         doc = strip_control_keys(doc)
     return parse_problem(doc, path)
+
+
+def _save_options(args: argparse.Namespace, model: str) -> dict[str, Any]:
+    if model == "weft":
+        return {"colour": args.colour or "course", "export": args.export,
+                "animate": args.animate}
+    return {"svg": True} if args.svg else {}
 
 
 def _summary(model: str):
@@ -160,6 +193,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         raise ProblemError(path, "", "model", f"compare is for weft problems; this is a "
                            f"{problem.model} problem")
     from .weft.summary import compare_summary
+    check_overwrite(Path(args.out).glob(f"{problem.name}.*.json"), path, args.force)
     cmp = compare(problem)
     print(compare_summary(cmp, cmp.save(Path(args.out))))
     return 0 if cmp.success else 1

@@ -32,12 +32,20 @@ def run_one(n: int, reduced: bool) -> dict:
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
+FULL_SIZES = [5, 10, 20, 50, 100]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[5, 10, 20, 50, 100])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[5, 10, 20, 50],
+                    help="N x N sizes (default 5 10 20 50: about 15 s)")
+    ap.add_argument("--full-sizes", action="store_true",
+                    help=f"the README's sizes {FULL_SIZES} (about a minute and a half)")
     ap.add_argument("--reduced", action="store_true", help="solve the reduced (corner) model")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.full_sizes:
+        args.sizes = FULL_SIZES
     if args.one:
         print(json.dumps(run_one(args.one, args.reduced)))
         return

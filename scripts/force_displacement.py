@@ -17,10 +17,12 @@ Three loading paths, each warm-started step by step and run in parallel by ``run
 Reported force: the pulling clamp's reaction (force on the fabric) along the pull direction.
 
     python scripts/force_displacement.py [--size 6] [--steps 12] [--max-strain 0.4] [--out results]
+                                         [--animate]
 
 Writes ``<out>/force_displacement/{course,wale,diagonal}.csv``, ``force_displacement.png``
 (curves), ``shapes.png`` (each pull's loops at the largest strain) and ``summary.json`` (plus the
-per-point cache in ``points/``).
+per-point cache in ``points/``); with ``--animate`` also ``<direction>.gif``, each pull's
+loading path.
 """
 from __future__ import annotations
 
@@ -38,14 +40,16 @@ import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
 from knit_nlp.jsonio import write_csv  # noqa: E402
+from knit_nlp.units import Units  # noqa: E402
 from knit_nlp.weft.cases import diagonal_pull, unclamped  # noqa: E402
 from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
 from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
-from knit_nlp.weft.study import (LoadPath, WeftStudy, point_solution, print_table,  # noqa: E402
-                                  run_study)
+from knit_nlp.weft.study import (LoadPath, WeftStudy, animate_path, point_solution,  # noqa: E402
+                                  print_table, run_study)
 
 STUDY = "force_displacement"
 DIRECTIONS = ("course", "wale", "diagonal")
+LENGTH, FORCE, ENERGY = Units().length, Units().force, Units().energy   # the paper's, unnamed
 FIELDS = ("displacement", "strain", "reaction", "energy_total", "energy_spring",
           "energy_bending", "success")
 
@@ -160,9 +164,10 @@ def plot(path: Path, tables: dict[str, list[dict[str, Any]]], title: str) -> Pat
         bad = [r["displacement"] for r in rows if not r["success"]]
         for ax in (ax1, ax2):   # failed solves: a cross on the axis, their values are not shown
             ax.plot(bad, [0.0] * len(bad), "x", color=col, ms=10, mew=2)
-    ax1.set(xlabel="displacement of the pulling clamp", ylabel="reaction along the pull",
-            title="force - displacement")
-    ax2.set(xlabel="displacement of the pulling clamp", ylabel="stored energy",
+    ax1.set(xlabel=f"displacement of the pulling clamp [{LENGTH}]",
+            ylabel=f"reaction along the pull [{FORCE}]", title="force - displacement")
+    ax2.set(xlabel=f"displacement of the pulling clamp [{LENGTH}]",
+            ylabel=f"stored energy [{ENERGY}]",
             title="energy (solid: total, dotted: bending)")
     for ax in (ax1, ax2):
         ax.grid(alpha=0.3)
@@ -238,6 +243,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--directions", nargs="+", choices=DIRECTIONS, default=list(DIRECTIONS))
     ap.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
     ap.add_argument("--out", type=Path, default=Path("results"), help="results root (results)")
+    ap.add_argument("--animate", action="store_true", help="also a GIF of each loading path")
     args = ap.parse_args(argv)
     if len(args.size) not in (1, 2) or min(args.size) < 2:
         ap.error("--size takes N or COURSES WALES, each >= 2")
@@ -260,6 +266,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[dict[str, Any]]]:
     shapes = plot_shapes(out / "shapes.png", [p for p, _ in built.values()], out / "points",
                          args.max_strain, [rows[-1]["success"] for rows in tables.values()])
     show_table(tables)
+    if args.animate:
+        for name, (lp, _) in built.items():
+            print(f"wrote {animate_path(out / f'{name}.gif', lp, out)}")
     print(f"wrote {out}/{{{','.join(tables)}}}.csv, {png}, {shapes}, {out / 'summary.json'}")
     return tables
 

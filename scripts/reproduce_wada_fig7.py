@@ -109,6 +109,8 @@ def draw_panel(ax, s: Solved, nat: np.ndarray, title: str, ghost: np.ndarray | N
     ax.set_title(f"{title}\nU = {e.total:.4f} (spring {e.spring:.4f}, bending "
                  f"{e.bending:.4f}), {ok}", fontsize=9.5)
     ax.set_aspect("equal")
+    ax.set_xlabel(f"x [{s.problem.units.length}]")
+    ax.set_ylabel(f"y [{s.problem.units.length}]")
     ax.grid(alpha=0.2)
 
 

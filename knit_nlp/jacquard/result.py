@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..jsonio import write_json
+from ..provenance import source_record
 from ..outcome import Energy, Outcome
 from .problem import JacquardProblem
 from .springs import (Network, edge_particles, edge_reaction, residual_force, spring_energy,
@@ -123,6 +124,7 @@ class JacquardResult(Outcome):
             "pulls": self.pulls(),
             "particles": {"index": "j*M + i", "natural": net.natural, "final": self.positions},
             "skew": self.wale_skew(),
+            **({"source": src} if (src := source_record(p.source)) else {}),
         }
 
     def save(self, out_dir: Path | str, svg: bool = False) -> list[Path]:

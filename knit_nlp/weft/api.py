@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..jsonio import write_json
+from ..provenance import source_record
 from .nlp import build_nlp
 from .params import WeftParams
 from .parametrisation import Full, Parametrisation, Reduced
@@ -28,7 +29,8 @@ from .solve import WeftSolver, solve as solve_nlp
 
 def solve(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
           params: WeftParams | None = None, continuation: int | None = None,
-          start: WeftResult | None = None, warm_from_reduced: bool = False) -> WeftResult:
+          start: WeftResult | None = None, warm_from_reduced: bool = False,
+          verbose: bool = False) -> WeftResult:
     """Build and solve one model of a problem.
 
     ``parametrisation``: ``Full()``, ``Reduced(...)`` or None for the file's own (reduced when
@@ -36,29 +38,34 @@ def solve(problem: WeftProblem, parametrisation: Parametrisation | None = None, 
     ``continuation``: reach the targets in this many warm-started steps. ``start``: start from
     another solved model's loops (lifted into this one). ``warm_from_reduced``: solve the
     reduced model first and start this (full) one from it; the result's JSON then carries
-    ``warm_start``.
+    ``warm_start``. ``verbose``: show IPOPT's iterations on one updating line of stderr.
     """
     param = problem.parametrisation if parametrisation is None else parametrisation
     if warm_from_reduced:
         if isinstance(param, Reduced):
             raise ValueError("warm_from_reduced starts the full model: use Full()")
-        return _warm_from_reduced(problem, params, continuation)[1]
+        return _warm_from_reduced(problem, params, continuation, verbose)[1]
     t0 = time.perf_counter()
     wnlp = build_nlp(problem, param)
-    solver = WeftSolver(wnlp)
+    solver = WeftSolver(wnlp, verbose=verbose)
     build_s = time.perf_counter() - t0
     x0 = None if start is None else wnlp.lift(start.coefficients, start.starts)
     params = params or wnlp.params
     rep = solve_nlp(wnlp, solver, params=params, x0=x0, continuation=continuation)
+    if solver.progress is not None:
+        solver.progress.done()
     return WeftResult(wnlp, rep, params, build_s, solver.violation(rep.x, params.vector()))
 
 
 def _warm_from_reduced(problem: WeftProblem, params: WeftParams | None,
-                       continuation: int | None) -> tuple[WeftResult, WeftResult]:
+                       continuation: int | None,
+                       verbose: bool = False) -> tuple[WeftResult, WeftResult]:
     """The reduced model (the file's representatives, or the corners), then the full model
     started from its lifted solution."""
-    red = solve(problem, problem.reduction or Reduced(), params=params, continuation=continuation)
-    full = solve(problem, Full(), params=params, continuation=continuation, start=red)
+    red = solve(problem, problem.reduction or Reduced(), params=params, continuation=continuation,
+                verbose=verbose)
+    full = solve(problem, Full(), params=params, continuation=continuation, start=red,
+                 verbose=verbose)
     full.extra["warm_start"] = {"from": "reduced", "reduced_success": red.success,
                                 "reduced_iterations": red.iterations,
                                 "reduced_solve_s": red.report.solve_s}
@@ -118,6 +125,7 @@ class Comparison:
         keys = ("success", "status", "n_parameters", "n_variables", "n_constraints",
                 "iterations", "energy", "timings")
         return {"problem": self.full.problem.name,
+                **({"source": src} if (src := source_record(self.full.problem.source)) else {}),
                 "models": {name: {k: r.to_json()[k] for k in keys}
                            for name, r in self.models().items()},
                 "distance": {"max": self.distance_max, "rms": self.distance_rms,
@@ -131,7 +139,8 @@ class Comparison:
         png = plot_overlay(Path(out_dir) / f"{name}.compare.png",
                            self.full.centrelines(self.samples),
                            self.reduced.centrelines(self.samples),
-                           f"{name}: full (black) vs reduced, max distance {self.distance_max:.3g}")
+                           f"{name}: full (black) vs reduced, max distance {self.distance_max:.3g} "
+                           f"{self.full.problem.units.length}", self.full.problem.units)
         return [js, png]
 
 

@@ -1,19 +1,33 @@
-"""Pictures of weft-knit solutions: natural loops (grey) against deformed loops, clamps and
-their reaction arrows; and full-versus-reduced overlays coloured by local distance."""
+"""Pictures of weft-knit solutions that explain themselves: axes in the problem's units, a
+course key (or a displacement colourbar), grips drawn as they hold (a point clamp as a square,
+the clamps of one course/wale/edge shorthand and a rigid clamp as a bar, a moved clamp's target
+as a cross), reactions and loads as arrows on one scale with a reference arrow, legends outside
+the fabric; full-versus-reduced overlays; force against displacement along a loading path; and
+GIF animations of a loading path (matplotlib's PillowWriter)."""
 from __future__ import annotations
 
+from collections import defaultdict
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Sequence
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.animation import PillowWriter  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
+
+from ..units import Units  # noqa: E402
 
 if TYPE_CHECKING:
     from .results import WeftResult
+
+DPI = 110
+COLOURINGS = ("course", "displacement")
+REACTION, LOAD, GRIP = "crimson", "royalblue", "black"
+ARROW_FRACTION = 0.15          # the largest arrow is this fraction of the fabric's extent
+NEGLIGIBLE = 1e-6              # arrows below this fraction of the largest (or below tol) are not drawn
 
 
 def _course_lines(lines: np.ndarray) -> list[np.ndarray]:
@@ -21,61 +35,223 @@ def _course_lines(lines: np.ndarray) -> list[np.ndarray]:
     return [np.concatenate(list(course), axis=0) for course in lines]
 
 
-def plot_solution(path: Path, result: "WeftResult", natural: np.ndarray,
-                  deformed: np.ndarray) -> Path:
-    """PNG of natural (grey) vs deformed loops (centrelines as sampled by the caller) with the
-    clamped points (squares) and their reactions (arrows)."""
-    title = (f"{result.problem.name} ({result.model}): E = {result.energy.total:.4g}, "
-             f"{'converged' if result.success else 'NOT CONVERGED'}")
-    held = [(c.position, c.reaction) for c in result.clamps] + [
-        (pos, f) for rc in result.rigid_clamps for pos, f in zip(rc.positions, rc.reactions)]
-    fig, ax = plt.subplots(figsize=(7, 7))
-    ax.add_collection(LineCollection(_course_lines(natural), colors="0.75", linewidths=1.0,
-                                     label="natural"))
-    colours = plt.cm.viridis(np.linspace(0.05, 0.85, max(len(deformed), 1)))
-    ax.add_collection(LineCollection(_course_lines(deformed), colors=colours, linewidths=1.6,
-                                     label="deformed"))
-    pts = np.array([pos for pos, _ in held]) if held else np.zeros((0, 2))
-    if len(pts):
-        ax.plot(pts[:, 0], pts[:, 1], "s", color="crimson", ms=7, label="clamp")
-        forces = np.array([f for _, f in held])
-        size = np.ptp(np.concatenate([natural.reshape(-1, 2), deformed.reshape(-1, 2)]), axis=0).max()
-        fmax = np.abs(forces).max()
-        if fmax > 0:
-            scale = 0.15 * size / fmax
-            ax.quiver(pts[:, 0], pts[:, 1], forces[:, 0] * scale, forces[:, 1] * scale,
-                      angles="xy", scale_units="xy", scale=1, color="crimson", width=0.006)
-            ax.update_datalim(pts + forces * scale)          # keep the arrow tips in view
-            ax.plot([], [], color="crimson", label=f"reaction (largest {fmax:.3g})")
+def _segments(lines: np.ndarray) -> np.ndarray:
+    """Every sampled segment (k, 2, 2) of (m, n, S, 2) loop samples, course by course."""
+    return np.stack([lines[..., :-1, :], lines[..., 1:, :]], axis=-2).reshape(-1, 2, 2)
+
+
+def _figure(extent: np.ndarray, width: float = 7.5) -> tuple[plt.Figure, plt.Axes]:
+    """A figure whose axes have about the data's aspect ratio (tight framing)."""
+    w, h = np.maximum(extent, 1e-9)
+    height = float(np.clip((width - 2.2) * h / w, 2.5, 10.0)) + 1.7    # axes + title, legend
+    fig, ax = plt.subplots(figsize=(width, height), dpi=DPI, layout="constrained")
+    return fig, ax
+
+
+def round_reference(value: float) -> float:
+    """A round number (1, 2 or 5 × 10^k) near ``value``, the reference arrow's length."""
+    exp = np.floor(np.log10(value))
+    return float(min((1, 2, 5, 10), key=lambda d: abs(d * 10 ** exp - value)) * 10 ** exp)
+
+
+def _arrows(result: "WeftResult") -> list[tuple[np.ndarray, np.ndarray, str]]:
+    """(point, force, kind) of every reaction and load, before the negligible ones are dropped."""
+    out = [(c.position, c.reaction, "reaction") for c in result.clamps]
+    out += [(p, f, "reaction") for rc in result.rigid_clamps
+            for p, f in zip(rc.positions, rc.reactions)]
+    out += [(ld.position, ld.force, "load") for ld in result.loads]
+    return out
+
+
+def drawn_arrows(result: "WeftResult") -> list[tuple[np.ndarray, np.ndarray, str]]:
+    """The arrows a picture draws: those above max(NEGLIGIBLE × largest, the solver's tol)."""
+    arrows = _arrows(result)
+    if not arrows:
+        return []
+    largest = max(float(np.hypot(*f)) for _, f, _ in arrows)
+    floor = max(NEGLIGIBLE * largest, result.problem.solver.tol)
+    return [a for a in arrows if np.hypot(*a[1]) > floor]
+
+
+def _grip_bars(result: "WeftResult") -> tuple[list[np.ndarray], np.ndarray]:
+    """Bars (polylines through the held points) of shorthand clamp groups and rigid clamps, and
+    the positions of the remaining single point clamps."""
+    groups: dict[str, list[np.ndarray]] = defaultdict(list)
+    singles = []
+    for c in result.clamps:
+        (groups[c.group].append(c.position) if c.group else singles.append(c.position))
+    bars = [np.array(ps) for ps in groups.values()] + [rc.positions for rc in result.rigid_clamps]
+    return bars, np.array(singles).reshape(-1, 2)
+
+
+def solution_figure(result: "WeftResult", natural: np.ndarray, deformed: np.ndarray,
+                    colour: str = "course") -> tuple[plt.Figure, plt.Axes]:
+    """The solution picture (not saved): natural loops grey, deformed loops coloured by course
+    or by displacement magnitude, grips, targets and force arrows."""
+    if colour not in COLOURINGS:
+        raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}; got {colour!r}")
+    units = result.problem.units
+    pts = np.concatenate([natural.reshape(-1, 2), deformed.reshape(-1, 2)])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    size = float(np.max(hi - lo))
+    fig, ax = _figure(hi - lo)
+    ax.add_collection(LineCollection(_course_lines(natural), colors="0.8", linewidths=1.0,
+                                     label="natural", zorder=1))
+    if colour == "displacement":
+        mag = np.linalg.norm(deformed - natural, axis=-1)
+        lc = LineCollection(_segments(deformed), array=0.5 * (mag[..., :-1] + mag[..., 1:]).ravel(),
+                            cmap="viridis", linewidths=1.8, zorder=2)
+        ax.add_collection(lc)
+        fig.colorbar(lc, ax=ax, label=f"displacement [{units.length}]", shrink=0.8)
+    else:
+        m = len(deformed)
+        lc = LineCollection(_course_lines(deformed), array=np.arange(1, m + 1), cmap="viridis",
+                            linewidths=1.8, zorder=2)
+        lc.set_clim(0.5, m + 0.5)
+        ax.add_collection(lc)
+        bar = fig.colorbar(lc, ax=ax, label="course", shrink=0.8)
+        bar.set_ticks(np.unique(np.linspace(1, m, min(m, 10)).round().astype(int)))
+    _draw_grips(ax, result)
+    _draw_forces(ax, result, size)
     ax.autoscale()
     ax.set_aspect("equal")
-    ax.margins(0.08)
-    ax.set_title(title, fontsize=10)
-    ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
+    ax.margins(0.03)
+    ax.set_xlabel(f"x [{units.length}]")
+    ax.set_ylabel(f"y [{units.length}]")
+    ax.set_title(f"{result.problem.name} ({result.model}): stored energy "
+                 f"{result.energy.total:.4g} {units.energy}, "
+                 f"{'converged' if result.success else 'NOT CONVERGED'}", fontsize=10)
+    fig.legend(loc="outside lower left", ncol=3, fontsize=8, frameon=False)
+    return fig, ax
+
+
+def _draw_grips(ax: plt.Axes, result: "WeftResult") -> None:
+    bars, singles = _grip_bars(result)
+    for k, bar in enumerate(bars):
+        ax.plot(bar[:, 0], bar[:, 1], "-", color=GRIP, lw=4, alpha=0.6, solid_capstyle="butt",
+                zorder=3, label="line grip" if k == 0 else None)
+    if len(singles):
+        ax.plot(singles[:, 0], singles[:, 1], "s", color=GRIP, ms=6, zorder=4,
+                label="point clamp")
+    pr = result.problem
+    moved = [c for c in result.clamps if np.linalg.norm(
+        c.target - pr.natural_position(c.loop, pr.clamps[c.number - 1].s)) > pr.solver.tol]
+    # a target that holds both coordinates is a cross; one that holds x (y) only is a bar
+    # across that axis at the held value, through where the point ended
+    for fix, marker, label in ((("x", "y"), "x", "clamp target"),
+                               (("x",), "|", "clamp target (x held)"),
+                               (("y",), "_", "clamp target (y held)")):
+        tg = np.array([[c.target[0] if "x" in fix else c.position[0],
+                        c.target[1] if "y" in fix else c.position[1]]
+                       for c in moved if c.fix == fix]).reshape(-1, 2)
+        if len(tg):
+            ax.plot(tg[:, 0], tg[:, 1], marker, color=GRIP, ms=12, mew=2, zorder=5, label=label)
+
+
+def _draw_forces(ax: plt.Axes, result: "WeftResult", size: float) -> None:
+    arrows = drawn_arrows(result)
+    if not arrows:
+        return
+    largest = max(float(np.hypot(*f)) for _, f, _ in arrows)
+    scale = ARROW_FRACTION * size / largest
+    q = None
+    for kind, colour in (("reaction", REACTION), ("load", LOAD)):
+        sel = [(p, f) for p, f, k in arrows if k == kind]
+        if not sel:
+            continue
+        p, f = np.array([a for a, _ in sel]), np.array([b for _, b in sel])
+        q = ax.quiver(p[:, 0], p[:, 1], f[:, 0] * scale, f[:, 1] * scale, angles="xy",
+                      scale_units="xy", scale=1, color=colour, width=0.005, zorder=6,
+                      label="clamp reaction" if kind == "reaction" else "load")
+        ax.update_datalim(p + f * scale)                 # keep the arrow tips in view
+    ref = round_reference(largest)
+    ax.quiverkey(q, 0.72, 0.035, ref * scale, f"{ref:g} {result.problem.units.force}",
+                 labelpos="E", coordinates="figure", color="0.2", fontproperties={"size": 8})
+
+
+def plot_solution(path: Path, result: "WeftResult", natural: np.ndarray,
+                  deformed: np.ndarray, colour: str = "course") -> Path:
+    """PNG of :func:`solution_figure`."""
+    fig, _ = solution_figure(result, natural, deformed, colour)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
 
 
-def plot_overlay(path: Path, full: np.ndarray, reduced: np.ndarray, title: str) -> Path:
+def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndarray]],
+            units: Units, fps: int = 4) -> Path:
+    """A GIF of deformed centrelines ``frames`` ((title, (m, n, S, 2)) each) over the natural
+    loops, framed to hold every frame: a loading path from a continuation solve or a study."""
+    pts = np.concatenate([natural.reshape(-1, 2)] + [d.reshape(-1, 2) for _, d in frames])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    fig, ax = _figure(hi - lo, width=6.0)
+    ax.add_collection(LineCollection(_course_lines(natural), colors="0.8", linewidths=1.0))
+    m = len(natural)
+    lc = LineCollection(_course_lines(frames[0][1]), array=np.arange(1, m + 1), cmap="viridis",
+                        linewidths=1.6)
+    lc.set_clim(0.5, m + 0.5)
+    ax.add_collection(lc)
+    fig.colorbar(lc, ax=ax, label="course", shrink=0.8)
+    pad = 0.03 * (hi - lo).max()
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"x [{units.length}]")
+    ax.set_ylabel(f"y [{units.length}]")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    writer = PillowWriter(fps=fps)
+    with writer.saving(fig, str(path), dpi=80):
+        for title, lines in frames:
+            lc.set_segments(_course_lines(lines))
+            ax.set_title(title, fontsize=9)
+            writer.grab_frame()
+    plt.close(fig)
+    return path
+
+
+def plot_force_displacement(path: Path, rows: Sequence[dict[str, Any]], units: Units,
+                            name: str) -> Path:
+    """Force along the pull against distance for every grip that moves (rows of
+    :func:`knit_nlp.weft.path.path_rows`)."""
+    fig, ax = plt.subplots(figsize=(6.5, 4.5), dpi=DPI, layout="constrained")
+    grips = dict.fromkeys(r["grip"] for r in rows if r["distance"] != "")
+    for grip in grips:
+        pts = [(r["distance"], r["force_along_pull"]) for r in rows if r["grip"] == grip]
+        d, f = np.array(pts).T
+        ax.plot(d, f, "o-", ms=3, label=grip)
+    ax.set_xlabel(f"distance along the pull [{units.length}]")
+    ax.set_ylabel(f"force on the fabric along the pull [{units.force}]")
+    ax.set_title(f"{name}: force against displacement", fontsize=10)
+    ax.grid(alpha=0.3)
+    if grips:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_overlay(path: Path, full: np.ndarray, reduced: np.ndarray, title: str,
+                 units: Units | None = None) -> Path:
     """PNG of full (thin black) and reduced loops, the reduced ones coloured by the distance
     between corresponding centreline points."""
-    fig, ax = plt.subplots(figsize=(7.5, 7))
+    units = units or Units()
+    pts = np.concatenate([full.reshape(-1, 2), reduced.reshape(-1, 2)])
+    fig, ax = _figure(pts.max(axis=0) - pts.min(axis=0))
     ax.add_collection(LineCollection(_course_lines(full), colors="k", linewidths=0.8))
-    segs = np.stack([reduced[..., :-1, :], reduced[..., 1:, :]], axis=-2).reshape(-1, 2, 2)
     err = np.linalg.norm(full - reduced, axis=-1)
-    err = 0.5 * (err[..., :-1] + err[..., 1:]).ravel()
-    lc = LineCollection(segs, array=err, cmap="plasma", linewidths=2.0)
+    lc = LineCollection(_segments(reduced), array=0.5 * (err[..., :-1] + err[..., 1:]).ravel(),
+                        cmap="plasma", linewidths=2.0)
     ax.add_collection(lc)
-    fig.colorbar(lc, ax=ax, label="distance full - reduced")
+    fig.colorbar(lc, ax=ax, label=f"distance full - reduced [{units.length}]", shrink=0.8)
     ax.autoscale()
     ax.set_aspect("equal")
-    ax.margins(0.05)
+    ax.margins(0.03)
+    ax.set_xlabel(f"x [{units.length}]")
+    ax.set_ylabel(f"y [{units.length}]")
     ax.set_title(title, fontsize=10)
-    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path

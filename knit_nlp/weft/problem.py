@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import ProblemError
 from ..tomlio import Table, load_toml
+from ..units import Units, read_units
 from .basis import n_coeffs
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
 from .parametrisation import Full, Parametrisation, Reduced
@@ -22,6 +23,15 @@ from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_
 # at most L/4 long; on the 10 x 10 diagonal pull 8 nodes give energy within 7e-12 (relative) and
 # centrelines within 5e-10 of 32 nodes, while 16 nodes cost twice the function evaluations.
 DEFAULT_NODES = 8
+
+# Grip shorthands (README, "Grips"): which loops a clamp, rigid clamp or load table names.
+EDGES = {"bottom": ("course", "first"), "top": ("course", "last"),
+         "left": ("wale", "first"), "right": ("wale", "last")}
+# The point an edge grips when the table gives none: the yarn's ends on the side edges.
+EDGE_POINTS = {"left": "start", "right": "end"}
+SELECTORS = ("loop", "course", "wale", "edge")
+# Stitch landmarks beyond the paper's crossing labels: the loop's head (top of the needle loop).
+LANDMARKS = {"head": 0.5}                  # fraction of the loop length L
 
 
 @dataclass(frozen=True)
@@ -38,6 +48,8 @@ class Clamp:
     target: np.ndarray
     fix: tuple[bool, bool] = (True, True)
     angle: float | None = None
+    table: str = ""                  # the file's table, e.g. "clamp[3]"
+    expanded: bool = False           # one of several clamps a course/wale/edge shorthand made
 
 
 @dataclass(frozen=True)
@@ -60,6 +72,8 @@ class Load:
     s: float
     force: np.ndarray
     moment: float = 0.0
+    table: str = ""
+    expanded: bool = False
 
 
 @dataclass(frozen=True)
@@ -93,6 +107,7 @@ class WeftProblem:
     reduction: Reduced | None = None
     solver: SolverOptions = field(default_factory=SolverOptions)
     source: str = "<memory>"
+    units: Units = field(default_factory=Units)
 
     @property
     def t(self) -> int:
@@ -152,15 +167,16 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
     mat.finish()
     points = _PointReader(m, n, natural, crossings)
     starts = natural_starts(natural, m, n)
-    clamps = tuple(_read_clamp(t, points, natural, starts) for t in top.tables("clamp"))
-    rigid = tuple(_read_rigid(t, points, natural, starts) for t in top.tables("rigid_clamp"))
+    clamps = tuple(c for t in top.tables("clamp") for c in _read_clamp(t, points, starts))
+    rigid = tuple(_read_rigid(t, points, starts) for t in top.tables("rigid_clamp"))
     _check_overconstraint(top, clamps, rigid, points)
-    loads = tuple(_read_load(t, points) for t in top.tables("load"))
+    loads = tuple(ld for t in top.tables("load") for ld in _read_load(t, points))
     reduction = _read_reduction(top, m, n) if top.has("reduction") else None
     solver = _read_solver(top.table("solver"))
+    units = read_units(top.table("units"))
     top.finish()
     return WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
-                       clamps, loads, rigid, reduction, solver, str(source))
+                       clamps, loads, rigid, reduction, solver, str(source), units)
 
 
 def _read_loop(tab: Table) -> tuple[NaturalLoop, int, str, Table]:
@@ -186,10 +202,38 @@ def _read_loop(tab: Table) -> tuple[NaturalLoop, int, str, Table]:
 
 
 class _PointReader:
-    """Resolves ``loop`` and ``point`` keys of clamp and load tables to (i, j) and s."""
+    """Resolves the ``loop`` (or ``course``, ``wale``, ``edge``) and ``point`` keys of clamp and
+    load tables to loops (i, j) and s."""
 
     def __init__(self, m: int, n: int, natural: NaturalLoop, crossings: Crossings | None) -> None:
         self.m, self.n, self.natural, self.crossings = m, n, natural, crossings
+
+    def loops(self, tab: Table) -> tuple[list[tuple[int, int]], str | None]:
+        """The loops a table names: ``loop = [i, j]`` (one), or every loop of ``course = i``,
+        ``wale = j`` or ``edge = "bottom" | "top" | "left" | "right"``. Also the edge's default
+        point label (None when the table must give one)."""
+        given = [k for k in SELECTORS if tab.has(k)]
+        if len(given) != 1:
+            raise tab.error(given[1] if given else "loop",
+                            "give exactly one of loop, course, wale and edge")
+        key = given[0]
+        if key == "loop":
+            return [self.loop(tab)], None
+        if key == "edge":
+            edge = tab.string("edge", choices=EDGES)
+            kind, end = EDGES[edge]
+            index = 1 if end == "first" else (self.m if kind == "course" else self.n)
+            return self._line(kind, index), EDGE_POINTS.get(edge)
+        index, top = tab.integer(key), self.m if key == "course" else self.n
+        if not 1 <= index <= top:
+            raise tab.error(key, f"{index} is outside the {self.m} x {self.n} fabric "
+                            f"({key}s 1..{top})")
+        return self._line(key, index), None
+
+    def _line(self, kind: str, index: int) -> list[tuple[int, int]]:
+        if kind == "course":
+            return [(index, j) for j in range(1, self.n + 1)]
+        return [(i, index) for i in range(1, self.m + 1)]
 
     def loop(self, tab: Table) -> tuple[int, int]:
         i, j = tab.integers("loop", length=2)
@@ -198,17 +242,20 @@ class _PointReader:
                             f"(courses 1..{self.m}, wales 1..{self.n})")
         return i, j
 
-    def point(self, tab: Table) -> tuple[str | float, float]:
-        value = tab.value("point")
+    def point(self, tab: Table, default: str | None = None) -> tuple[str | float, float]:
+        value = tab.value("point") if default is None else tab.value("point", default)
         L = self.natural.length
         if isinstance(value, str):
             if value == "start":
                 return value, 0.0
             if value == "end":
                 return value, L
+            if value in LANDMARKS:
+                return value, LANDMARKS[value] * L
             if value not in LABELS:
                 raise tab.error("point", f"unknown point label {value!r}; use start, end, "
-                                f"{' '.join(LABELS)} or a number s in [0, {L:g}]")
+                                f"{', '.join(LANDMARKS)}, {' '.join(LABELS)} or a number s in "
+                                f"[0, {L:g}]")
             if self.crossings is None:
                 raise tab.error("point", f"label {value!r} needs crossings, which this "
                                 "natural geometry does not have; give a number s instead")
@@ -220,60 +267,112 @@ class _PointReader:
         return float(value), float(value)
 
 
-def _read_clamp(tab: Table, points: _PointReader, natural: NaturalLoop,
-                starts: np.ndarray) -> Clamp:
-    tab.allow("loop", "point", "position", "displacement", "fix", "angle")
-    loop = points.loop(tab)
-    label, s = points.point(tab)
+def _direction(tab: Table, size_key: str) -> np.ndarray | None:
+    """``direction`` (degrees counter-clockwise from +x, or a vector [dx, dy]) times ``size_key``
+    (``distance`` or ``magnitude``, >= 0); None when the table gives neither."""
+    if not (tab.has("direction") or tab.has(size_key)):
+        return None
+    if not (tab.has("direction") and tab.has(size_key)):
+        missing = size_key if tab.has("direction") else "direction"
+        raise tab.error(missing, f"direction and {size_key} go together; give both")
+    value = tab.value("direction")
+    if isinstance(value, list):
+        vec = np.array(tab.numbers("direction", length=2))
+        norm = float(np.hypot(*vec))
+        if norm == 0.0:
+            raise tab.error("direction", "the vector [0, 0] has no direction")
+        unit = vec / norm
+    else:
+        angle = np.radians(tab.number("direction"))
+        unit = np.array([np.cos(angle), np.sin(angle)])
+    return unit * tab.number(size_key, nonnegative=True)
+
+
+def _read_clamp(tab: Table, points: _PointReader, starts: np.ndarray) -> list[Clamp]:
+    """One clamp per loop the table names (a course, wale or edge shorthand makes several)."""
+    tab.allow(*SELECTORS, "point", "position", "displacement", "direction", "distance", "fix",
+              "angle")
+    loops, default_point = points.loops(tab)
+    label, s = points.point(tab, default_point)
     fix = tab.strings("fix", ["x", "y"], choices=("x", "y"))
     if len(set(fix)) != len(fix):
         raise tab.error("fix", "lists a coordinate twice")
     angle = tab.number("angle", None)
     if not fix and angle is None:
         raise tab.error("fix", "an empty fix list needs an angle, or the clamp holds nothing")
-    has_pos, has_disp = tab.has("position"), tab.has("displacement")
-    if has_pos and has_disp or (fix and not (has_pos or has_disp)):
-        raise tab.error("position", "give exactly one of position and displacement")
-    natural = starts[loop[0] - 1, loop[1] - 1] + natural.xy([s])[0]
-    if has_pos:
-        target = np.array(tab.numbers("position", length=2))
-    else:
-        target = natural + np.array(tab.numbers("displacement", [0.0, 0.0], length=2))
+    pull = _direction(tab, "distance")
+    given = [k for k in ("position", "displacement", "direction") if tab.has(k)]
+    if len(given) > 1 or (fix and not given):
+        raise tab.error(given[0] if given else "position",
+                        "give exactly one of position, displacement and direction + distance")
+    if given == ["position"] and len(loops) > 1:
+        raise tab.error("position", f"one position for {len(loops)} points would stack them; "
+                        "give a displacement (or direction + distance) for a course, wale or edge")
+    move = pull if pull is not None else np.array(
+        tab.numbers("displacement", [0.0, 0.0], length=2))
+    position = np.array(tab.numbers("position", length=2)) if given == ["position"] else None
     tab.finish()
-    return Clamp(loop, label, s, target, ("x" in fix, "y" in fix), angle)
+    natural = points.natural.xy([s])[0]
+    return [Clamp(loop, label, s,
+                  position if position is not None
+                  else starts[loop[0] - 1, loop[1] - 1] + natural + move,
+                  ("x" in fix, "y" in fix), angle, tab.name, not tab.has("loop")) for loop in loops]
 
 
-def _read_rigid(tab: Table, points: _PointReader, natural: NaturalLoop,
-                starts: np.ndarray) -> RigidClamp:
-    tab.allow("points", "translation", "rotation", "centre")
+def _read_rigid(tab: Table, points: _PointReader, starts: np.ndarray) -> RigidClamp:
+    """A rigid clamp over listed ``points``, or over ``point`` of every loop of a course, wale or
+    edge; moved by ``translation`` (or ``direction`` + ``distance``) and ``rotation``."""
+    tab.allow("points", *SELECTORS[1:], "point", "translation", "direction", "distance",
+              "rotation", "centre")
     pts = []
-    for sub in tab.tables("points"):
-        sub.name = f"{tab.name}.{sub.name}"
-        sub.allow("loop", "point")
-        loop = points.loop(sub)
-        label, s = points.point(sub)
-        sub.finish()
-        pts.append((loop, label, s))
-    if not pts:
-        raise tab.error("points", "a rigid clamp needs at least one point")
-    p0 = np.array([starts[lp[0] - 1, lp[1] - 1] + natural.xy([s])[0] for lp, _, s in pts])
-    translation = np.array(tab.numbers("translation", [0.0, 0.0], length=2))
+    if tab.has("points"):
+        extra = [k for k in (*SELECTORS[1:], "point") if tab.has(k)]
+        if extra:
+            raise tab.error(extra[0], "give either points = [...] or a course, wale or edge")
+        for sub in tab.tables("points"):
+            sub.name = f"{tab.name}.{sub.name}"
+            sub.allow("loop", "point")
+            loop = points.loop(sub)
+            label, s = points.point(sub)
+            sub.finish()
+            pts.append((loop, label, s))
+        if not pts:
+            raise tab.error("points", "a rigid clamp needs at least one point")
+    else:
+        if tab.has("loop"):
+            raise tab.error("loop", "a rigid clamp takes points = [...], or a course, wale or edge")
+        if not any(tab.has(k) for k in SELECTORS[1:]):
+            raise tab.error("points", "give points = [...], or course, wale or edge with a point")
+        loops, default_point = points.loops(tab)
+        label, s = points.point(tab, default_point)
+        pts = [(loop, label, s) for loop in loops]
+    p0 = np.array([starts[lp[0] - 1, lp[1] - 1] + points.natural.xy([s])[0] for lp, _, s in pts])
+    pull = _direction(tab, "distance")
+    if pull is not None and tab.has("translation"):
+        raise tab.error("translation", "give translation or direction + distance, not both")
+    translation = pull if pull is not None else np.array(
+        tab.numbers("translation", [0.0, 0.0], length=2))
     rotation = tab.number("rotation", 0.0)
     centre = np.array(tab.numbers("centre", p0.mean(axis=0).tolist(), length=2))
     tab.finish()
     return RigidClamp(tuple(pts), translation, rotation, centre)
 
 
-def _read_load(tab: Table, points: _PointReader) -> Load:
-    tab.allow("loop", "point", "force", "moment")
-    loop = points.loop(tab)
-    label, s = points.point(tab)
-    if not (tab.has("force") or tab.has("moment")):
-        raise tab.error("force", "a load needs force = [fx, fy] and/or moment = M")
-    force = np.array(tab.numbers("force", [0.0, 0.0], length=2))
+def _read_load(tab: Table, points: _PointReader) -> list[Load]:
+    """One load per loop the table names; a course, wale or edge gets the force at every point."""
+    tab.allow(*SELECTORS, "point", "force", "direction", "magnitude", "moment")
+    loops, default_point = points.loops(tab)
+    label, s = points.point(tab, default_point)
+    pull = _direction(tab, "magnitude")
+    if pull is not None and tab.has("force"):
+        raise tab.error("force", "give force or direction + magnitude, not both")
+    if not (tab.has("force") or tab.has("moment") or pull is not None):
+        raise tab.error("force", "a load needs force = [fx, fy] (or direction + magnitude) "
+                        "and/or moment = M")
+    force = pull if pull is not None else np.array(tab.numbers("force", [0.0, 0.0], length=2))
     moment = tab.number("moment", 0.0)
     tab.finish()
-    return Load(loop, label, s, force, moment)
+    return [Load(loop, label, s, force, moment, tab.name, not tab.has("loop")) for loop in loops]
 
 
 def canonical_point(loop: tuple[int, int], s: float, L: float, n: int) -> tuple[int, int, float]:
@@ -297,11 +396,11 @@ def _check_overconstraint(top: Table, clamps: tuple[Clamp, ...], rigid: tuple[Ri
                                f"{label!r}: its {dof} is already held by {held[where]}")
         held[where] = table
 
-    for k, c in enumerate(clamps):
+    for c in clamps:
         for dof in [d for d, f in zip("xy", c.fix) if f]:
-            hold(f"clamp[{k + 1}]", "fix", c.loop, c.s, c.point, dof)
+            hold(c.table, "fix", c.loop, c.s, c.point, dof)
         if c.angle is not None:
-            hold(f"clamp[{k + 1}]", "angle", c.loop, c.s, c.point, "angle")
+            hold(c.table, "angle", c.loop, c.s, c.point, "angle")
     for k, r in enumerate(rigid):
         for q, (loop, label, s) in enumerate(r.points):
             for dof in "xy":

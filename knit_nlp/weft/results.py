@@ -10,12 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from ..jsonio import write_json, write_npz
 from ..outcome import Energy, Outcome
+from ..provenance import source_record
 from .basis import phi
 from .nlp import WeftNLP
 from .params import WeftParams
@@ -38,6 +39,7 @@ class ClampReaction:
     reaction: np.ndarray
     angle: float | None = None
     reaction_moment: float | None = None
+    group: str | None = None         # the file's table when a shorthand made this clamp
 
     def to_json(self) -> dict[str, Any]:
         out = {"loop": list(self.loop), "point": self.point, "position": self.position.tolist(),
@@ -45,6 +47,8 @@ class ClampReaction:
                "fix": list(self.fix)}
         if self.angle is not None:
             out.update(angle=self.angle, reaction_moment=self.reaction_moment)
+        if self.group:
+            out["group"] = self.group
         return out
 
 
@@ -90,10 +94,14 @@ class LoadResult:
     force: np.ndarray
     moment: float
     position: np.ndarray
+    group: str | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {"loop": list(self.loop), "point": self.point, "force": self.force.tolist(),
-                "moment": self.moment, "position": self.position.tolist()}
+        out = {"loop": list(self.loop), "point": self.point, "force": self.force.tolist(),
+               "moment": self.moment, "position": self.position.tolist()}
+        if self.group:
+            out["group"] = self.group
+        return out
 
 
 @dataclass(repr=False)
@@ -181,7 +189,7 @@ class WeftResult(Outcome):
             out.append(ClampReaction(q + 1, c.loop, c.point, pc[:, sp].copy(),
                                      self.params.targets[q].copy(),
                                      tuple(d for d, f in zip("xy", c.fix) if f), force,
-                                     angle, moment))
+                                     angle, moment, c.table if c.expanded else None))
         return out
 
     @cached_property
@@ -200,8 +208,21 @@ class WeftResult(Outcome):
     def loads(self) -> list[LoadResult]:
         pc = self._points()
         return [LoadResult(q + 1, ld.loop, ld.point, self.params.forces[q].copy(),
-                           float(self.params.moments[q]), pc[:, sp].copy())
+                           float(self.params.moments[q]), pc[:, sp].copy(),
+                           ld.table if ld.expanded else None)
                 for q, (ld, sp) in enumerate(zip(self.problem.loads, self.nlp.load_points))]
+
+    def loading_path(self) -> list[tuple[float, "WeftResult"]]:
+        """The continuation steps reached, each as (load factor τ, the result at parameters
+        natural + τ·(these − natural)); empty after a direct solve. The steps' own iteration
+        counts and timings are not kept (they are summed into this result's)."""
+        p_nat = WeftParams.natural(self.problem).vector()
+        dp = self.params.vector() - p_nat
+        return [(tau, WeftResult(self.nlp, SolveReport(True, "Solve_Succeeded", x, lam, np.nan, 0,
+                                                       0.0),
+                                 WeftParams.from_vector(self.problem, p_nat + tau * dp), 0.0,
+                                 np.nan))
+                for tau, x, lam in self.report.path]
 
     def centrelines(self, samples: int = SAMPLES) -> np.ndarray:
         """Sampled deformed centrelines (m, n, samples, 2)."""
@@ -221,6 +242,7 @@ class WeftResult(Outcome):
         result = {
             "problem": self.problem.name, "model": self.model,
             "success": self.success, "status": self.status,
+            "units": self.problem.units.to_json(),
             "energy": self.energy.to_json(),
             "n_parameters": self.nlp.n_parameters, "n_variables": self.nlp.n_variables,
             "n_constraints": self.nlp.n_constraints, "iterations": rep.iterations,
@@ -233,18 +255,41 @@ class WeftResult(Outcome):
             "loops": {"course_starts": self.starts[:, 0].tolist(),
                       "coefficients": self.coefficients.tolist()},
         }
+        source = source_record(self.problem.source)
+        if source:
+            result["source"] = source
         result.update(self.extra)
         return result
 
-    def save(self, out_dir: Path | str, samples: int = SAMPLES) -> list[Path]:
+    def save(self, out_dir: Path | str, samples: int = SAMPLES, *, colour: str = "course",
+             export: Sequence[str] = (), animate: bool = False) -> list[Path]:
         """``DIR/<problem>.<model>.json``, ``.npz`` (s, natural and deformed centrelines,
-        coefficients, starts) and ``.png``, as ``knit-nlp solve`` writes them."""
-        from .plot import plot_solution
+        coefficients, starts) and ``.png``, as ``knit-nlp solve`` writes them; after a
+        continuation also ``.path.csv`` and ``.path.png`` (force against displacement) and, with
+        ``animate``, ``.gif``. ``colour``: "course" or "displacement"; ``export``: any of "csv"
+        (``.csv``, rows course, wale, s, x, y) and "svg" (``.svg``)."""
+        from .export import write_centreline_csv, write_centreline_svg
+        from .path import write_path
+        from .plot import animate as animate_frames, plot_solution
         stem = Path(out_dir) / f"{self.problem.name}.{self.model}"
-        js = write_json(stem.with_name(stem.name + ".json"), self.to_json())
+
+        def out(suffix: str) -> Path:
+            return stem.with_name(stem.name + suffix)
+        js = write_json(out(".json"), self.to_json())
+        s = np.linspace(0.0, self.problem.L, samples)
         natural, deformed = self.natural_centrelines(samples), self.centrelines(samples)
-        npz = write_npz(stem.with_name(stem.name + ".npz"),
-                        s=np.linspace(0.0, self.problem.L, samples), natural=natural,
-                        deformed=deformed, coefficients=self.coefficients, starts=self.starts)
-        png = plot_solution(stem.with_name(stem.name + ".png"), self, natural, deformed)
-        return [js, npz, png]
+        paths = [js, write_npz(out(".npz"), s=s, natural=natural, deformed=deformed,
+                               coefficients=self.coefficients, starts=self.starts),
+                 plot_solution(out(".png"), self, natural, deformed, colour)]
+        if "csv" in export:
+            paths.append(write_centreline_csv(out(".csv"), deformed, s))
+        if "svg" in export:
+            paths.append(write_centreline_svg(out(".svg"), deformed, self.problem.units.length))
+        paths += write_path(stem, self)
+        steps = self.loading_path()
+        if animate and steps:
+            frames = [(f"{self.problem.name}: load factor 0", natural)] + [
+                (f"{self.problem.name}: load factor {tau:.3g}", r.centrelines(samples))
+                for tau, r in steps]
+            paths.append(animate_frames(out(".gif"), natural, frames, self.problem.units))
+        return paths

@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from ..ipopt import ipopt_options, succeeded
+from ..progress import IterationLine
 from .guesses import needs_perturbation, perturbed_starts
 from .nlp import WeftNLP
 from .params import WeftParams
@@ -39,6 +40,8 @@ class SolveReport:
     continuation_steps: int = 0
     attempts: list[str] = field(default_factory=list)
     stats: dict[str, float] = field(default_factory=dict)
+    # continuation: (load factor, x, lam_g) of every step reached, the loading path
+    path: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)
 
     def add_effort(self, other: "SolveReport") -> None:
         """Count another solve's iterations, time and IPOPT profile into this report."""
@@ -52,15 +55,18 @@ class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
-                 print_level: int = 0) -> None:
+                 print_level: int = 0, verbose: bool = False) -> None:
         opts = wnlp.problem.solver
         self.wnlp = wnlp
         t0 = time.perf_counter()
         # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of IPOPT's own
         # time and the KKT systems here are well scaled without them
-        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, ipopt_options(
-            tol or opts.tol, max_iter or opts.max_iter, print_level,
-            mumps_scaling=0, mumps_permuting_scaling=0))
+        options = ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
+                                mumps_scaling=0, mumps_permuting_scaling=0)
+        self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints) if verbose else None
+        if self.progress is not None:
+            options["iteration_callback"] = self.progress
+        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, options)
         self.setup_s = time.perf_counter() - t0
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
 
@@ -94,6 +100,7 @@ class WeftSolver:
             if rep.success:
                 x, tau = rep.x, nxt
                 total.continuation_steps += 1
+                total.path.append((tau, rep.x, rep.lam_g))
                 total.x, total.lam_g, total.objective, total.status = rep.x, rep.lam_g, rep.objective, rep.status
                 continue
             halvings += 1

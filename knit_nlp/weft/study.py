@@ -198,3 +198,18 @@ def run_study(name: str, paths: Sequence[LoadPath], out_root: Path = Path("resul
     if complete:
         write_json(out / "summary.json", summary)
     return summary
+
+
+def animate_path(gif: Path, path: LoadPath, study_dir: Path, fps: int = 4) -> Path:
+    """A GIF of a solved load path of a study written under ``study_dir``: the natural loops,
+    then every point's deformed loops in order (labels in the frame titles)."""
+    from .plot import animate
+    from .sampling import natural_centrelines, solution_centrelines
+    wnlp = build_nlp(parse_problem(path.doc, f"<{path.name}>"), path.parametrisation)
+    natural = natural_centrelines(wnlp.problem)
+    frames = [(f"{path.name}: natural", natural)]
+    for k in range(len(path.points)):
+        label = path.labels[k] if k < len(path.labels) else k
+        frames.append((f"{path.name}: {label}",
+                       solution_centrelines(wnlp, point_solution(study_dir, path, k))))
+    return animate(gif, natural, frames, wnlp.problem.units, fps)

@@ -8,20 +8,30 @@ from .results import WeftResult
 
 
 def solve_summary(r: WeftResult, paths: list[Path]) -> str:
-    """A few lines: status, energy, sizes, reactions, files written."""
-    e, nlp, t = r.energy, r.nlp, r.timings
+    """A few lines: status, energy, sizes, reactions (a shorthand's clamps as one total), files
+    written; every figure with its unit."""
+    e, nlp, t, u = r.energy, r.nlp, r.timings, r.problem.units
     lines = [f"{r.problem.name} ({r.model}): {r.status} in {r.iterations} iterations"
              f" (build {t['build_s']:.2f} s, solve {t['solve_s']:.2f} s)",
              f"  energy {e.total:.6g} = spring {e.spring:.6g} + bending {e.bending:.6g};"
-             f" load work {e.load_work:.6g}",
+             f" load work {e.load_work:.6g} [{u.energy}]",
              f"  {nlp.n_parameters} parameters, {nlp.n_variables} variables, "
-             f"{nlp.n_constraints} constraints, max violation {r.violation:.2e}"]
+             f"{nlp.n_constraints} constraints, max violation {r.violation:.2e} [{u.length}]"]
+    groups: dict[str, list] = {}
     for c in r.clamps:
+        if c.group:
+            groups.setdefault(c.group, []).append(c)
+            continue
         lines.append(f"  clamp {c.number} {list(c.loop)} {c.point}: reaction "
-                     f"({c.reaction[0]:.4g}, {c.reaction[1]:.4g})")
+                     f"({c.reaction[0]:.4g}, {c.reaction[1]:.4g}) [{u.force}]")
+    for group, cs in groups.items():
+        f = sum(c.reaction for c in cs)
+        lines.append(f"  {group} = clamps {cs[0].number}-{cs[-1].number} ({len(cs)} points, "
+                     f"{cs[0].point}): total reaction ({f[0]:.4g}, {f[1]:.4g}) [{u.force}]")
     for rc in r.rigid_clamps:
         lines.append(f"  rigid clamp {rc.number} ({len(rc.points)} points): force "
-                     f"({rc.force[0]:.4g}, {rc.force[1]:.4g}), moment {rc.moment:.4g}")
+                     f"({rc.force[0]:.4g}, {rc.force[1]:.4g}) [{u.force}], moment "
+                     f"{rc.moment:.4g} [{u.energy}]")
     if not r.success:
         lines.append("  NOT CONVERGED: " + "; ".join(r.report.attempts))
     lines.append("  wrote " + ", ".join(str(p) for p in paths))
@@ -33,9 +43,10 @@ def compare_summary(cmp: Comparison, paths: list[Path]) -> str:
     lines = [f"{cmp.full.problem.name}: full vs reduced"]
     for key, r in cmp.models().items():
         lines.append(f"  {key:<24} {r.status:<18} params {r.nlp.n_parameters:>6}  energy "
-                     f"{r.energy.total:.6g}  iterations {r.iterations:>4}  build+solve "
+                     f"{r.energy.total:.6g} {r.problem.units.energy}  iterations {r.iterations:>4}  build+solve "
                      f"{r.build_s + r.report.solve_s:.3f} s")
-    lines.append(f"  centreline distance: max {cmp.distance_max:.4g}, rms {cmp.distance_rms:.4g}")
+    lines.append(f"  centreline distance: max {cmp.distance_max:.4g}, rms {cmp.distance_rms:.4g} "
+                 f"[{cmp.full.problem.units.length}]")
     speed = cmp.speedup_reduced
     pace = f"{speed:.1f}x faster" if speed >= 1 else f"{1 / speed:.1f}x slower"
     lines.append(f"  reduced is {pace} than full (build + solve); energy gap (reduced - full) "
