@@ -134,11 +134,14 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
 
 
 def _problem_of(result: dict, result_path: Path) -> Path:
-    """The problem file a result came from, to resolve point labels: by its name."""
+    """The problem file a result came from, to resolve point labels: its recorded ``source``,
+    else a file named after the problem beside the result or among the named problems."""
     from ...problems import resolve
     name = str(result.get("problem", ""))
-    for candidate in (result_path.parent / f"{name}.toml",):
-        if candidate.exists():
+    source = result.get("source")
+    recorded = Path(source["file"]) if isinstance(source, dict) and isinstance(source.get("file"), str) else None
+    for candidate in (recorded, result_path.parent / f"{name}.toml"):
+        if candidate is not None and candidate.is_file():
             return candidate
     try:
         return resolve(name)
