@@ -29,10 +29,10 @@ def closed_form_derivatives(wnlp: WeftNLP) -> dict[str, ca.Function]:
     if wnlp.coeff_map is not None or wnlp.displacements is None:
         raise ValueError("closed-form derivatives are for the full model")
     pr, nlp = wnlp.problem, wnlp.nlp
-    x, p, D = nlp["x"], nlp["p"], wnlp.displacements
+    x, p = nlp["x"], nlp["p"]
     N, nc = pr.n_loops, n_coeffs(pr.t)
     rule = panel_rule(np.array(wnlp.eval_points), pr.L, pr.quadrature_nodes)
-    P, Q = rule.points.size, rule.nodes.size
+    P = rule.points.size
     Phi, C = rule_matrices(rule, pr.L, pr.t)
     Gx, GD = _affine_parts(wnlp)
     coeffs = wnlp.x.slice("coeffs")
