@@ -16,7 +16,7 @@ from .jacquard.result import JacquardResult
 from .problems import resolve
 from .tomlio import load_toml
 from .weft.api import Comparison
-from .weft.parametrisation import Full, Parametrisation, Reduced
+from .weft.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .weft.problem import WeftProblem, parse_problem as parse_weft
 from .weft.results import WeftResult
 
@@ -27,7 +27,7 @@ Result = Union[WeftResult, JacquardResult]
 def _solve_weft(problem: WeftProblem, reduced: bool | Parametrisation | None = None,
                 **options: Any) -> WeftResult:
     from .weft.api import solve
-    param = (None if reduced is None else reduced if isinstance(reduced, (Full, Reduced))
+    param = (None if reduced is None else reduced if isinstance(reduced, (Full, Reduced, Adaptive))
              else (problem.reduction or Reduced()) if reduced else Full())
     return solve(problem, param, **options)
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .api import MODELS, load_problem
+from .api import MODELS, load_problem, parse_problem
 from .errors import ProblemError, quoted, shown
 from .problems import named_problems, resolve
 from .provenance import check_overwrite
@@ -89,7 +89,59 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--force", action="store_true",
                          help="overwrite results of another problem in --out")
     sub.add_parser("list", help="list the named problems")
+    _sweep_parser(sub)
+    _inverse_parsers(sub)
     return parser
+
+
+def _sweep_parser(sub: Any) -> None:
+    from .studies.executors import add_executor_arguments
+
+    sweep = sub.add_parser("sweep", help="solve a grid of problem-file values (README, Sweeps)")
+    sweep.add_argument("problem", help="a problem file, or the name of one in problems/")
+    sweep.add_argument("--vary", action="append", default=[], metavar="KEY=START:STOP:COUNT",
+                       help="a grid axis of independent points (repeat for a grid)")
+    sweep.add_argument("--path", action="append", default=[], metavar="KEY=START:STOP:COUNT",
+                       help="weft: a loading-path axis, solved in order and warm-started (repeat: "
+                            "the axes step together)")
+    sweep.add_argument("--name", default=None, help="study name (default: sweep_<problem>)")
+    sweep.add_argument("--out", default="results", help="output folder (default: results)")
+    add_executor_arguments(sweep)
+
+
+def _inverse_parsers(sub) -> None:
+    """control, fit and overlay (README, "Deformation control and identification")."""
+    ctl = sub.add_parser("control", help="weft: move actuated clamps so points reach goals")
+    ctl.add_argument("problem")
+    ctl.add_argument("--out", default="results")
+    fit = sub.add_parser("fit", help="weft: fit material values to observed points")
+    fit.add_argument("problems", nargs="+", metavar="PROBLEM")
+    fit.add_argument("--observations", required=True, metavar="FILE.csv")
+    fit.add_argument("--params", nargs="+", default=["k_a", "k_b", "R_f"])
+    fit.add_argument("--out", default="results")
+    ov = sub.add_parser("overlay", help="weft: draw a result over a photograph")
+    ov.add_argument("result", metavar="RESULT.json")
+    ov.add_argument("image", metavar="IMAGE")
+    ov.add_argument("--match", action="append", default=[], metavar="C,W,POINT=PX,PY")
+    ov.add_argument("--observations", default=None, metavar="FILE.csv")
+    ov.add_argument("--problem", default=None, help="the result's problem file (to resolve point "
+                    "labels; default: found by the result's name)")
+    ov.add_argument("--out", default="results")
+
+
+def _cmd_inverse(args: argparse.Namespace) -> int:
+    """``control``, ``fit`` and ``overlay`` (weft only; knit_nlp.weft.inverse.run)."""
+    from .tomlio import load_toml
+    from .weft.inverse import run
+    if args.command == "control":
+        path = resolve(args.problem)
+        return run.control_file(path, load_toml(path), Path(args.out))
+    if args.command == "fit":
+        return run.fit_files([resolve(p) for p in args.problems], Path(args.observations),
+                             args.params, Path(args.out))
+    return run.overlay_file(Path(args.result), Path(args.image), args.match,
+                            Path(args.observations) if args.observations else None,
+                            resolve(args.problem) if args.problem else None, Path(args.out))
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
@@ -124,7 +176,7 @@ def _solve_options(args: argparse.Namespace, model: str) -> dict[str, Any]:
 
 def _cmd_solve(args: argparse.Namespace) -> int:
     path = resolve(args.problem)
-    problem = load_problem(path)
+    problem = _problem_for_solve(path)
     wrong = [f for f in _given_flags(args) if FLAGS[f] != problem.model]
     if wrong:
         raise ProblemError(path, "", "model", f"{'/'.join(wrong)} apply to {FLAGS[wrong[0]]} "
@@ -141,6 +193,19 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         paths = result.save(out, **_save_options(args, problem.model))
         print(_summary(problem.model)(result, paths))
     return 0 if result.success else 1
+
+
+def _problem_for_solve(path: Path):
+    """The problem to solve; a control file (spec/inverse_problems.md) is solved at its start
+    targets, its control keys ignored with a note."""
+    from .tomlio import load_toml
+    from .weft.inverse.spec import has_control_keys, strip_control_keys
+    doc = load_toml(path)
+    if has_control_keys(doc):
+        print(f"knit-nlp: {path}: control keys (actuated, bounds, goal, opening, control) ignored; "
+              "solving at the start targets (see 'knit-nlp control')", file=sys.stderr)
+        doc = strip_control_keys(doc)
+    return parse_problem(doc, path)
 
 
 def _save_options(args: argparse.Namespace, model: str) -> dict[str, Any]:
@@ -173,7 +238,37 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0 if cmp.success else 1
 
 
-COMMANDS = {"list": _cmd_list, "solve": _cmd_solve, "compare": _cmd_compare}
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from .studies import overview, sweep
+    from .studies.runner import print_table, run_with_options
+    from .tomlio import load_toml
+
+    path = resolve(args.problem)
+    doc = load_toml(path)
+    problem = load_problem(path)
+    name = sweep.study_name(args.name or f"sweep_{problem.name}")
+    vary = [sweep.parse_axis("--vary", a) for a in args.vary]
+    along = [sweep.parse_axis("--path", a) for a in args.path]
+    paths = sweep.sweep_paths(doc, problem, vary, along)
+    summary = run_with_options(name, paths, Path(args.out), args)
+    keys = [a.key for a in (*vary, *along)]
+    out = Path(args.out) / name
+    rows = overview.table_rows(summary, keys)
+    csv = overview.write_table(out / "sweep.csv", rows)
+    png = overview.plot_overview(out / "sweep.png", summary, keys,
+                                 f"{problem.name}: {len(rows)} points")
+    print_table([{**r, "point": f"{r['path']}.{r['index']}"} for r in rows],
+                [("point", "point", ""), *((k, k, "") for k in keys),
+                 ("energy_total", "U total", ".6g"), ("iterations", "it", ""),
+                 ("success", "ok", "")])
+    failed = sum(not r["success"] for r in rows)
+    print(f"{len(rows) - failed} of {len(rows)} points converged; wrote {out / 'summary.json'}, "
+          f"{csv}, {png}")
+    return 0 if failed == 0 else 1
+
+
+COMMANDS = {"list": _cmd_list, "solve": _cmd_solve, "compare": _cmd_compare, "sweep": _cmd_sweep,
+            "control": _cmd_inverse, "fit": _cmd_inverse, "overlay": _cmd_inverse}
 
 
 def prepare_out(out: str, name: str, kinds: tuple[str, ...]) -> Path:

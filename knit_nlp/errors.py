@@ -37,3 +37,13 @@ class ProblemError(Exception):
         where = f"[{shown(self.table)}]" if self.table else "(top level)"
         key = f" {shown(self.key)}" if self.key else ""
         return f"{shown(self.file, 200)}: {where}{key}: {shown(self.message, 400)}"
+
+
+class ArgumentError(ProblemError):
+    """A bad command-line argument (exit code 2): ``str(err)`` is ``ARGUMENT: message``."""
+
+    def __init__(self, argument: str, message: str) -> None:
+        super().__init__(argument, "", "", message)
+
+    def __str__(self) -> str:
+        return f"{shown(self.file, 200)}: {shown(self.message, 400)}"

@@ -135,6 +135,14 @@ class Table:
             raise self.error(key, f"must be <= {maximum}, got {value}")
         return value
 
+    def boolean(self, key: str, default: Any = _MISSING) -> bool:
+        value = self._raw(key, default)
+        if value is default and key not in self.data:
+            return value
+        if not isinstance(value, bool):
+            raise self.error(key, f"expected true or false, got {_type_name(value)}")
+        return value
+
     def number(self, key: str, default: Any = _MISSING, *, positive: bool = False,
                nonnegative: bool = False) -> float:
         value = self._raw(key, default)

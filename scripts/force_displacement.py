@@ -41,12 +41,13 @@ from matplotlib.collections import LineCollection  # noqa: E402
 
 from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.jsonio import write_csv  # noqa: E402
+from knit_nlp.studies import add_executor_arguments, run_with_options  # noqa: E402
 from knit_nlp.units import Units  # noqa: E402
 from knit_nlp.weft.cases import diagonal_pull, unclamped  # noqa: E402
 from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
 from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
 from knit_nlp.weft.study import (LoadPath, WeftStudy, animate_path, point_solution,  # noqa: E402
-                                  print_table, run_study)
+                                  print_table)
 
 STUDY = "force_displacement"
 DIRECTIONS = ("course", "wale", "diagonal")
@@ -140,10 +141,12 @@ def tabulate(summary: dict[str, Any],
     direction = {lp.name: name for name, (lp, _) in built.items()}
     for row in summary["points"]:
         name, k = direction[row["path"]], row["index"]
-        e = row["energy"]
+        solved = "energy" in row             # a lost point (timeout, crash) has no values
+        e = row["energy"] if solved else {"total": np.nan, "spring": np.nan, "bending": np.nan}
         tables[name].append({"displacement": float(meta[name]["d"][k]),
                              "strain": float(meta[name]["strain"][k]),
-                             "reaction": reaction_along(row, name, meta[name]["u"]),
+                             "reaction": reaction_along(row, name, meta[name]["u"]) if solved
+                             else np.nan,
                              "energy_total": e["total"], "energy_spring": e["spring"],
                              "energy_bending": e["bending"], "success": bool(row["success"])})
     return tables
@@ -180,11 +183,12 @@ def plot(path: Path, tables: dict[str, list[dict[str, Any]]], title: str) -> Pat
     return path
 
 
-def last_lines(path: LoadPath, cache: Path) -> tuple[np.ndarray, np.ndarray, WeftStudy]:
-    """Natural and deformed centrelines (m, n, S, 2) of a path's last (cached) point."""
+def last_lines(path: LoadPath, cache: Path) -> tuple[np.ndarray, np.ndarray | None, WeftStudy]:
+    """Natural and deformed centrelines (m, n, S, 2) of a path's last point (None: no result)."""
     study = WeftStudy(parse_problem(path.doc, f"<{path.name}>"))
     x = point_solution(cache.parent, path, len(path.points) - 1)
-    return natural_centrelines(study.problem), solution_centrelines(study.nlp, x), study
+    deformed = None if x is None else solution_centrelines(study.nlp, x)
+    return natural_centrelines(study.problem), deformed, study
 
 
 def held_positions(path: LoadPath, study: WeftStudy) -> np.ndarray:
@@ -210,8 +214,9 @@ def plot_shapes(path: Path, paths: list[LoadPath], cache: Path, strain: float,
         colours = plt.cm.viridis(np.linspace(0.05, 0.85, nat.shape[0]))
         ax.add_collection(LineCollection([np.concatenate(list(c)) for c in nat], colors="0.8",
                                          linewidths=0.8))
-        ax.add_collection(LineCollection([np.concatenate(list(c)) for c in deformed],
-                                         colors=colours, linewidths=1.2))
+        if deformed is not None:
+            ax.add_collection(LineCollection([np.concatenate(list(c)) for c in deformed],
+                                             colors=colours, linewidths=1.2))
         held = held_positions(lp, study)
         ax.plot(held[:, 0], held[:, 1], "s", color="crimson", ms=4)
         ax.autoscale()
@@ -242,7 +247,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--steps", type=int, default=12, help="displacement steps per pull (12)")
     ap.add_argument("--max-strain", type=float, default=0.4, help="largest strain (0.4)")
     ap.add_argument("--directions", nargs="+", choices=DIRECTIONS, default=list(DIRECTIONS))
-    ap.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    add_executor_arguments(ap)
     ap.add_argument("--out", type=Path, default=Path("results"), help="results root (results)")
     ap.add_argument("--animate", action="store_true", help="also a GIF of each loading path")
     args = ap.parse_args(argv)
@@ -256,7 +261,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[dict[str, Any]]]:
     args = parse_args(argv)
     m, n = (args.size * 2)[:2]
     built = build_paths(m, n, args.steps, args.max_strain, args.directions)
-    summary = run_study(STUDY, [p for p, _ in built.values()], args.out, workers=args.workers)
+    summary = run_with_options(STUDY, [p for p, _ in built.values()], args.out, args,
+                               prog=Path(__file__).name)
     tables = tabulate(summary, built)
     out = args.out / STUDY
     for name, rows in tables.items():

@@ -29,11 +29,11 @@ from matplotlib.collections import LineCollection  # noqa: E402
 
 from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.jsonio import write_csv  # noqa: E402
+from knit_nlp.studies import add_executor_arguments, run_with_options  # noqa: E402
 from knit_nlp.weft.cases import diagonal_pull  # noqa: E402
 from knit_nlp.weft.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
-from knit_nlp.weft.study import (LoadPath, WeftStudy, point_solution, print_table,  # noqa: E402
-                                  run_study)
+from knit_nlp.weft.study import LoadPath, WeftStudy, point_solution, print_table  # noqa: E402
 
 STUDY = "stiffness_sweep"
 FIELDS = ("k_b_over_k_a", "R_f", "energy_total", "energy_spring", "energy_bending",
@@ -60,8 +60,9 @@ def tabulate(summary: dict[str, Any]) -> list[dict[str, Any]]:
     rows = []
     for row in summary["points"]:
         kb, rf = row["label"]
-        f = np.array(row["clamps"][1]["reaction"])
-        e = row["energy"]
+        solved = "energy" in row             # a lost point (timeout, crash) has no values
+        f = np.array(row["clamps"][1]["reaction"]) if solved else np.full(2, np.nan)
+        e = row["energy"] if solved else {"total": np.nan, "spring": np.nan, "bending": np.nan}
         rows.append({"k_b_over_k_a": kb, "R_f": rf, "energy_total": e["total"],
                      "energy_spring": e["spring"], "energy_bending": e["bending"],
                      "reaction_x": float(f[0]), "reaction_y": float(f[1]),
@@ -76,9 +77,10 @@ def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cac
     nat = natural_centrelines(study.problem)
     nr, nc = len(paths), len(paths[0].points)
     fig, axes = plt.subplots(nr, nc, figsize=(3.3 * nc, 3.1 * nr + 0.6), squeeze=False)
-    lines = [[solution_centrelines(study.nlp, point_solution(cache.parent, p, k)) for k in range(nc)]
-             for p in paths]
-    every = np.concatenate([nat.reshape(-1, 2)] + [ln.reshape(-1, 2) for r in lines for ln in r])
+    xs = [[point_solution(cache.parent, p, k) for k in range(nc)] for p in paths]
+    lines = [[None if x is None else solution_centrelines(study.nlp, x) for x in r] for r in xs]
+    every = np.concatenate([nat.reshape(-1, 2)] + [ln.reshape(-1, 2) for r in lines for ln in r
+                                                   if ln is not None])
     lo, hi = every.min(axis=0), every.max(axis=0)
     colours = plt.cm.viridis(np.linspace(0.05, 0.85, nat.shape[0]))
     clamps = np.array([c.target for c in study.problem.clamps])
@@ -87,8 +89,9 @@ def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cac
             ax, row = axes[r, k], rows[r * nc + k]
             ax.add_collection(LineCollection([np.concatenate(list(c)) for c in nat],
                                              colors="0.8", linewidths=0.8))
-            ax.add_collection(LineCollection([np.concatenate(list(c)) for c in lines[r][k]],
-                                             colors=colours, linewidths=1.1))
+            if lines[r][k] is not None:
+                ax.add_collection(LineCollection([np.concatenate(list(c)) for c in lines[r][k]],
+                                                 colors=colours, linewidths=1.1))
             ax.plot(clamps[:, 0], clamps[:, 1], "s", color="crimson", ms=4)
             ax.set_xlim(lo[0] - 1, hi[0] + 1)
             ax.set_ylim(lo[1] - 1, hi[1] + 1)
@@ -125,7 +128,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                     help="k_b/k_a values, one row each (k_a = 1; default 0.01 0.1 1)")
     ap.add_argument("--rf", type=float, nargs="+", default=[0.25, 1.0, 4.0],
                     help="R_f values, one column each (default 0.25 1 4)")
-    ap.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    add_executor_arguments(ap)
     ap.add_argument("--out", type=Path, default=Path("results"), help="results root (results)")
     args = ap.parse_args(argv)
     if args.size < 2:
@@ -137,7 +140,8 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """Run the sweep; write the CSV, the grid PNG and summary.json; print the table."""
     args = parse_args(argv)
     paths = build_paths(args.size, args.kb, args.rf)
-    summary = run_study(STUDY, paths, args.out, workers=args.workers)
+    summary = run_with_options(STUDY, paths, args.out, args,
+                               prog=Path(__file__).name)
     rows = tabulate(summary)
     out = args.out / STUDY
     write_csv(out / f"{STUDY}.csv", rows, FIELDS)

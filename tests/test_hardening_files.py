@@ -175,7 +175,8 @@ def test_every_named_problem_file_is_declared_package_data():
     assert conf["package-dir"]["knit_nlp.problem_data"] == "problems"
     assert "knit_nlp.problem_data" in conf["packages"]
     patterns = conf["package-data"]["knit_nlp.problem_data"]
-    files = [p.name for p in (ROOT / "problems").iterdir()]
+    files = [str(p.relative_to(ROOT / "problems")) for p in (ROOT / "problems").rglob("*")
+             if p.is_file()]
     assert files and all(any(fnmatch(f, pat) for pat in patterns) for f in files), files
 
 

@@ -17,9 +17,11 @@ import numpy as np
 
 from ..jsonio import write_json
 from ..provenance import source_record
+from .adaptive import solve_adaptive
+from .condensed import build_condensed
 from .nlp import build_nlp
 from .params import WeftParams
-from .parametrisation import Full, Parametrisation, Reduced
+from .parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .plot import plot_overlay
 from .problem import WeftProblem
 from .results import WeftResult
@@ -45,8 +47,11 @@ def solve(problem: WeftProblem, parametrisation: Parametrisation | None = None, 
         if isinstance(param, Reduced):
             raise ValueError("warm_from_reduced starts the full model: use Full()")
         return _warm_from_reduced(problem, params, continuation, verbose)[1]
+    if isinstance(param, Adaptive):
+        return _adaptive(problem, param, params, continuation)
     t0 = time.perf_counter()
-    wnlp = build_nlp(problem, param)
+    # the reduced model is solved in its condensed form (README, "Full versus reduced")
+    wnlp = build_condensed(problem, param) if isinstance(param, Reduced) else build_nlp(problem, param)
     solver = WeftSolver(wnlp, verbose=verbose)
     build_s = time.perf_counter() - t0
     x0 = None if start is None else wnlp.lift(start.coefficients, start.starts)
@@ -55,6 +60,18 @@ def solve(problem: WeftProblem, parametrisation: Parametrisation | None = None, 
     if solver.progress is not None:
         solver.progress.done()
     return WeftResult(wnlp, rep, params, build_s, solver.violation(rep.x, params.vector()))
+
+
+def _adaptive(problem: WeftProblem, cfg: Adaptive, params: WeftParams | None,
+              continuation: int | None) -> WeftResult:
+    """Adaptive representatives (``adaptive``); the result carries every step's grid."""
+    if params is not None and not np.array_equal(params.vector(), WeftParams.of(problem).vector()):
+        raise ValueError("adaptive representatives solve at the problem's own parameters")
+    run = solve_adaptive(problem, cfg, continuation=continuation)
+    viol = WeftSolver(run.cnlp).violation(run.report.x, run.cnlp.p0)
+    return WeftResult(run.cnlp, run.report, run.cnlp.params, run.build_s, viol,
+                      {"adaptive": {"steps": [st.as_dict() for st in run.steps],
+                                    "estimate": run.steps[-1].estimate}})
 
 
 def _warm_from_reduced(problem: WeftProblem, params: WeftParams | None,
@@ -130,7 +147,9 @@ class Comparison:
                            for name, r in self.models().items()},
                 "distance": {"max": self.distance_max, "rms": self.distance_rms,
                              "samples_per_loop": self.samples},
-                "energy_gap": self.energy_gap, "speedup_reduced": self.speedup_reduced}
+                "energy_gap": self.energy_gap, "speedup_reduced": self.speedup_reduced,
+                **({"adaptive": {**self.reduced.extra["adaptive"], "true_rms": self.distance_rms}}
+                   if "adaptive" in self.reduced.extra else {})}
 
     def save(self, out_dir: Path | str) -> list[Path]:
         """``DIR/<problem>.compare.json`` and the overlay ``.compare.png``."""

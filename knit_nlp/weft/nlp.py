@@ -19,7 +19,7 @@ stiffnesses and loads are NLP parameters: one build serves many solves.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -79,6 +79,13 @@ class WeftNLP:
     energy: ca.Function
     coeff_map: np.ndarray | None
     n_parameters: int
+    displacements: ca.MX | None = None     # D: per-loop integrals (2 × N·P), see _constraints
+    nlpsol_options: dict = field(default_factory=dict)   # extra nlpsol options (none here)
+
+    @property
+    def eval_points(self) -> list[float]:
+        """The s-values of each loop's columns of ``displacements``."""
+        return eval_points(self.problem, self.specials)
 
     @property
     def model(self) -> str:
@@ -110,6 +117,10 @@ class WeftNLP:
         """Loop start points (m, n, 2) of a solution vector."""
         pr = self.problem
         return self.x.get(xval, "starts").T.reshape(pr.courses, pr.wales, 2)
+
+    def special_positions(self, xval: np.ndarray) -> np.ndarray:
+        """Positions (2 × specials) of the clamped and loaded material points."""
+        return self.x.get(xval, "PC") if self.specials else np.zeros((2, 0))
 
     def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
         """A full decision vector from loop coefficients (m, n, 2t+2) and starts (m, n, 2)."""
@@ -202,15 +213,15 @@ def build_nlp(pr: WeftProblem, parametrisation: Parametrisation = Full()) -> Wef
     pl = param_layout(pr)
     psym = ca.MX.sym("p", pl.size)
     pb = {name: ca.reshape(psym[pl.slice(name)], *shape) for name, (_, _, shape) in pl.blocks.items()}
-    gl, g, clamp_rows, rigid_rows = _constraints(pr, A, xb, pb, specials, clamp_pts, rigid_pts,
-                                                 continuity=coeff_map is None)
+    gl, g, clamp_rows, rigid_rows, D = _constraints(pr, A, xb, pb, specials, clamp_pts, rigid_pts,
+                                                    continuity=coeff_map is None)
     spring, bend, work = _energy_terms(pr, A, xb, pb, specials, load_pts)
     nlp = {"x": xsym, "p": psym, "f": spring + bend - work, "g": g}
     energy = ca.Function("energy", [xsym, psym], [spring, bend, work],
                          ["x", "p"], ["spring", "bending", "load_work"])
     result = WeftNLP(pr, parametrisation, nlp, xl, pl, gl, np.zeros(xl.size), WeftParams.of(pr),
                      specials, clamp_pts, load_pts, rigid_pts, clamp_rows, rigid_rows, energy,
-                     coeff_map, n_parameters(pr, parametrisation))
+                     coeff_map, n_parameters(pr, parametrisation), D)
     result.x0 = result.lift(np.broadcast_to(pr.natural.coeffs, (m, n, nc)).copy(),
                             pr.natural_starts())
     return result
@@ -237,10 +248,11 @@ def _variables(pr: WeftProblem, coeff_map: np.ndarray | None, specials: list[Spe
 
 def _constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
                  specials: list[SpecialPoint], clamp_pts: list[int], rigid_pts: list[list[int]],
-                 continuity: bool) -> tuple[Layout, ca.MX, list[ClampRows], list[slice]]:
+                 continuity: bool) -> tuple[Layout, ca.MX, list[ClampRows], list[slice], ca.MX]:
     """All equality constraints g = 0: chaining (eq. 1), lifted spring vectors and points,
     continuity (18)-(19) unless the parametrisation has it built in, clamps; with the rows of
-    each clamp and rigid clamp."""
+    each clamp and rigid clamp, and the per-loop integrals D they use (g is affine in the
+    variables and D)."""
     n, N, X = pr.wales, pr.n_loops, xb["starts"]
     evals = eval_points(pr, specials)
     col, P = {s: q for q, s in enumerate(evals)}, len(evals)
@@ -273,7 +285,7 @@ def _constraints(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, 
               - ca.mtimes(ca.DM(S), A[:, (left + 1).tolist()]))
     clamp_rows = _clamp_constraints(pr, A, xb, pb, clamp_pts, add_g)
     rigid_rows = _rigid_constraints(pr, xb, pb, rigid_pts, add_g)
-    return gl, ca.vertcat(*g), clamp_rows, rigid_rows
+    return gl, ca.vertcat(*g), clamp_rows, rigid_rows, D
 
 
 def _energy_terms(pr: WeftProblem, A: ca.MX, xb: dict[str, ca.MX], pb: dict[str, ca.MX],

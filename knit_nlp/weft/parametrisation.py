@@ -2,7 +2,8 @@
 interpolated from representative loops (:class:`Reduced`, eqs. 22-27; the map is in
 ``reduction``).
 
-Both are plain values: ``build_nlp(problem, Reduced((1, 5, 10), (1, 10)))``.
+Both are plain values: ``build_nlp(problem, Reduced((1, 5, 10), (1, 10)))``. :class:`Adaptive`
+chooses the representatives itself (``adaptive.solve_adaptive``).
 """
 from __future__ import annotations
 
@@ -47,4 +48,19 @@ class Reduced:
         return Reduced(*reps)
 
 
-Parametrisation = Union[Full, Reduced]
+@dataclass(frozen=True)
+class Adaptive:
+    """Representatives chosen by refinement from the corners (``adaptive``, README "Full versus
+    reduced"): refine until the estimated RMS centreline error is at most ``tolerance``
+    (length units; None: 0.1·L) or the next grid would exceed ``max_parameters`` (None: 30 %
+    of the full model's count)."""
+
+    tolerance: float | None = None
+    max_parameters: int | None = None
+    name = "reduced"
+
+    def resolve(self, courses: int, wales: int) -> "Adaptive":
+        return self
+
+
+Parametrisation = Union[Full, Reduced, Adaptive]

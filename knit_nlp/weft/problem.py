@@ -18,7 +18,7 @@ from ..tomlio import Table, finite_number, load_toml
 from ..units import Units, read_units
 from .basis import n_coeffs
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
-from .parametrisation import Full, Parametrisation, Reduced
+from .parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
 
 # Gauss-Legendre nodes per panel. Panels break at every material point the model needs and are
@@ -111,7 +111,7 @@ class WeftProblem:
     clamps: tuple[Clamp, ...] = ()
     loads: tuple[Load, ...] = ()
     rigid_clamps: tuple[RigidClamp, ...] = ()
-    reduction: Reduced | None = None
+    reduction: Reduced | Adaptive | None = None
     solver: SolverOptions = field(default_factory=SolverOptions)
     source: str = "<memory>"
     units: Units = field(default_factory=Units)
@@ -431,8 +431,20 @@ def _check_overconstraint(top: Table, clamps: tuple[Clamp, ...], rigid: tuple[Ri
                 hold(f"rigid_clamp[{k + 1}]", f"points[{q + 1}]", loop, s, label, dof)
 
 
-def _read_reduction(top: Table, m: int, n: int) -> Reduced:
+def _read_reduction(top: Table, m: int, n: int) -> Reduced | Adaptive:
     tab = top.table("reduction")
+    adaptive = tab.boolean("adaptive", False)
+    tolerance = tab.number("tolerance", None, positive=True)
+    max_parameters = tab.integer("max_parameters", None, minimum=1)
+    for key in ("representative_courses", "representative_wales"):
+        if adaptive and tab.has(key):
+            raise tab.error(key, "not with adaptive = true (adaptive starts from the corners)")
+    for key, value in (("tolerance", tolerance), ("max_parameters", max_parameters)):
+        if value is not None and not adaptive:
+            raise tab.error(key, "only with adaptive = true")
+    if adaptive:
+        tab.finish()
+        return Adaptive(tolerance, max_parameters)
     courses = tab.integers("representative_courses", [1, m] if m > 1 else [1])
     wales = tab.integers("representative_wales", [1, n] if n > 1 else [1])
     for key, values, last in (("representative_courses", courses, m),

@@ -13,6 +13,8 @@ Count: p·q·2t + 2p representative parameters (+ 2m course starts, which stay f
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .basis import n_coeffs
@@ -28,37 +30,59 @@ def hat_weights(index: int, reps: tuple[int, ...]) -> np.ndarray:
     return np.array([np.interp(index, reps, eye[r]) for r in range(len(reps))])
 
 
+@dataclass(frozen=True)
+class CourseMap:
+    """One course's share of the map: a_ij = T[j − 1] · z[cols] for every loop j of course i.
+
+    ``cols`` are the reduced parameters the course can depend on (those of the representative
+    courses whose hat weight at i is nonzero), so the blocks hold N·(2t+2)·|cols| numbers in all
+    and the map is never formed densely.
+    """
+
+    cols: np.ndarray
+    T: np.ndarray                                   # (n, 2t+2, len(cols))
+
+
+def n_reduced(red: Reduced, t: int) -> int:
+    """Number of reduced parameters z: p·q·2t + 2p."""
+    return len(red.courses) * len(red.wales) * 2 * t + 2 * len(red.courses)
+
+
+def course_map(i: int, red: Reduced, n: int, t: int, L: float) -> CourseMap:
+    """The rows of T for the loops of 1-based course ``i`` (eqs. 20-23; see the module docstring)."""
+    p, q, h = len(red.courses), len(red.wales), 2 * t
+    wi = hat_weights(i, red.courses)
+    rs = np.flatnonzero(wi)
+    hat_cols = np.arange(p * q * h).reshape(p, q, h)
+    lin_cols = p * q * h + np.arange(2 * p).reshape(p, 2)
+    cols = np.concatenate([hat_cols[rs].ravel(), lin_cols[rs].ravel()])
+    nh = rs.size * q * h
+    V = np.array([hat_weights(j, red.wales) for j in range(1, n + 1)])          # n × q
+    T = np.zeros((n, h + 2, cols.size))
+    T[:, :h, :nh] = np.einsum("r,jc,kl->jkrcl", wi[rs], V, np.eye(h)).reshape(n, h, nh)
+    T[0, h, nh + 2 * np.arange(rs.size)] = wi[rs]                               # eq. (23)
+    T[0, h + 1, nh + 2 * np.arange(rs.size) + 1] = wi[rs]
+    kdiff = np.concatenate([2 * np.pi * np.arange(1, t + 1) / L, np.zeros(t)])
+    cos_sum = np.concatenate([np.zeros(t), np.ones(t)])
+    for j in range(1, n):
+        dhat = T[j - 1, :h] - T[j, :h]                                  # â_i,j−1 − â_ij
+        T[j, h] = kdiff @ dhat + T[j - 1, h]                            # eq. (21)
+        T[j, h + 1] = cos_sum @ dhat + T[j - 1, h] * L + T[j - 1, h + 1]  # eq. (20)
+    return CourseMap(cols, T)
+
+
+def course_maps(pr: WeftProblem, reduced: Reduced) -> list[CourseMap]:
+    """Every course's block of the map, course 1 first."""
+    red = reduced.resolve(pr.courses, pr.wales)
+    return [course_map(i, red, pr.wales, pr.t, pr.L) for i in range(1, pr.courses + 1)]
+
+
 def reduction_map(pr: WeftProblem, reduced: Reduced) -> np.ndarray:
     """T with vec(coeffs) = T·z, coeffs (2t+2 × N) column-major by loop k = (i−1)·n + (j−1)."""
     red = reduced.resolve(pr.courses, pr.wales)
-    m, n, t, L = pr.courses, pr.wales, pr.t, pr.L
-    nc, p, q = n_coeffs(t), len(red.courses), len(red.wales)
-    nz = p * q * 2 * t + 2 * p
-    hat_cols = np.arange(p * q * 2 * t).reshape(p, q, 2 * t)
-    lin_cols = p * q * 2 * t + np.arange(2 * p).reshape(p, 2)
-    kdiff = np.concatenate([2 * np.pi * np.arange(1, t + 1) / L, np.zeros(t)])
-    cos_sum = np.concatenate([np.zeros(t), np.ones(t)])
-    T = np.zeros((nc * m * n, nz))
-    for i in range(1, m + 1):
-        wi = hat_weights(i, red.courses)
-        rows = []                                   # (nc × nz) per loop of this course
-        for j in range(1, n + 1):
-            vj = hat_weights(j, red.wales)
-            a = np.zeros((nc, nz))
-            for r in range(p):
-                for c in range(q):
-                    a[np.arange(2 * t), hat_cols[r, c]] += wi[r] * vj[c]
-            if j == 1:
-                for r in range(p):
-                    a[2 * t, lin_cols[r, 0]] += wi[r]
-                    a[2 * t + 1, lin_cols[r, 1]] += wi[r]
-            else:
-                prev = rows[-1]
-                dhat = prev[:2 * t] - a[:2 * t]                        # â_ij − â_i,j+1
-                a[2 * t] = kdiff @ dhat + prev[2 * t]                  # eq. (21)
-                a[2 * t + 1] = cos_sum @ dhat + prev[2 * t] * L + prev[2 * t + 1]   # eq. (20)
-            rows.append(a)
-        for j, a in enumerate(rows):
-            k = (i - 1) * n + j
-            T[k * nc:(k + 1) * nc] = a
+    n, nc = pr.wales, n_coeffs(pr.t)
+    T = np.zeros((nc * pr.n_loops, n_reduced(red, pr.t)))
+    for i, cm in enumerate(course_maps(pr, red)):
+        rows = slice(i * n * nc, (i + 1) * n * nc)
+        T[rows, cm.cols] = cm.T.reshape(n * nc, -1)
     return T

@@ -170,7 +170,7 @@ class WeftResult(Outcome):
 
     def _points(self) -> np.ndarray:
         """Positions (2, k) of the lifted clamped and loaded points."""
-        return self.nlp.x.get(self.x, "PC") if self.nlp.specials else np.zeros((2, 0))
+        return self.nlp.special_positions(self.x)
 
     @cached_property
     def clamps(self) -> list[ClampReaction]:

@@ -21,9 +21,13 @@ import numpy as np
 
 from ..ipopt import ipopt_options, succeeded
 from ..progress import IterationLine
+from .derivatives import closed_form_derivatives
 from .guesses import needs_perturbation, perturbed_starts
 from .nlp import WeftNLP
 from .params import WeftParams
+from .start import start_point
+
+DEFAULT_START = "multilevel"    # measured: see README, "Measured performance"
 
 OUT_OF_TIME = "Maximum_WallTime_Exceeded"      # IPOPT's own name, also used between solves
 
@@ -57,19 +61,22 @@ class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
-                 print_level: int = 0, verbose: bool = False) -> None:
+                 print_level: int = 0, verbose: bool = False, derivatives: str = "closed_form",
+                 ipopt: dict | None = None) -> None:
         opts = wnlp.problem.solver
         self.wnlp = wnlp
         t0 = time.perf_counter()
         # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of IPOPT's own
         # time and the KKT systems here are well scaled without them
-        options = ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
-                                max_wall_time=opts.max_time, mumps_scaling=0,
-                                mumps_permuting_scaling=0)
+        options = {**ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
+                                   max_wall_time=opts.max_time, mumps_scaling=0,
+                                   mumps_permuting_scaling=0, **(ipopt or {})),
+                   **wnlp.nlpsol_options}
         self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints) if verbose else None
         if self.progress is not None:
             options["iteration_callback"] = self.progress
-        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, options)
+        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp,
+                                {**options, **derivative_options(wnlp, derivatives)})
         self.setup_s = time.perf_counter() - t0
         self.start_clock()
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
@@ -127,17 +134,38 @@ class WeftSolver:
         return total
 
 
+def derivative_options(wnlp: WeftNLP, derivatives: str) -> dict:
+    """nlpsol options for the derivatives: ``closed_form`` (derivatives.py; full model only,
+    measured faster, see README) or ``casadi`` (CasADi's AD of the NLP expressions)."""
+    if derivatives not in ("closed_form", "casadi"):
+        raise ValueError(f"unknown derivatives {derivatives!r}")
+    if derivatives == "casadi" or wnlp.model != "full":
+        return {}
+    return closed_form_derivatives(wnlp)
+
+
 def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, params: WeftParams | None = None,
-          x0: np.ndarray | None = None, continuation: int | None = None) -> SolveReport:
+          x0: np.ndarray | None = None, continuation: int | None = None,
+          start: str = DEFAULT_START) -> SolveReport:
     """Solve robustly at ``params`` (the problem's own by default): direct, then continuation;
-    from perturbed starts where degenerate."""
+    from perturbed starts where degenerate. Without x0 the solve starts from ``start``
+    (start.py: ``multilevel``, ``rigid`` or ``natural``); a multilevel start's coarse solves
+    count into ``solve_s`` and ``attempts``."""
     solver = solver or WeftSolver(wnlp)
     solver.start_clock()
     p = (params or wnlp.params).vector()
     continuation = continuation or wnlp.problem.solver.continuation
     if needs_perturbation(wnlp, p) and x0 is None:
         return _best_of_perturbed(wnlp, solver, p, continuation)
-    return _direct_then_continuation(solver, p, wnlp.x0 if x0 is None else x0, continuation)
+    if x0 is not None:
+        return _direct_then_continuation(solver, p, x0, continuation)
+    t0, levels = time.perf_counter(), []
+    x0 = start_point(wnlp, p, start, levels)
+    start_s = time.perf_counter() - t0
+    rep = _direct_then_continuation(solver, p, x0, continuation)
+    rep.solve_s += start_s          # the coarse solves are part of solving this problem
+    rep.attempts = levels + rep.attempts
+    return rep
 
 
 def _direct_then_continuation(solver: WeftSolver, p: np.ndarray, x0: np.ndarray,

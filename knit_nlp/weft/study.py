@@ -4,29 +4,16 @@
   :class:`~knit_nlp.weft.params.WeftParams`, whose ``with_`` names changes (clamp targets or
   displacements, rigid-clamp motions, material values, loads; numbered from 1);
   :meth:`WeftStudy.solve` re-solves, warm-started from a given point.
-- :func:`run_study` runs named loading paths: points along one path run in order, each
-  warm-started from the last; independent paths run in parallel processes. Each point's result
-  is cached under ``results/<study>/points/``, so an interrupted study resumes where it stopped;
-  ``summary.json`` collects every point (no timings, so a resumed study's summary equals an
-  uninterrupted one's). One line of progress shows count, elapsed time and an estimate.
+- :func:`~knit_nlp.studies.runner.run_study` (re-exported here) runs named loading paths on a
+  local process pool or a Dask cluster: see :mod:`knit_nlp.studies`.
 """
 from __future__ import annotations
 
-import hashlib
-import json
-import multiprocessing as mp
-import os
-import queue as queue_errors
-import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..atomic import atomic_file
-from ..jsonio import write_json
 from .nlp import build_nlp
 from .params import WeftParams
 from .parametrisation import Full, Parametrisation
@@ -62,165 +49,18 @@ class WeftStudy:
                           self.solver.violation(rep.x, params.vector()))
 
 
-@dataclass
-class LoadPath:
-    """Points solved in order, each warm-started from the last, on one problem.
+# the study runner is shared by both models; its names stay importable from here
+from ..studies.runner import (LoadPath, Progress, point_files, point_solution,  # noqa: E402
+                              print_table, run_study)
 
-    ``doc`` is the problem as a TOML-like dict (plain data, so it travels to worker processes);
-    each point is a dict of :meth:`WeftParams.with_` keyword arguments (JSON-able; clamps,
-    loads and rigid clamps numbered from 1).
-    """
-
-    name: str
-    doc: dict[str, Any]
-    points: list[dict[str, Any]]
-    parametrisation: Parametrisation = Full()
-    labels: list[Any] = field(default_factory=list)
-
-
-def _key(path: LoadPath, index: int) -> str:
-    """A hash of everything that determines a point: problem, model and the path up to it."""
-    blob = json.dumps([path.doc, repr(path.parametrisation), path.points[:index + 1]],
-                      sort_keys=True, default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()[:16]
-
-
-def point_files(cache: Path, path: LoadPath, index: int) -> tuple[Path, Path]:
-    """The cached result JSON and solution vector (.npy) of one point of a path."""
-    stem = f"{path.name}.{index:04d}.{_key(path, index)}"
-    return cache / f"{stem}.json", cache / f"{stem}.npy"
-
-
-def point_solution(study_dir: Path, path: LoadPath, index: int) -> np.ndarray:
-    """The solution vector of a solved point of a study written under ``study_dir``."""
-    return np.load(point_files(study_dir / "points", path, index)[1])
-
-
-def _summary_row(path: LoadPath, index: int, result: dict[str, Any]) -> dict[str, Any]:
-    return {"path": path.name, "index": index,
-            "label": path.labels[index] if index < len(path.labels) else index,
-            "point": path.points[index], "success": result["success"], "status": result["status"],
-            "energy": result["energy"], "iterations": result["iterations"],
-            "clamps": [{"loop": c["loop"], "point": c["point"], "position": c["position"],
-                        "reaction": c["reaction"]} for c in result["clamps"]],
-            "rigid_clamps": [{"force": r["force"], "moment": r["moment"]}
-                             for r in result["rigid_clamps"]]}
-
-
-def _read_cached(js: Path, npy: Path) -> tuple[dict[str, Any], np.ndarray] | None:
-    """A cached point's result and solution vector, or None if missing or damaged (a study
-    killed by an older version mid-write, a disk error): such a point is solved again."""
-    try:
-        result = json.loads(js.read_text(encoding="utf-8"))
-        x = np.load(npy, allow_pickle=False)
-    except (OSError, ValueError, EOFError):      # JSONDecodeError and numpy's errors are ValueErrors
-        return None
-    if not isinstance(result, dict) or not {"success", "status", "energy", "iterations",
-                                            "clamps", "rigid_clamps"} <= set(result):
-        return None
-    if x.dtype != np.float64 or x.ndim != 1:
-        return None
-    return result, x
-
-
-def run_path(path: LoadPath, cache: Path, limit: int | None = None,
-             tick: Callable[[], None] | None = None) -> list[dict[str, Any]]:
-    """Solve one path in order with caching; at most ``limit`` new solves (None: all)."""
-    cache.mkdir(parents=True, exist_ok=True)
-    rows, x_prev, study, new = [], None, None, 0
-    for index in range(len(path.points)):
-        js, npy = point_files(cache, path, index)
-        cached = _read_cached(js, npy)
-        if cached is not None:
-            result, x_prev = cached
-        else:
-            if limit is not None and new >= limit:
-                break
-            if study is None:
-                study = WeftStudy(parse_problem(path.doc, f"<study {path.name}>"),
-                                  path.parametrisation)
-            p = study.params.with_(**path.points[index])
-            rep = study.solve(p, x0=x_prev)
-            result = study.result(rep, p).to_json()
-            with atomic_file(npy) as fh:
-                np.save(fh, rep.x)
-            write_json(js, result)          # last: a point counts as cached once its JSON exists
-            x_prev, new = rep.x, new + 1
-        rows.append(_summary_row(path, index, result))
-        if tick:
-            tick()
-    return rows
-
-
-def _worker(args: tuple[LoadPath, Path, int | None, Any]) -> list[dict[str, Any]]:
-    path, cache, limit, queue = args
-    return run_path(path, cache, limit, tick=(lambda: queue.put(1)) if queue is not None else None)
-
-
-def print_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str, str]]) -> None:
-    """A study table on one screen: ``columns`` are (key, header, format spec); booleans print as
-    ``y`` / ``NO``."""
-    widths = [max(len(head) + 1, 7) for _, head, _ in columns]
-    print("".join(f"{head:>{w}}" for (_, head, _), w in zip(columns, widths)))
-    for r in rows:
-        cells = [("y" if r[key] else "NO") if isinstance(r[key], bool) else format(r[key], fmt)
-                 for key, _, fmt in columns]
-        print("".join(f"{c:>{w}}" for c, w in zip(cells, widths)))
-
-
-class Progress:
-    """One line of progress on stderr: count, elapsed time, estimate of the time left."""
-
-    def __init__(self, name: str, total: int, stream=None) -> None:
-        self.name, self.total, self.done, self.t0 = name, total, 0, time.perf_counter()
-        self.stream = stream or sys.stderr
-
-    def tick(self) -> None:
-        self.done += 1
-        el = time.perf_counter() - self.t0
-        left = el / self.done * (self.total - self.done)
-        end = "\n" if self.done >= self.total else ""
-        self.stream.write(f"\r{self.name}: {self.done}/{self.total} points, {el:.1f} s elapsed, "
-                          f"~{left:.1f} s left   {end}")
-        self.stream.flush()
-
-
-def run_study(name: str, paths: Sequence[LoadPath], out_root: Path = Path("results"),
-              workers: int | None = None, limit: int | None = None) -> dict[str, Any]:
-    """Run (or resume) a study: paths in parallel, points along a path in order.
-
-    Writes ``out_root/<name>/summary.json`` when every point is done; ``limit`` caps the new
-    solves per path (for tests of resumption). Returns the summary.
-    """
-    out = out_root / name
-    cache = out / "points"
-    workers = workers or min(len(paths), os.cpu_count() or 1)
-    progress = Progress(name, sum(len(p.points) for p in paths))
-    if workers <= 1 or len(paths) <= 1:
-        per_path = [run_path(p, cache, limit, progress.tick) for p in paths]
-    else:
-        ctx = mp.get_context("fork" if sys.platform != "win32" else "spawn")
-        with ctx.Manager() as manager, ctx.Pool(workers) as pool:
-            queue = manager.Queue()
-            job = pool.map_async(_worker, [(p, cache, limit, queue) for p in paths])
-            while not job.ready() or not queue.empty():
-                try:
-                    queue.get(timeout=0.2)
-                    progress.tick()
-                except queue_errors.Empty:
-                    pass
-            per_path = job.get()
-    rows = [row for path_rows in per_path for row in path_rows]
-    complete = len(rows) == progress.total
-    summary = {"study": name, "complete": complete, "points": rows}
-    if complete:
-        write_json(out / "summary.json", summary)
-    return summary
+__all__ = ["WeftStudy", "LoadPath", "Progress", "animate_path", "point_files", "point_solution",
+           "print_table", "run_study"]
 
 
 def animate_path(gif: Path, path: LoadPath, study_dir: Path, fps: int = 4) -> Path:
     """A GIF of a solved load path of a study written under ``study_dir``: the natural loops,
-    then every point's deformed loops in order (labels in the frame titles)."""
+    then every point's deformed loops in order (labels in the frame titles; a point without a
+    solution, its worker lost, is left out)."""
     from .plot import animate
     from .sampling import natural_centrelines, solution_centrelines
     wnlp = build_nlp(parse_problem(path.doc, f"<{path.name}>"), path.parametrisation)
@@ -228,6 +68,7 @@ def animate_path(gif: Path, path: LoadPath, study_dir: Path, fps: int = 4) -> Pa
     frames = [(f"{path.name}: natural", natural)]
     for k in range(len(path.points)):
         label = path.labels[k] if k < len(path.labels) else k
-        frames.append((f"{path.name}: {label}",
-                       solution_centrelines(wnlp, point_solution(study_dir, path, k))))
+        x = point_solution(study_dir, path, k)
+        if x is not None:
+            frames.append((f"{path.name}: {label}", solution_centrelines(wnlp, x)))
     return animate(gif, natural, frames, wnlp.problem.units, fps)

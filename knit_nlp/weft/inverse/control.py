@@ -1,0 +1,271 @@
+"""Deformation control (spec/inverse_problems.md, section 1): move the actuated clamps so that
+material points reach goals and openings stay open, with the fabric in stable equilibrium.
+
+Formulation (chosen by measurement, see the README): an outer trust-region Gauss–Newton (SQP)
+iteration over the few actuated unknowns u. At each outer step the equilibrium x(u) is the
+forward NLP's solution (the same built IPOPT instance, warm-started from the implicit-function
+prediction x + (dx/du)·d), and dx/du comes from one factorization of the forward KKT matrix
+(see ``equilibrium``). The residual is r(u) = (√w·(P(x(u)) − goal), √travel_weight·(u − u₀)) so
+the objective Σw|misfit|² + travel_weight·Σ|travel|² is |r|²; each step solves the convex QP
+
+    min_d |r + J d|²  s.t.  bounds on u + d,  |d|∞ ≤ Δ,  o + Jₒ d ≥ at_least  (openings, linearised)
+
+(CasADi's ``qrqp``) and is accepted on the decrease of |r|² + ρ·Σ opening shortfall.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ..params import WeftParams
+from ..results import WeftResult
+from ..sampling import solution_centrelines
+from ..solve import SolveReport
+from .equilibrium import Equilibrium, Stability
+from .points import point_function, point_jacobian
+from .spec import ControlProblem
+
+CONVERGED = "Converged"
+
+
+@dataclass
+class ControlOptions:
+    """Outer-iteration limits and tolerances."""
+
+    max_iter: int = 60
+    step_tol: float = 1e-10          # stop when the accepted step is this small (relative to 1 + |u|)
+    objective_tol: float = 1e-14     # stop when the predicted decrease is below this (absolute)
+    opening_tol: float = 1e-7        # allowed shortfall of an opening at the answer
+    forward_tol: float = 1e-5        # largest centreline distance for the forward check to pass
+    initial_radius: float = 10.0     # trust region in model units (and radians for rotations);
+    #                                  place_stitch: 5 outer steps instead of 7 with 2.0
+
+
+@dataclass
+class State:
+    """An equilibrium at actuated unknowns u."""
+
+    u: np.ndarray
+    x: np.ndarray
+    lam: np.ndarray
+    r: np.ndarray
+    gap: np.ndarray                  # opening distance minus at_least (>= 0 feasible)
+    report: SolveReport
+
+    def merit(self, rho: float) -> float:
+        return float(self.r @ self.r + rho * np.sum(np.maximum(0.0, -self.gap)))
+
+
+@dataclass
+class ControlAnswer:
+    """What the control command found, with everything needed for the JSON and the picture."""
+
+    ctl: "Controller"
+    success: bool
+    status: str
+    state: State
+    start: State
+    p: np.ndarray
+    iterations: int
+    stability: Stability
+    forward_success: bool
+    forward_distance: float
+    forward_x: np.ndarray
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+class Controller:
+    """The outer problem over the actuated unknowns of one control problem (one forward build)."""
+
+    def __init__(self, cp: ControlProblem, options: ControlOptions | None = None) -> None:
+        self.cp, self.opts = cp, options or ControlOptions()
+        self.eq = Equilibrium(cp.problem)
+        pl = self.eq.wnlp.p
+        idx = []
+        for a in cp.actuated:
+            block, rows = ("targets", 2) if a.kind == "clamp" else ("rigid", 3)
+            idx += [pl.slice(block).start + rows * a.index + d for d in range(rows)]
+        self.idx = np.array(idx, dtype=int)
+        self.E = np.zeros((pl.size, len(idx)))
+        self.E[self.idx, np.arange(len(idx))] = 1.0
+        self.u0 = self.eq.wnlp.p0[self.idx].copy()
+        self.lower = np.concatenate([a.lower for a in cp.actuated])
+        self.upper = np.concatenate([a.upper for a in cp.actuated])
+        self._goals = point_jacobian(point_function(self.eq.wnlp, [(g.loop, g.s) for g in cp.goals]))
+        self._open = point_jacobian(point_function(
+            self.eq.wnlp, [(lp, s) for o in cp.openings for lp, _, s in o.points]))
+        w = []
+        for g in cp.goals:
+            w += [np.sqrt(g.weight) if f else 0.0 for f in g.fix]
+        self._w = np.array(w)
+        self._rows = self._w > 0
+        self._qp = self._build_qp()
+
+    # -- residuals and their Jacobians ------------------------------------------------------
+    def params(self, u: np.ndarray) -> np.ndarray:
+        p = self.eq.wnlp.p0.copy()
+        p[self.idx] = u
+        return p
+
+    def goal_positions(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(self._goals(x)[0]).reshape(2, -1, order="F")
+
+    def opening_distances(self, x: np.ndarray) -> np.ndarray:
+        P = np.asarray(self._open(x)[0]).reshape(2, -1, order="F")
+        return np.linalg.norm(P[:, 0::2] - P[:, 1::2], axis=0)
+
+    def _residual(self, u: np.ndarray, x: np.ndarray) -> np.ndarray:
+        P = np.asarray(self._goals(x)[0]).ravel(order="F")
+        tgt = np.concatenate([g.target for g in self.cp.goals]) if self.cp.goals else np.zeros(0)
+        goal = (self._w * (P - tgt))[self._rows]
+        return np.concatenate([goal, np.sqrt(self.cp.travel_weight) * (u - self.u0)])
+
+    def _state(self, u: np.ndarray, rep: SolveReport) -> State:
+        at = np.array([o.at_least for o in self.cp.openings])
+        return State(u, rep.x, rep.lam_g, self._residual(u, rep.x),
+                     self.opening_distances(rep.x) - at, rep)
+
+    def jacobians(self, s: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """dx/du, the residual Jacobian dr/du and the opening-gap Jacobian d(gap)/du."""
+        dx, _ = self.eq.sensitivity(s.x, s.lam, self.params(s.u), self.E)
+        _, JP = self._goals(s.x)
+        Jr = (self._w[:, None] * np.asarray(JP @ ca.DM(dx)))[self._rows]
+        Jr = np.vstack([Jr, np.sqrt(self.cp.travel_weight) * np.eye(len(s.u))])
+        Po, JO = self._open(s.x)
+        Po = np.asarray(Po).reshape(2, -1, order="F")
+        dPo = np.asarray(JO @ ca.DM(dx)).reshape(2, -1, len(s.u), order="F")
+        diff = Po[:, 0::2] - Po[:, 1::2]
+        unit = diff / np.maximum(np.linalg.norm(diff, axis=0), 1e-300)
+        Jg = np.einsum("dk,dku->ku", unit, dPo[:, 0::2] - dPo[:, 1::2])
+        return dx, Jr, Jg
+
+    # -- the outer iteration ----------------------------------------------------------------
+    def _build_qp(self) -> ca.Function:
+        """The step QP over (d, t): t ≥ 0 are elastic slacks of the linearised openings, so the
+        QP is always feasible (ℓ1 elastic mode) and t = 0 whenever the openings can be met."""
+        nu, no = len(self.idx), len(self.cp.openings)
+        return ca.conic("step", "qrqp", {"h": ca.Sparsity.dense(nu + no, nu + no),
+                                         "a": ca.Sparsity.dense(no, nu + no)},
+                        {"print_iter": False, "print_header": False, "print_info": False,
+                         "error_on_fail": False})
+
+    def _step(self, s: State, Jr: np.ndarray, Jg: np.ndarray, radius: float, rho: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """The QP step d and the multipliers of the linearised openings."""
+        nu, no = len(s.u), len(s.gap)
+        H = np.zeros((nu + no, nu + no))
+        H[:nu, :nu] = 2.0 * Jr.T @ Jr + 1e-12 * np.eye(nu) * max(1.0, np.trace(Jr.T @ Jr))
+        g = np.r_[2.0 * Jr.T @ s.r, np.full(no, rho)]
+        lbx = np.r_[np.maximum(self.lower - s.u, -radius), np.zeros(no)]
+        ubx = np.r_[np.minimum(self.upper - s.u, radius), np.full(no, np.inf)]
+        sol = self._qp(h=H, g=g, a=np.hstack([Jg, np.eye(no)]), lba=-s.gap, uba=np.inf,
+                       lbx=lbx, ubx=ubx)
+        if not self._qp.stats()["success"]:
+            raise RuntimeError(f"step QP failed: {self._qp.stats()['return_status']}")
+        return np.asarray(sol["x"]).ravel()[:nu], np.asarray(sol["lam_a"]).ravel()
+
+    def equilibrium(self, u: np.ndarray, x0: np.ndarray | None = None):
+        """The forward solve at unknowns u (the built IPOPT instance; warm start x0)."""
+        return self.eq.solve(self.params(u), x0=x0)
+
+    def run(self, u_start: np.ndarray | None = None) -> ControlAnswer:
+        t0 = time.perf_counter()
+        u = self.u0.copy() if u_start is None else np.asarray(u_start, dtype=float)
+        rep = self.equilibrium(u)
+        start = self._state(u, rep)
+        if not rep.success:
+            return self._finish(start, start, False, f"start equilibrium not found: {rep.status}", 0, t0)
+        s, radius, status, it = start, self.opts.initial_radius, "Maximum_Iterations", 0
+        rho = 10.0 * (1.0 + float(start.r @ start.r))
+        for it in range(1, self.opts.max_iter + 1):
+            dx, Jr, Jg = self.jacobians(s)
+            try:
+                d, lam_o = self._step(s, Jr, Jg, radius, rho)
+            except RuntimeError as err:
+                status = str(err)
+                break
+            rho = max(rho, 2.0 * float(np.abs(lam_o).max(initial=0.0)))
+            model = s.r + Jr @ d
+            pred = s.merit(rho) - float(model @ model + rho * np.sum(np.maximum(0.0, -(s.gap + Jg @ d))))
+            if pred <= self.opts.objective_tol or np.abs(d).max() <= self.opts.step_tol * (1 + np.abs(s.u).max()):
+                status = CONVERGED
+                break
+            trial = self.equilibrium(s.u + d, x0=s.x + dx @ d)
+            if not trial.success:
+                radius = 0.25 * np.abs(d).max()
+                continue
+            new = self._state(s.u + d, trial)
+            ratio = (s.merit(rho) - new.merit(rho)) / pred
+            if ratio > 1e-4:
+                s = new
+                if ratio > 0.75:
+                    radius = max(radius, 2.0 * np.abs(d).max())
+            else:
+                radius = 0.25 * np.abs(d).max()
+        ok = status == CONVERGED and bool(np.all(s.gap >= -self.opts.opening_tol))
+        if status == CONVERGED and not ok:
+            status = "Converged_Opening_Infeasible"
+        return self._finish(start, s, ok, status, it, t0)
+
+    def _finish(self, start: State, s: State, ok: bool, status: str, it: int, t0: float) -> ControlAnswer:
+        t1 = time.perf_counter()
+        p = self.params(s.u)
+        stab = self.eq.stability(s.x, s.lam, p)
+        t2 = time.perf_counter()
+        fwd = self.eq.solve(p)
+        lines = [solution_centrelines(self.eq.wnlp, v, 21) for v in (s.x, fwd.x)]
+        dist = float(np.linalg.norm(lines[0] - lines[1], axis=-1).max())
+        fwd_ok = bool(fwd.success and dist <= self.opts.forward_tol)
+        t3 = time.perf_counter()
+        if ok and not stab.stable:
+            status = "Saddle: the equilibrium is not stable"
+        elif ok and not fwd_ok:
+            status = "Forward check failed: the forward solve does not reach the state"
+        success = ok and stab.stable and fwd_ok
+        timings = {"build_s": self.eq.build_s, "optimise_s": t1 - t0, "stability_s": t2 - t1,
+                   "forward_check_s": t3 - t2, "total_s": self.eq.build_s + t3 - t0}
+        return ControlAnswer(self, success, status, s, start, p, it, stab, fwd_ok,
+                             dist, fwd.x, timings)
+
+
+def control(cp: ControlProblem, u_start: np.ndarray | None = None,
+            options: ControlOptions | None = None) -> ControlAnswer:
+    """Solve a control problem (Python API behind ``knit-nlp control``)."""
+    return Controller(cp, options).run(u_start)
+
+
+def answer_dict(ans: ControlAnswer) -> dict:
+    """The contract's ``<problem>.control.json``."""
+    ctl = ans.ctl
+    cp, ctl_u, eq = ctl.cp, ans.state.u, ctl.eq
+    actuated, k = [], 0
+    for a in cp.actuated:
+        v = ctl_u[k:k + a.size]
+        k += a.size
+        actuated.append({"clamp": a.index + 1, "target": v.tolist()} if a.kind == "clamp" else
+                        {"rigid_clamp": a.index + 1, "translation": v[:2].tolist(), "rotation": float(v[2])})
+    achieved = ctl.goal_positions(ans.state.x)
+    goals = []
+    for q, g in enumerate(cp.goals):
+        miss = (achieved[:, q] - g.target)[list(g.fix)]
+        goals.append({"loop": list(g.loop), "point": g.point, "goal": g.target.tolist(),
+                      "fix": [c for c, f in zip("xy", g.fix) if f],
+                      "achieved": achieved[:, q].tolist(), "misfit": float(np.linalg.norm(miss))})
+    openings = [{"points": [{"loop": list(lp), "point": lab} for lp, lab, _ in o.points],
+                 "at_least": o.at_least, "achieved": o.at_least + float(gp)}
+                for o, gp in zip(cp.openings, ans.state.gap)]
+    r, rep = ans.state.r, ans.state.report
+    return {"problem": cp.problem.name, "success": ans.success, "status": ans.status,
+            "objective": float(r @ r), "iterations": ans.iterations, "timings": ans.timings,
+            "forward_solves": eq.forward_solves,
+            "actuated": actuated, "goals": goals, "openings": openings,
+            "stable": ans.stability.stable,
+            "min_reduced_hessian_eigenvalue": ans.stability.min_eigenvalue,
+            "stability_method": ans.stability.method,
+            "forward_check": {"success": ans.forward_success, "max_distance": ans.forward_distance},
+            "travel_weight": cp.travel_weight,
+            "equilibrium": WeftResult(eq.wnlp, rep, WeftParams.from_vector(cp.problem, ans.p), eq.build_s,
+                                      eq.solver.violation(rep.x, ans.p)).to_json()}

@@ -1,0 +1,209 @@
+"""Identification of material values from observed points (spec/inverse_problems.md, section 2).
+
+Every load case is a forward problem in equilibrium with the same material values θ (any of
+k_a, k_b, R_f; eqs. 6-12). The residual stacks model minus observed positions over all cases;
+Levenberg–Marquardt (Gauss–Newton with damping) runs on log θ, so values stay positive. The
+Jacobian dP/dθ = (dP/dx)(dx/dθ) comes from the implicit-function theorem on each case's KKT
+system (one factorization per case and iteration; ``equilibrium``), and each case is re-solved
+by its own built IPOPT instance, warm-started from the linear prediction.
+
+Standard errors: σ²(JᵀJ)⁻¹ with σ² = |r|²/(N − k), J in the values themselves. A value is
+reported undetermined (``std_error`` None and a warning) when JᵀJ (in log θ, so scale-free)
+has relative condition above ``condition_limit`` and the value takes part in the weak
+direction, or when its standard error exceeds the value.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import casadi as ca
+import numpy as np
+
+from ..problem import WeftProblem
+from .equilibrium import Equilibrium
+from .observations import Observation
+from .points import point_function, point_jacobian
+
+MATERIAL = ("k_a", "k_b", "R_f")
+CONVERGED = "Converged"
+
+
+@dataclass
+class FitOptions:
+    max_iter: int = 50
+    step_tol: float = 1e-10            # on the step in log θ
+    condition_limit: float = 1e10      # relative condition of JᵀJ above which a direction is weak
+    weak_share: float = 0.1            # a value with |component| above this in a weak direction
+
+
+@dataclass
+class _Case:
+    name: str
+    eq: Equilibrium
+    points: ca.Function
+    observed: np.ndarray               # (P, 2)
+    x: np.ndarray | None = None
+    lam: np.ndarray | None = None
+
+
+@dataclass
+class FitAnswer:
+    success: bool
+    status: str
+    iterations: int
+    names: list[str]
+    values: np.ndarray
+    initial: np.ndarray
+    std_errors: list[float | None]
+    warnings: list[str]
+    residuals: dict[str, np.ndarray]   # per case, (P, 2) model minus observed
+    fitted: dict[str, np.ndarray]      # per case, (P, 2) model positions
+    solutions: dict[str, np.ndarray]   # per case, the decision vector
+    cases: list[_Case] = field(repr=False, default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+class Fitter:
+    """The least-squares problem over the chosen material values (one forward build per case)."""
+
+    def __init__(self, problems: Sequence[WeftProblem], observations: Sequence[Observation],
+                 params: Sequence[str] = MATERIAL, options: FitOptions | None = None) -> None:
+        self.names = list(params)
+        self.opts = options or FitOptions()
+        self.cases = []
+        for pr in problems:
+            obs = [o for o in observations if o.case == pr.name]
+            if not obs:
+                continue
+            eq = Equilibrium(pr)
+            fn = point_jacobian(point_function(eq.wnlp, [(o.loop, o.s) for o in obs]))
+            self.cases.append(_Case(pr.name, eq, fn, np.array([o.xy for o in obs])))
+        first = self.cases[0].eq.wnlp
+        self.initial = np.array([float(first.p.get(first.p0, n)[0, 0]) for n in self.names])
+
+    def _params(self, case: _Case, values: np.ndarray) -> np.ndarray:
+        p = case.eq.wnlp.p0.copy()
+        for name, v in zip(self.names, values):
+            case.eq.wnlp.p.put(p, name, v)
+        return p
+
+    def _dp(self, case: _Case) -> np.ndarray:
+        pl = case.eq.wnlp.p
+        E = np.zeros((pl.size, len(self.names)))
+        for k, name in enumerate(self.names):
+            E[pl.slice(name).start, k] = 1.0
+        return E
+
+    def solve_cases(self, values: np.ndarray, steps: dict[str, np.ndarray] | None = None) -> bool:
+        """Every case in equilibrium at ``values`` (warm starts from ``steps``: predicted x)."""
+        for c in self.cases:
+            x0 = None if c.x is None else (steps or {}).get(c.name, c.x)
+            rep = c.eq.solve(self._params(c, values), x0=x0)
+            if not rep.success:
+                return False
+            c.x, c.lam = rep.x, rep.lam_g
+        return True
+
+    def residual(self) -> np.ndarray:
+        return np.concatenate([(self.positions(c) - c.observed).ravel() for c in self.cases])
+
+    def positions(self, c: _Case) -> np.ndarray:
+        return np.asarray(c.points(c.x)[0]).T
+
+    def jacobian(self, values: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """d(residual)/d(values) and each case's dx/d(values)."""
+        rows, dxs = [], {}
+        for c in self.cases:
+            dx, _ = c.eq.sensitivity(c.x, c.lam, self._params(c, values), self._dp(c))
+            dxs[c.name] = dx
+            JP = np.asarray(c.points(c.x)[1] @ ca.DM(dx))          # vec(2 × P) column-major
+            rows.append(JP)                                          # = (P, 2) row-major ravel
+        return np.vstack(rows), dxs
+
+    def run(self) -> FitAnswer:
+        t0 = time.perf_counter()
+        v = self.initial.copy()
+        if not self.solve_cases(v):
+            return self._answer(False, "a case has no equilibrium at the initial values", 0, v, t0)
+        r = self.residual()
+        mu, status, it = 1e-3, "Maximum_Iterations", 0
+        for it in range(1, self.opts.max_iter + 1):
+            Jv, dxs = self.jacobian(v)
+            J = Jv * v                                               # d r / d log θ
+            A, g = J.T @ J, J.T @ r
+            d = -np.linalg.lstsq(A + mu * np.diag(np.diag(A)), g, rcond=1e-14)[0]
+            d = d * min(1.0, 1.0 / max(np.abs(d).max(), 1e-300))    # at most a factor e per step
+            if np.abs(d).max() <= self.opts.step_tol:
+                status = CONVERGED
+                break
+            trial = v * np.exp(d)
+            saved = [(c.x, c.lam) for c in self.cases]
+            pred = {c.name: c.x + dxs[c.name] @ (trial - v) for c in self.cases}
+            if self.solve_cases(trial, pred) and (rt := self.residual()) @ rt < r @ r:
+                v, r, mu = trial, rt, max(mu / 10, 1e-12)
+                continue
+            for c, (x, lam) in zip(self.cases, saved):
+                c.x, c.lam = x, lam
+            mu *= 10
+            if mu > 1e10:
+                status = "No_Decrease"
+                break
+        return self._answer(status == CONVERGED, status, it, v, t0)
+
+    def _answer(self, ok: bool, status: str, it: int, v: np.ndarray, t0: float) -> FitAnswer:
+        std, warnings = self._std_errors(v) if ok else ([None] * len(v), [])
+        fitted = {c.name: self.positions(c) for c in self.cases if c.x is not None}
+        return FitAnswer(ok, status, it, self.names, v, self.initial, std, warnings,
+                         {c.name: fitted[c.name] - c.observed for c in self.cases if c.name in fitted},
+                         fitted, {c.name: c.x for c in self.cases}, self.cases,
+                         {"total_s": time.perf_counter() - t0 + sum(c.eq.build_s for c in self.cases)})
+
+    def _std_errors(self, v: np.ndarray) -> tuple[list[float | None], list[str]]:
+        """σ²(JᵀJ)⁻¹ over the determined values; the others None, with a warning each."""
+        Jv, _ = self.jacobian(v)
+        r = self.residual()
+        J = Jv * v
+        A = J.T @ J
+        w, V = np.linalg.eigh(A)
+        weak = w <= max(w.max(), 1e-300) / self.opts.condition_limit
+        undetermined = set(np.nonzero(np.any(np.abs(V[:, weak]) > self.opts.weak_share, axis=1))[0])
+        dof = max(len(r) - len(v), 1)
+        sigma2 = float(r @ r) / dof
+        keep = [k for k in range(len(v)) if k not in undetermined]
+        std: list[float | None] = [None] * len(v)
+        if keep:
+            cov = sigma2 * np.linalg.inv(Jv[:, keep].T @ Jv[:, keep])
+            for q, k in enumerate(keep):
+                std[k] = float(np.sqrt(max(cov[q, q], 0.0)))
+        warnings = []
+        for k, name in enumerate(self.names):
+            if k in undetermined:
+                warnings.append(f"{name} is not determined by the data (JᵀJ is singular to "
+                                f"relative condition {self.opts.condition_limit:g} in its direction)")
+            elif std[k] is not None and std[k] > v[k]:
+                warnings.append(f"{name} is not determined by the data (standard error "
+                                f"{std[k]:.3g} exceeds the value {v[k]:.3g})")
+                std[k] = None
+        return std, warnings
+
+
+def fit(problems: Sequence[WeftProblem], observations: Sequence[Observation],
+        params: Sequence[str] = MATERIAL, options: FitOptions | None = None) -> FitAnswer:
+    """Fit material values (Python API behind ``knit-nlp fit``)."""
+    return Fitter(problems, observations, params, options).run()
+
+
+def answer_dict(ans: FitAnswer) -> dict:
+    """The contract's ``fit.json`` (plus ``warnings``)."""
+    res = {k: np.linalg.norm(r, axis=1) for k, r in ans.residuals.items()}
+    allres = np.concatenate(list(res.values())) if res else np.zeros(0)
+    return {"success": ans.success, "status": ans.status, "iterations": ans.iterations,
+            "n_observations": int(allres.size),
+            "parameters": {n: {"value": float(v), "std_error": s, "initial": float(i)}
+                           for n, v, s, i in zip(ans.names, ans.values, ans.std_errors, ans.initial)},
+            "rms_residual": float(np.sqrt(np.mean(allres ** 2))) if allres.size else None,
+            "cases": [{"case": k, "rms_residual": float(np.sqrt(np.mean(d ** 2))),
+                       "max_residual": float(d.max())} for k, d in res.items()],
+            "warnings": ans.warnings, "timings": ans.timings}

@@ -1,0 +1,145 @@
+"""A solved result over a photograph (spec/inverse_problems.md, section 3; the paper's Fig. 8).
+
+The picture's y axis points down, the model's up, so the similarity (scale, rotation, shift) is
+fitted between model points z = x + iy and pixels w = px − i·py: w ≈ a·z + b with complex a
+(scale·e^{i·rotation}) and b, which is linear least squares in (a, b) and exactly the
+least-squares similarity (Umeyama's problem in two dimensions); two matches fix it.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import ProblemError
+from ...tomlio import Table, load_toml
+from ..problem import WeftProblem, _PointReader, parse_problem
+from ..quadrature import positions
+from .spec import strip_control_keys
+
+
+@dataclass(frozen=True)
+class Similarity:
+    """pixel = to_pixels(model): w = a·z + b in (px, −py) coordinates."""
+
+    a: complex
+    b: complex
+
+    @property
+    def scale(self) -> float:
+        return float(abs(self.a))
+
+    @property
+    def rotation(self) -> float:
+        """Radians, counter-clockwise in model coordinates (clockwise on the picture)."""
+        return float(np.angle(self.a))
+
+    def to_pixels(self, xy: np.ndarray) -> np.ndarray:
+        xy = np.asarray(xy, dtype=float)
+        w = self.a * (xy[..., 0] + 1j * xy[..., 1]) + self.b
+        return np.stack([w.real, -w.imag], axis=-1)
+
+    def as_dict(self) -> dict:
+        return {"scale_px_per_unit": self.scale, "rotation_rad": self.rotation,
+                "shift_px": [float(self.b.real), float(-self.b.imag)]}
+
+
+def fit_similarity(model: np.ndarray, pixels: np.ndarray) -> Similarity:
+    """Least-squares similarity from matched model points (k × 2) and pixels (k × 2), k ≥ 2."""
+    z = model[:, 0] + 1j * model[:, 1]
+    w = pixels[:, 0] - 1j * pixels[:, 1]
+    (a, b), *_ = np.linalg.lstsq(np.stack([z, np.ones_like(z)], axis=1), w, rcond=None)
+    return Similarity(complex(a), complex(b))
+
+
+@dataclass(frozen=True)
+class Match:
+    loop: tuple[int, int]
+    point: str | float
+    s: float
+    pixel: np.ndarray
+
+
+@dataclass
+class SolvedShape:
+    """What the overlay needs of a solve result: its JSON and the NPZ written beside it."""
+
+    result: dict
+    lines: np.ndarray          # (m, n, S, 2) deformed centrelines
+    coefficients: np.ndarray   # (m, n, 2t+2)
+    starts: np.ndarray         # (m, n, 2)
+    L: float
+
+    def position(self, loop: tuple[int, int], s: float) -> np.ndarray:
+        i, j = loop[0] - 1, loop[1] - 1
+        t = (self.coefficients.shape[-1] - 2) // 2
+        return positions(self.coefficients[i, j][None], [s], self.L, t)[0, 0] + self.starts[i, j]
+
+
+def load_result(path: Path) -> SolvedShape:
+    """A ``knit-nlp solve`` result JSON and its NPZ (same stem)."""
+    try:
+        result = json.loads(path.read_text())
+        arrays = np.load(path.with_suffix(".npz"))
+        return SolvedShape(result, arrays["deformed"], arrays["coefficients"], arrays["starts"],
+                           float(arrays["s"][-1]))
+    except FileNotFoundError as err:
+        raise ProblemError(path, "", "", f"needs the result JSON and the NPZ beside it ({err.filename})") from None
+    except (OSError, ValueError, KeyError) as err:
+        raise ProblemError(path, "", "", f"not a weft solve result ({err})") from None
+
+
+def point_reader(problem_path: Path) -> tuple[_PointReader, WeftProblem]:
+    pr = parse_problem(strip_control_keys(load_toml(problem_path)), problem_path)
+    return _PointReader(pr.courses, pr.wales, pr.natural, pr.crossings), pr
+
+
+def parse_match(text: str, reader: _PointReader) -> Match:
+    """``C,W,POINT=PX,PY`` (course, wale, point label or s; pixel, origin top left, y down)."""
+    try:
+        left, right = text.split("=")
+        c, w, point = left.split(",")
+        px, py = (float(v) for v in right.split(","))
+        loop_raw = [int(c), int(w)]
+    except ValueError:
+        raise ProblemError("--match", "", text, "expected C,W,POINT=PX,PY, e.g. 5,5,H=412,300") from None
+    try:
+        value: str | float = float(point)
+    except ValueError:
+        value = point.strip()
+    tab = Table({"loop": loop_raw, "point": value}, "--match", text)
+    loop = reader.loop(tab)
+    label, s = reader.point(tab)
+    return Match(loop, label, s, np.array([px, py]))
+
+
+@dataclass
+class OverlayAnswer:
+    transform: Similarity
+    residuals_px: np.ndarray
+    matches: list[Match]
+    model_points: np.ndarray
+    observed_rms: float | None
+    lines_px: np.ndarray
+    observed_px: np.ndarray | None
+
+
+def overlay(shape: SolvedShape, matches: list[Match], observed: list | None = None) -> OverlayAnswer:
+    """Fit the similarity, map the centrelines and report residuals (Python API)."""
+    if len(matches) < 2:
+        raise ProblemError("--match", "", "", f"two or more matches are needed, got {len(matches)}")
+    model = np.array([shape.position(m.loop, m.s) for m in matches])
+    pixels = np.array([m.pixel for m in matches])
+    if np.ptp(model, axis=0).max() <= 0:
+        raise ProblemError("--match", "", "", "the matched material points coincide")
+    sim = fit_similarity(model, pixels)
+    res = np.linalg.norm(sim.to_pixels(model) - pixels, axis=1)
+    rms, obs_px = None, None
+    if observed:
+        comp = np.array([shape.position(o.loop, o.s) for o in observed])
+        xy = np.array([o.xy for o in observed])
+        rms = float(np.sqrt(np.mean(np.sum((comp - xy) ** 2, axis=1))))
+        obs_px = sim.to_pixels(xy)
+    return OverlayAnswer(sim, res, matches, model, rms, sim.to_pixels(shape.lines), obs_px)

@@ -1,0 +1,150 @@
+"""Entry points behind ``knit-nlp control``, ``knit-nlp fit`` and ``knit-nlp overlay``."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...jsonio import write_json
+from ..sampling import natural_centrelines, solution_centrelines
+from ...errors import ProblemError
+from ...tomlio import load_toml
+from ..problem import parse_problem
+from .control import answer_dict, control
+from .fit import MATERIAL, fit
+from .fit import answer_dict as fit_dict
+from .observations import load_observations
+from .overlay import load_result, overlay, parse_match, point_reader
+from .plot import plot_control, plot_fit, plot_on_image
+from .spec import parse_control, strip_control_keys
+
+
+def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
+    """``knit-nlp control``: write ``<problem>.control.json`` and ``.png``; exit 0 only for a
+    converged, stable, forward-checked answer."""
+    cp = parse_control(path, doc)
+    ans = control(cp)
+    result = answer_dict(ans)
+    name = cp.problem.name
+    js = write_json(out / f"{name}.control.json", result)
+    wnlp = ans.ctl.eq.wnlp
+    goals = np.array([g["goal"] for g in result["goals"]]).reshape(-1, 2)
+    reached = np.array([g["achieved"] for g in result["goals"]]).reshape(-1, 2)
+    travel = [(ans.start.u[k:k + 2], ans.state.u[k:k + 2]) for k in _clamp_offsets(cp)]
+    png = plot_control(out / f"{name}.control.png", natural_centrelines(cp.problem),
+                       solution_centrelines(wnlp, ans.start.x), solution_centrelines(wnlp, ans.state.x),
+                       goals, reached, travel,
+                       f"{name}: {result['status']}, objective {result['objective']:.3g}, "
+                       f"{'stable' if result['stable'] else 'NOT STABLE'}")
+    print(f"{name}: {result['status']} in {result['iterations']} outer iterations, "
+          f"{result['forward_solves']} forward solves, {result['timings']['total_s']:.2f} s")
+    for a in result["actuated"]:
+        print(f"  actuated {a}")
+    for g in result["goals"]:
+        print(f"  goal {g['loop']} {g['point']}: goal {np.round(g['goal'], 4).tolist()}, achieved "
+              f"{np.round(g['achieved'], 4).tolist()}, misfit {g['misfit']:.3g}")
+    for o in result["openings"]:
+        print(f"  opening at least {o['at_least']:.4g}: achieved {o['achieved']:.4g}")
+    print(f"  stable: {result['stable']} (min reduced Hessian eigenvalue "
+          f"{result['min_reduced_hessian_eigenvalue']:.3g}); forward check: "
+          f"{result['forward_check']['success']} (max distance {result['forward_check']['max_distance']:.2e})")
+    print(f"  wrote {js}, {png}")
+    return 0 if result["success"] else 1
+
+
+def _clamp_offsets(cp) -> list[int]:
+    """Offsets in u of each actuated point clamp's target (rigid clamps are not drawn)."""
+    out, k = [], 0
+    for a in cp.actuated:
+        if a.kind == "clamp":
+            out.append(k)
+        k += a.size
+    return out
+
+
+def fit_files(paths: list[Path], observations: Path, params: list[str], out: Path) -> int:
+    """``knit-nlp fit``: write ``fit.json`` and ``fit.png``; exit 0 when the fit converged."""
+    if not params or len(set(params)) != len(params) or any(n not in MATERIAL for n in params):
+        raise ProblemError("--params", "", " ".join(params), f"choose distinct values among {', '.join(MATERIAL)}")
+    problems = {}
+    for path in paths:
+        pr = parse_problem(strip_control_keys(load_toml(path)), path)
+        if pr.name in problems:
+            raise ProblemError(path, "", "name", f"two load cases are named {pr.name!r}")
+        problems[pr.name] = pr
+    obs = load_observations(observations, problems)
+    missing = sorted(set(problems) - {o.case for o in obs})
+    if missing:
+        raise ProblemError(observations, "", "case", f"no observations of case {missing[0]!r}")
+    ans = fit(list(problems.values()), obs, params)
+    result = fit_dict(ans)
+    result["cases_files"] = {name: str(path) for name, path in zip(problems, paths)}
+    js = write_json(out / "fit.json", result)
+    panels = [(c.name, solution_centrelines(c.eq.wnlp, c.x), c.observed, ans.fitted[c.name])
+              for c in ans.cases if c.x is not None]
+    png = plot_fit(out / "fit.png", panels, f"fit: {result['status']}, rms residual "
+                   f"{result['rms_residual']:.3g}" if result["rms_residual"] is not None else "fit")
+    print(f"fit: {result['status']} in {result['iterations']} iterations, "
+          f"{result['n_observations']} observed points, rms residual {result['rms_residual']:.4g}")
+    for name, v in result["parameters"].items():
+        se = "undetermined" if v["std_error"] is None else f"± {v['std_error']:.3g}"
+        print(f"  {name} = {v['value']:.6g} {se} (initial {v['initial']:.4g})")
+    for w in result["warnings"]:
+        print(f"  warning: {w}")
+    print(f"  wrote {js}, {png}")
+    return 0 if result["success"] else 1
+
+
+def overlay_file(result_path: Path, image: Path, matches: list[str], observations: Path | None,
+                 problem: Path | None, out: Path) -> int:
+    """``knit-nlp overlay``: write ``<result stem>.overlay.png`` (and ``.overlay.json``)."""
+    import matplotlib.image as mpimg
+
+    shape = load_result(result_path)
+    problem = problem or _problem_of(shape.result, result_path)
+    reader, pr = point_reader(problem)
+    parsed = [parse_match(m, reader) for m in matches]
+    obs = None
+    if observations is not None:
+        obs = load_observations(observations, {pr.name: pr}, other_cases=True)
+    try:
+        picture = mpimg.imread(image)
+    except (OSError, ValueError, SyntaxError) as err:
+        raise ProblemError(image, "", "", f"cannot read the image ({err})") from None
+    ans = overlay(shape, parsed, obs)
+    stem = result_path.name.removesuffix(".json")
+    png = plot_on_image(out / f"{stem}.overlay.png", picture, ans.lines_px,
+                        np.array([m.pixel for m in parsed]), ans.transform.to_pixels(ans.model_points),
+                        ans.observed_px)
+    info = {"result": str(result_path), "image": str(image), "transform": ans.transform.as_dict(),
+            "matches": [{"loop": list(m.loop), "point": m.point, "pixel": m.pixel.tolist(),
+                         "residual_px": float(r)} for m, r in zip(parsed, ans.residuals_px)],
+            "observed_rms_model_units": ans.observed_rms}
+    js = write_json(out / f"{stem}.overlay.json", info)
+    t = ans.transform
+    print(f"similarity: scale {t.scale:.6g} px/unit, rotation {np.degrees(t.rotation):.4f} deg, "
+          f"shift ({t.b.real:.3f}, {-t.b.imag:.3f}) px")
+    for m, r in zip(parsed, ans.residuals_px):
+        print(f"  match {list(m.loop)} {m.point} -> {m.pixel.tolist()}: residual {r:.3f} px")
+    if ans.observed_rms is not None:
+        print(f"  observed vs computed: RMS {ans.observed_rms:.4g} model units over {len(obs)} points")
+    print(f"  wrote {png}, {js}")
+    return 0
+
+
+def _problem_of(result: dict, result_path: Path) -> Path:
+    """The problem file a result came from, to resolve point labels: its recorded ``source``,
+    else a file named after the problem beside the result or among the named problems."""
+    from ...problems import resolve
+    name = str(result.get("problem", ""))
+    source = result.get("source")
+    recorded = Path(source["file"]) if isinstance(source, dict) and isinstance(source.get("file"), str) else None
+    for candidate in (recorded, result_path.parent / f"{name}.toml"):
+        if candidate is not None and candidate.is_file():
+            return candidate
+    try:
+        return resolve(name)
+    except ProblemError:
+        raise ProblemError(result_path, "", "problem", f"cannot find the problem file {name!r} "
+                           "to resolve point labels; pass --problem FILE") from None

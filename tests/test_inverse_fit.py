@@ -1,0 +1,118 @@
+"""Identification: exact recovery from noise-free data, honest standard errors under noise, and
+an undetermined value flagged as such."""
+import json
+
+import numpy as np
+import pytest
+
+from knit_nlp.cli import main
+from knit_nlp.weft.inverse.fit import Fitter
+from knit_nlp.weft.inverse.observations import Observation
+from knit_nlp.weft.problem import load_problem
+
+TRUTH = {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0}
+CASES = {
+    "pull_x": ("[[clamp]]\nloop = [1, 1]\npoint = \"start\"\nposition = [0.0, 0.0]\n"
+               "[[clamp]]\nloop = [4, 1]\npoint = \"start\"\ndisplacement = [0.0, 0.0]\n"
+               "[[load]]\nloop = [2, 4]\npoint = \"end\"\nforce = [0.1, 0.0]\n"),
+    "pull_y": ("[[clamp]]\nloop = [1, 1]\npoint = \"start\"\nposition = [0.0, 0.0]\n"
+               "[[clamp]]\nloop = [1, 4]\npoint = \"end\"\ndisplacement = [0.0, 0.0]\n"
+               "[[load]]\nloop = [4, 2]\npoint = \"H\"\nforce = [0.0, 0.1]\n"),
+    "shear": ("[[clamp]]\nloop = [1, 1]\npoint = \"start\"\nposition = [0.0, 0.0]\n"
+              "[[clamp]]\nloop = [1, 4]\npoint = \"end\"\ndisplacement = [0.0, 0.0]\n"
+              "[[load]]\nloop = [4, 4]\npoint = \"end\"\nforce = [0.05, 0.0]\nmoment = 0.1\n"),
+}
+GUESS = "[material]\nk_a = 1.5\nk_b = 0.02\nR_f = 0.7\n"
+
+
+def _cases(write_problem):
+    return [load_problem(write_problem(f"name = \"{name}\"\n[fabric]\ncourses = 4\nwales = 4\n"
+                                       + GUESS + body, f"{name}.toml"))
+            for name, body in CASES.items()]
+
+
+def _truth_points(fitter: Fitter) -> dict:
+    """Every case's observed points solved with the true material."""
+    fitter.solve_cases(np.array([TRUTH[n] for n in fitter.names]))
+    out = {c.name: fitter.positions(c).copy() for c in fitter.cases}
+    for c in fitter.cases:
+        c.x = c.lam = None
+    return out
+
+
+def _observations(problems):
+    obs = []
+    for pr in problems:
+        s_h = pr.crossings.s["H"]
+        obs += [Observation(pr.name, (i, j), "H", s_h, np.zeros(2))
+                for i in range(1, 5) for j in range(1, 5)]
+    return obs
+
+
+def test_noise_free_data_give_the_true_values(write_problem):
+    problems = _cases(write_problem)
+    fitter = Fitter(problems, _observations(problems))
+    truth = _truth_points(fitter)
+    for c in fitter.cases:
+        c.observed = truth[c.name]
+    ans = fitter.run()
+    assert ans.success, ans.status
+    for name, v in zip(ans.names, ans.values):
+        assert v == pytest.approx(TRUTH[name], rel=1e-5)
+    assert not ans.warnings and all(s is not None for s in ans.std_errors)
+
+
+def test_truth_within_three_standard_errors_in_most_seeds(write_problem):
+    problems = _cases(write_problem)
+    fitter = Fitter(problems, _observations(problems))
+    truth = _truth_points(fitter)
+    inside = 0
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        for c in fitter.cases:
+            c.observed = truth[c.name] + rng.normal(0.0, 0.02, truth[c.name].shape)
+            c.x = c.lam = None
+        ans = fitter.run()
+        assert ans.success, ans.status
+        inside += all(s is not None and abs(v - TRUTH[n]) <= 3 * s
+                      for n, v, s in zip(ans.names, ans.values, ans.std_errors))
+    assert inside >= 18
+
+
+def test_a_value_the_loads_do_not_excite_is_flagged(write_problem, tmp_path, capsys):
+    """One course bent by an end moment: no crossing springs, so k_b does not act at all."""
+    path = write_problem("""
+name = "bend"
+[fabric]
+courses = 1
+wales = 3
+[material]
+R_f = 0.6
+[[clamp]]
+loop = [1, 1]
+point = "start"
+position = [0.0, 0.0]
+angle = 0.0
+[[load]]
+loop = [1, 3]
+point = "end"
+moment = 0.3
+""", "bend.toml")
+    pr = load_problem(path)
+    s_vals = [1.0, 2.5, 5.0, 7.5]
+    obs = [Observation("bend", (1, j), s, s, np.zeros(2)) for j in (1, 2, 3) for s in s_vals]
+    fitter = Fitter([pr], obs, ["k_b", "R_f"])
+    fitter.solve_cases(np.array([0.01, 1.0]))
+    pts = fitter.positions(fitter.cases[0])
+    csv = tmp_path / "obs.csv"
+    csv.write_text("# noise-free, R_f = 1\ncase,course,wale,point,x,y\n" + "".join(
+        f"bend,1,{j},{s},{x:.12f},{y:.12f}\n" for (j, s), (x, y) in
+        zip([(j, s) for j in (1, 2, 3) for s in s_vals], pts)))
+    assert main(["fit", str(path), "--observations", str(csv), "--params", "k_b", "R_f",
+                 "--out", str(tmp_path)]) == 0
+    r = json.loads((tmp_path / "fit.json").read_text())
+    assert r["parameters"]["k_b"]["std_error"] is None
+    assert r["parameters"]["R_f"]["value"] == pytest.approx(1.0, rel=1e-6)
+    assert r["parameters"]["R_f"]["std_error"] is not None
+    assert any("k_b" in w for w in r["warnings"])
+    assert "warning: k_b" in capsys.readouterr().out

@@ -1,0 +1,119 @@
+"""knit-nlp sweep: grids over problem-file keys agree with one solve per point; bad axes are one
+line and exit code 2."""
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import knit_nlp
+from knit_nlp.api import parse_problem
+from knit_nlp.cli import main
+from knit_nlp.studies.points import set_key
+from knit_nlp.studies.sweep import parse_axis, weft_changes
+from knit_nlp.tomlio import load_toml
+
+from conftest import PROBLEMS
+
+
+def _sweep(tmp_path, *args):
+    return main(["sweep", *args, "--workers", "2", "--out", str(tmp_path)])
+
+
+def _rows(tmp_path, name):
+    return json.loads((tmp_path / name / "summary.json").read_text())["points"]
+
+
+def test_weft_sweep_matches_one_solve_per_point(tmp_path, capsys):
+    """A k_b grid x a loading path of the pulled clamp's x target: every point equals a cold
+    solve of the problem file with those two values written into it (energy, reactions)."""
+    assert _sweep(tmp_path, "wada_fig7", "--vary", "material.k_b=0.01:0.1:2",
+                  "--path", "clamp[2].position.x=14.2:16.2:2") == 0
+    rows = _rows(tmp_path, "sweep_wada_fig7")
+    assert [r["path"] for r in rows] == ["p0000", "p0000", "p0001", "p0001"]
+    doc = load_toml(PROBLEMS / "wada_fig7.toml")
+    for r in rows:
+        kb, x = r["label"]["material.k_b"], r["label"]["clamp[2].position.x"]
+        one = set_key(doc, "material.k_b", kb)
+        one["clamp"][1]["position"][0] = x
+        alone = knit_nlp.solve(parse_problem(one, PROBLEMS / "wada_fig7.toml"))
+        assert r["success"] and alone.success
+        assert r["energy"]["total"] == pytest.approx(alone.energy.total, rel=1e-7)
+        for got, want in zip(r["clamps"], alone.clamps):
+            np.testing.assert_allclose(got["reaction"], want.reaction, atol=1e-7)
+    table = list(csv.DictReader((tmp_path / "sweep_wada_fig7" / "sweep.csv").open()))
+    assert [float(t["energy_total"]) for t in table] == [r["energy"]["total"] for r in rows]
+    assert (tmp_path / "sweep_wada_fig7" / "sweep.png").stat().st_size > 10_000
+    assert "4 of 4 points converged" in capsys.readouterr().out
+
+
+def test_sweep_on_a_local_dask_cluster_equals_the_local_pool(tmp_path):
+    pytest.importorskip("distributed")
+    args = ["wada_fig7", "--vary", "material.R_f=0.5:2:2", "--path", "material.k_b=0.01:0.05:2"]
+    assert main(["sweep", *args, "--out", str(tmp_path / "pool")]) == 0
+    assert main(["sweep", *args, "--scheduler", "local:2", "--out", str(tmp_path / "dask")]) == 0
+    assert _rows(tmp_path / "pool", "sweep_wada_fig7") == _rows(tmp_path / "dask", "sweep_wada_fig7")
+
+
+def test_jacquard_sweep_matches_one_solve_per_point(tmp_path):
+    """Thick fall-plate stiffness x thin inlay pretension on the diamond (designs in sibling
+    files, shipped inline): each point equals a solve of the edited document."""
+    assert _sweep(tmp_path, "jacquard_diamond", "--vary", "fall_plate.stiffness.thick=0.5:2:2",
+                  "--vary", "inlay.pretension.thin=0.8:0.95:2", "--name", "jd") == 0
+    rows = _rows(tmp_path, "jd")
+    assert len(rows) == 4
+    doc = load_toml(PROBLEMS / "jacquard_diamond.toml")
+    energies = []
+    for r in rows:
+        one = doc
+        for key, value in r["label"].items():
+            one = set_key(one, key, value)
+        alone = knit_nlp.solve(parse_problem(one, PROBLEMS / "jacquard_diamond.toml"))
+        assert r["success"] and alone.success
+        assert r["energy"]["total"] == pytest.approx(alone.energy.total, rel=1e-7, abs=1e-12)
+        energies.append(r["energy"]["total"])
+    assert len(set(np.round(energies, 9))) == 4        # each key changes the equilibrium
+
+
+def test_displacement_keys_are_from_the_natural_position():
+    """clamp[2].displacement.x = d sets the same target as clamp[2].position.x = natural x + d;
+    a whole-vector axis runs along the segment between its ends."""
+    pr = knit_nlp.load_problem("wada_fig7")
+    c = pr.clamps[1]
+    x0, y0 = pr.natural_position(c.loop, c.s)
+    by_d = weft_changes(pr, [(parse_axis("--vary", "clamp[2].displacement.x=1:1:1"), 1.0)])
+    by_p = weft_changes(pr, [(parse_axis("--vary", f"clamp[2].position.x={x0 + 1}:0:1"), x0 + 1)])
+    assert by_d == by_p == {"targets": {"2": [x0 + 1, 13.9]}}
+    axis = parse_axis("--path", "clamp[2].displacement=0,0:2,1:3")
+    assert axis.values == ([0.0, 0.0], [1.0, 0.5], [2.0, 1.0])
+    assert weft_changes(pr, [(axis, axis.values[1])])["targets"]["2"] == [x0 + 1.0, y0 + 0.5]
+
+
+@pytest.mark.parametrize("args, where", [
+    (["wada_fig7", "--vary", "material.k_x=0:1:2"], "--vary material.k_x=0:1:2: unknown key"),
+    (["wada_fig7", "--vary", "material.k_b=-1:1:3"], "k_b must be >= 0"),
+    (["wada_fig7", "--vary", "material.k_b=0:1"], "use KEY=START:STOP:COUNT"),
+    (["wada_fig7", "--vary", "material.k_b=0:1:0"], "COUNT must be from 1"),
+    (["wada_fig7", "--vary", "clamp[3].position.x=0:1:2"], "clamp[3] does not exist"),
+    (["wada_fig7", "--vary", "clamp[2].angle=0:1:2"], "holds no angle"),
+    (["wada_fig7", "--vary", "clamp[2].displacement=0:1:2"], "is a vector"),
+    (["wada_fig7", "--vary", "material.k_b=nan:1:2"], "is not a number"),
+    (["wada_fig7", "--path", "material.k_b=0:1:2", "--path", "material.R_f=1:2:3"], "same COUNT"),
+    (["jacquard_stripe", "--path", "ground.stiffness=1:2:2"], "independent"),
+    (["jacquard_stripe", "--vary", "ground.pretension=0.5:1.5:3"], "pretension ratio"),
+    (["jacquard_stripe", "--vary", "fabric.dz=1:2:2"], "unknown key"),
+    (["wada_fig7", "--vary", "material.k_b=0:1:2", "--name", "../up"], "--name ../up"),
+    (["wada_fig7", "--vary", "material.k_b=0:1:2", "--scheduler", "nowhere"], "--scheduler"),
+    (["wada_fig7", "--vary", "material.k_b=0:1:2", "--timeout", "-1"], "--timeout"),
+])
+def test_bad_axes_are_one_line_and_exit_2(tmp_path, capsys, args, where):
+    try:                 # argparse exits itself (--scheduler, --timeout); the others return 2
+        code = main(["sweep", *args, "--out", str(tmp_path)])
+    except SystemExit as exit_:
+        code = exit_.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("knit-nlp: ") and err.count("\n") == 1 and where in err, err
+    assert not list(tmp_path.iterdir())                  # nothing solved, nothing written

@@ -1,0 +1,130 @@
+"""The condensed reduced model: its hand-assembled derivatives, and agreement with the lifted
+reduced model and (every loop representative) the full model."""
+import casadi as ca
+import numpy as np
+import pytest
+
+from knit_nlp.weft.condensed import build_condensed
+from knit_nlp.weft.kinematics import LoopIntegrals, loop_displacements
+from knit_nlp.weft.nlp import build_nlp
+from knit_nlp.weft.parametrisation import Reduced
+from knit_nlp.weft.problem import load_problem
+from knit_nlp.weft.solve import WeftSolver, solve
+
+# every kind of term: point clamps (one fixing x only), an angle clamp, a rigid clamp, a load
+# with force and moment
+MIXED = """
+[fabric]
+courses = 4
+wales = 5
+[[clamp]]
+loop = [1, 1]
+point = "start"
+position = [0.0, 0.0]
+angle = 0.1
+[[clamp]]
+loop = [1, 5]
+point = "H"
+displacement = [2.0, 3.0]
+[[clamp]]
+loop = [3, 5]
+point = "end"
+displacement = [1.0, 0.0]
+fix = ["x"]
+[[rigid_clamp]]
+points = [{loop = [4, 1], point = "start"}, {loop = [4, 2], point = "start"}]
+translation = [0.5, -0.3]
+rotation = 0.05
+[[load]]
+loop = [2, 3]
+point = "E"
+force = [0.2, -0.1]
+moment = 0.05
+[reduction]
+representative_courses = [1, 3, 4]
+representative_wales = [1, 2, 5]
+"""
+
+
+@pytest.fixture
+def mixed(write_problem):
+    pr = load_problem(write_problem(MIXED))
+    return build_condensed(pr, pr.reduction)
+
+
+def _point(c, seed=0, scale=0.05):
+    w = c.w(c.x0)
+    return w + scale * np.random.default_rng(seed).normal(size=w.size)
+
+
+def test_loop_integrals_closed_forms_equal_casadi_ad():
+    pts = np.array([10.0, 1.420998, 8.579002, 3.579002, 6.420998, 5.0])
+    li = LoopIntegrals(10.0, 3, pts, 8)
+    f = loop_displacements(10.0, 3, pts, 8)
+    a, mu = ca.MX.sym("a", 8), ca.MX.sym("mu", 2, pts.size)
+    D = f(a)
+    ad = ca.Function("ad", [a, mu], [D, ca.jacobian(ca.vec(D), a), ca.hessian(ca.dot(mu, D), a)[0]])
+    rng = np.random.default_rng(1)
+    A, M = rng.normal(scale=0.7, size=(3, 8)), rng.normal(size=(3, pts.size, 2))
+    theta, Dn = li.values(A)
+    J, H = li.jacobians(theta), li.weighted_hessians(theta, M)
+    for k in range(3):
+        d, j, h = (np.asarray(v) for v in ad(A[k], M[k].T))
+        np.testing.assert_allclose(Dn[k], d.T, atol=1e-13)
+        np.testing.assert_allclose(J[k], j.reshape(pts.size, 2, 8), atol=1e-13)
+        np.testing.assert_allclose(H[k], h, atol=1e-11)
+
+
+def test_gradient_equals_central_differences(mixed):
+    c = mixed
+    w, lam = _point(c), np.random.default_rng(2).normal(size=c.g.size)
+
+    def lagrangian(v):
+        return 0.7 * c._f(v, c.p0) + lam @ c._constraints(v, c.p0)
+
+    g = c.gradient(w, c.p0, 0.7, lam)
+    h = 1e-6
+    fd = np.array([(lagrangian(w + h * e) - lagrangian(w - h * e)) / (2 * h) for e in np.eye(w.size)])
+    np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
+
+
+def test_jacobian_and_hessian_equal_central_differences(mixed):
+    c = mixed
+    w, lam = _point(c, 3), np.random.default_rng(4).normal(size=c.g.size)
+    h = 1e-6
+    E = np.eye(w.size)
+    fd_jac = np.array([(c._constraints(w + h * e, c.p0) - c._constraints(w - h * e, c.p0)) / (2 * h)
+                       for e in E]).T
+    np.testing.assert_allclose(c.jacobian(w, c.p0), fd_jac, atol=1e-6 * np.abs(fd_jac).max())
+    assert not np.any(c.jacobian(w, c.p0)[~c.jac_mask])
+    fd_hess = np.array([(c.gradient(w + h * e, c.p0, 0.7, lam) - c.gradient(w - h * e, c.p0, 0.7, lam))
+                        / (2 * h) for e in E])
+    H = c.hessian(w, c.p0, 0.7, lam)
+    np.testing.assert_allclose(H, fd_hess, atol=1e-5 * np.abs(fd_hess).max())
+    np.testing.assert_allclose(H, H.T, atol=1e-9 * np.abs(H).max())
+    assert not np.any(np.triu(H)[~c.hess_mask])            # the structural pattern holds
+
+
+def test_condensed_and_lifted_reduced_models_reach_the_same_minimum(write_problem):
+    pr = load_problem(write_problem(MIXED))
+    cond, lifted = build_condensed(pr, pr.reduction), build_nlp(pr, pr.reduction)
+    rc, rl = solve(cond, WeftSolver(cond)), solve(lifted, WeftSolver(lifted))
+    assert rc.success and rl.success
+    assert rc.objective == pytest.approx(rl.objective, rel=1e-9)
+    np.testing.assert_allclose(cond.coefficients(rc.x), lifted.coefficients(rl.x), atol=1e-6)
+    np.testing.assert_allclose(cond.starts(rc.x), lifted.starts(rl.x), atol=1e-6)
+    # same multipliers: the clamps' reactions agree
+    for name in cond.g.blocks:
+        np.testing.assert_allclose(rc.lam_g[cond.g.slice(name)], rl.lam_g[lifted.g.slice(name)],
+                                   rtol=1e-5, atol=1e-7)
+
+
+def test_every_loop_representative_condensed_equals_the_full_model(write_problem):
+    pr = load_problem(write_problem(MIXED))
+    every = Reduced(tuple(range(1, 5)), tuple(range(1, 6)))
+    cond, full = build_condensed(pr, every), build_nlp(pr)
+    rc, rf = solve(cond, WeftSolver(cond)), solve(full, WeftSolver(full))
+    assert rc.success and rf.success
+    assert rc.objective == pytest.approx(rf.objective, rel=1e-9)
+    np.testing.assert_allclose(cond.coefficients(rc.x), full.coefficients(rf.x), atol=1e-6)
+    np.testing.assert_allclose(cond.special_positions(rc.x), full.special_positions(rf.x), atol=1e-6)
