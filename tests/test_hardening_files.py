@@ -186,3 +186,12 @@ def test_one_version_string():
     assert "version" not in conf["project"] and "version" in conf["project"]["dynamic"]
     assert conf["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "knit_nlp.__version__"}
     assert knit_nlp.__version__.count(".") == 2
+
+
+def test_every_subpackage_is_declared():
+    """pyproject lists packages by hand (problems/ is mapped in): a new subpackage must be added
+    there, or `pip install .` would leave it out."""
+    conf = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    found = {".".join(p.parent.relative_to(ROOT).parts)
+             for p in (ROOT / "knit_nlp").rglob("__init__.py")}
+    assert found <= set(conf["packages"]), found - set(conf["packages"])
