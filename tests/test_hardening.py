@@ -351,3 +351,10 @@ def test_a_diverged_explicit_run_exits_1_and_still_draws(tmp_path, capsys):
     assert r["residual_force"] is None
     assert (tmp_path / "out" / "jacquard_diamond.jacquard.png").stat().st_size > 0
     assert (tmp_path / "out" / "jacquard_diamond.jacquard.svg").stat().st_size > 0
+
+
+@pytest.mark.parametrize("argv", [["overlay", "/dev/zero", "/dev/zero"],
+                                  ["fit", "wada_fig7", "--observations", "/dev/zero"],
+                                  ["control", "/dev/zero"]])
+def test_the_inverse_commands_read_only_regular_files(tmp_path, capsys, argv):
+    refused(tmp_path, capsys, argv + ["--out", str(tmp_path / "out")], "not a regular file")

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ProblemError
-from ...tomlio import Table
+from ...tomlio import Table, read_regular_file
 from ..problem import WeftProblem, _PointReader
 
 COLUMNS = ["case", "course", "wale", "point", "x", "y"]
@@ -29,12 +29,15 @@ class Observation:
     xy: np.ndarray
 
 
+MAX_TABLE_BYTES = 8 * 2 ** 20    # an observations CSV (README, "Limits and hardening")
+
+
 def read_rows(path: Path) -> list[tuple[int, dict[str, str]]]:
     """(line number, row) of every data row; the header must be exactly COLUMNS."""
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as err:
-        raise ProblemError(path, "", "", f"cannot read file ({err})") from None
+    try:                    # a regular file of bounded size: no FIFO or /dev/zero (issue 13)
+        text = read_regular_file(path, MAX_TABLE_BYTES).decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ProblemError(path, "", "", f"not UTF-8 text (byte {err.start})") from None
     lines = [(k + 1, ln) for k, ln in enumerate(text.splitlines())
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:

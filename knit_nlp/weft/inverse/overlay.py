@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ProblemError
-from ...tomlio import Table, load_toml
+from ...tomlio import Table, load_toml, read_regular_file
 from ..problem import WeftProblem, _PointReader, parse_problem
 from ..quadrature import positions
 from .spec import strip_control_keys
@@ -78,10 +78,13 @@ class SolvedShape:
         return positions(self.coefficients[i, j][None], [s], self.L, t)[0, 0] + self.starts[i, j]
 
 
+MAX_RESULT_BYTES = 256 * 2 ** 20     # a result JSON read back (README, "Limits and hardening")
+
+
 def load_result(path: Path) -> SolvedShape:
     """A ``knit-nlp solve`` result JSON and its NPZ (same stem)."""
     try:
-        result = json.loads(path.read_text())
+        result = json.loads(read_regular_file(path, MAX_RESULT_BYTES))
         arrays = np.load(path.with_suffix(".npz"))
         return SolvedShape(result, arrays["deformed"], arrays["coefficients"], arrays["starts"],
                            float(arrays["s"][-1]))

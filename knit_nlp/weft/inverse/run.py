@@ -1,6 +1,7 @@
 """Entry points behind ``knit-nlp control``, ``knit-nlp fit`` and ``knit-nlp overlay``."""
 from __future__ import annotations
 
+import io
 from pathlib import Path
 from typing import Any
 
@@ -9,7 +10,7 @@ import numpy as np
 from ...jsonio import write_json
 from ..sampling import natural_centrelines, solution_centrelines
 from ...errors import ProblemError
-from ...tomlio import load_toml
+from ...tomlio import load_toml, read_regular_file
 from ..problem import parse_problem
 from .control import answer_dict, control
 from .fit import MATERIAL, fit
@@ -19,6 +20,8 @@ from .overlay import load_result, overlay, parse_match, point_reader
 from .plot import plot_control, plot_fit, plot_on_image
 from .spec import parse_control, strip_control_keys
 
+
+MAX_IMAGE_BYTES = 64 * 2 ** 20     # a photograph for overlay (README, "Limits and hardening")
 
 def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
     """``knit-nlp control``: write ``<problem>.control.json`` and ``.png``; exit 0 only for a
@@ -109,7 +112,7 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
     if observations is not None:
         obs = load_observations(observations, {pr.name: pr}, other_cases=True)
     try:
-        picture = mpimg.imread(image)
+        picture = mpimg.imread(io.BytesIO(read_regular_file(image, MAX_IMAGE_BYTES)))
     except (OSError, ValueError, SyntaxError) as err:
         raise ProblemError(image, "", "", f"cannot read the image ({err})") from None
     ans = overlay(shape, parsed, obs)
