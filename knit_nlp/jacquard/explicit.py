@@ -6,6 +6,7 @@ Vectorised with numpy over springs and particles; the only Python loop is over t
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -79,6 +80,28 @@ def limit_springs(x: np.ndarray, v: np.ndarray, net: Network, mobile: np.ndarray
             arr += corr / count
 
 
+Accel = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def acceleration(net: Network, mass: float, damping: float) -> Accel:
+    """a(x, v) = F(x, v) / m of eqs. (1)-(2) (spring and damping forces), zero on fixed particles."""
+    mob = (~net.fixed)[:, None].astype(float)
+
+    def accel(x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return spring_forces(x, net.springs, v, damping) * (mob / mass)
+    return accel
+
+
+def midpoint_step(x: np.ndarray, v: np.ndarray, dt: float, accel: Accel,
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """One explicit midpoint step (eqs. 9-11), without the constraints of 3.4: an Euler half
+    step to the midpoint (eq. 10), then the full step with the midpoint's velocity and
+    acceleration (eq. 11). Second-order accurate (tests/test_explicit_order.py)."""
+    a1 = accel(x, v)
+    xh, vh = x + 0.5 * dt * v, v + 0.5 * dt * a1
+    return x + dt * vh, v + dt * accel(xh, vh)
+
+
 def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
                    max_steps: int | None = None, move_tol: float | None = None,
                    record_energy: bool = False, force_tol: float | None = None,
@@ -96,13 +119,9 @@ def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
     tol = (opts.move_tol if move_tol is None else move_tol) * problem.w
     dt, m, kd = problem.dt, problem.mass, problem.damping
     mobile = ~net.fixed
-    mob = mobile[:, None].astype(float)
     groups = _order_groups(net, problem.wales)
     x, v = net.held.copy(), np.zeros_like(net.natural)   # pulled edges start moved (a step)
-
-    def accel(xx: np.ndarray, vv: np.ndarray) -> np.ndarray:
-        return spring_forces(xx, net.springs, vv, kd) * (mob / m)
-
+    accel = acceleration(net, m, kd)
     history = [] if record_energy else None
     if history is not None:
         history.append(spring_energy(x, net.springs))
@@ -115,10 +134,7 @@ def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
             if steps % CLOCK_EVERY == 0 and time.perf_counter() > deadline:
                 out_of_time, steps = True, steps - 1
                 break
-            a1 = accel(x, v)
-            xh, vh = x + 0.5 * dt * v, v + 0.5 * dt * a1      # first Euler half step (eq. 10)
-            a2 = accel(xh, vh)
-            x_new, v_new = x + dt * vh, v + dt * a2           # second, from the midpoint (eq. 11)
+            x_new, v_new = midpoint_step(x, v, dt, accel)
             enforce_order(x_new, v_new, net, groups, mobile)
             limit_springs(x_new, v_new, net, mobile)
             move = float(np.max(np.abs(x_new - x)))
