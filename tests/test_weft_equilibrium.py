@@ -208,3 +208,59 @@ def test_continuation_on_request_takes_the_asked_steps():
     assert stepped.success and stepped.report.continuation_steps == 3
     assert stepped.energy.total == pytest.approx(direct.energy.total, rel=1e-7)
     np.testing.assert_allclose(stepped.centrelines(), direct.centrelines(), atol=1e-5)
+
+
+NATURAL_PARAMETERS = """
+[fabric]
+courses = 3
+wales = 3
+[[clamp]]
+loop = [1, 1]
+point = "B"
+displacement = [0.7, -0.2]
+angle = 0.4
+[[clamp]]
+loop = [3, 3]
+point = "E"
+position = [6.0, 9.0]
+fix = ["y"]
+angle = -0.3
+[[rigid_clamp]]
+points = [{loop = [1, 3], point = "end"}, {loop = [2, 3], point = "end"}]
+translation = [0.5, 0.1]
+rotation = 0.1
+[[load]]
+loop = [2, 2]
+point = "H"
+force = [0.02, -0.01]
+moment = 0.03
+"""
+
+
+def test_continuation_starts_from_parameters_that_hold_the_natural_state(write_problem):
+    """Continuation steps every parameter from ``WeftParams.natural``: clamp targets at the
+    natural positions, clamp angles at the natural angles (nonzero at B and E of a jersey loop),
+    rigid clamps unmoved, loads zero. There the natural configuration satisfies every
+    constraint and is the minimum: IPOPT stays at it with zero energy and zero reactions."""
+    from knit_nlp.weft.params import WeftParams
+    from knit_nlp.weft.results import WeftResult
+    w = build_nlp(load_problem(write_problem(NATURAL_PARAMETERS)))
+    pr, natural = w.problem, WeftParams.natural(w.problem)
+    p_nat = natural.vector()
+    natural_angles = [float(phi(c.s, pr.L, pr.t)[0] @ pr.natural.coeffs) for c in pr.clamps]
+    assert min(abs(a) for a in natural_angles) > 0.5        # the angles matter
+    solver = WeftSolver(w)
+    assert solver.violation(w.x0, p_nat) < 1e-9             # (natural positions by quadrature)
+    assert solver.violation(w.x0, w.p0) > 0.1                # while the problem's do not hold it
+    rep = solver.once(p_nat, w.x0)
+    assert rep.success and abs(rep.objective) < 1e-12
+    np.testing.assert_allclose(rep.x, w.x0, atol=1e-9)
+    res = WeftResult(w, rep, natural, 0.0, 0.0)
+    for c, angle in zip(res.clamps, natural_angles):
+        assert c.angle == pytest.approx(angle, abs=1e-12)
+        assert np.allclose(c.reaction, 0.0, atol=1e-9) and abs(c.reaction_moment) < 1e-9
+    # ... and continuation from there reaches the direct solution of the problem
+    direct = solver.once(w.p0, w.x0)
+    stepped = solver.continuation(w.p0, w.x0, 3)
+    assert direct.success and stepped.success and stepped.continuation_steps == 3
+    assert stepped.objective == pytest.approx(direct.objective, rel=1e-7)
