@@ -162,3 +162,35 @@ def test_loop_width_extension_is_in_force_balance_and_removes_zero_modes():
     assert np.min(length[s.compress]) > 0.95 * w                # neighbours kept about w apart
     _, bare_length = spring_geometry(bare.positions, s)         # same pairs in the bare fabric
     assert np.min(bare_length[s.compress]) < 0.8 * w            # ... where without them they close
+
+
+@pytest.mark.parametrize("boundary", ["fixed", "periodic"])
+def test_wale_skew_of_known_displacements(boundary):
+    """``wale_skew`` on prescribed positions with closed-form answers: a shear x += γ·y leans
+    every pillar loop right by atan(γ) (positive), a translation of wale i by d_i moves its mean
+    by d_i and leans nothing; for a periodic repeat the top loop closes on the next repeat's
+    bottom particle (N·h higher), so a per-wale translation still gives zero inclination."""
+    from knit_nlp.jacquard.result import JacquardResult
+    p = _problem("#+#+#\n+#+#+\n#+#+#\n+#+#+", "+#+#+\n#+#+#\n+#+#+\n#+#+#", boundary=boundary)
+    net = build_network(p)
+    nat = net.natural
+    shift = np.array([0.3, -0.1, 0.05, 0.2, -0.4]) * p.w             # per wale, i = index % M
+    moved = nat + np.column_stack([shift[np.arange(p.n_particles) % p.wales], np.zeros(p.n_particles)])
+    skew = JacquardResult(p, net, "static", moved, True, "given").wale_skew()
+    np.testing.assert_allclose(skew["mean_dx_mm"], shift, atol=1e-12)
+    np.testing.assert_allclose(skew["mean_angle_deg"], 0.0, atol=1e-9)
+    np.testing.assert_allclose(skew["max_abs_angle_deg"], 0.0, atol=1e-9)
+    if boundary == "fixed":
+        gamma = 0.2
+        sheared = nat + np.column_stack([gamma * nat[:, 1], np.zeros(p.n_particles)])
+        skew = JacquardResult(p, net, "static", sheared, True, "given").wale_skew()
+        np.testing.assert_allclose(skew["mean_angle_deg"], np.degrees(np.arctan(gamma)), rtol=1e-12)
+        np.testing.assert_allclose(skew["mean_dx_mm"], gamma * p.h * (p.courses - 1) / 2, rtol=1e-12)
+    else:   # alternate courses pushed right by d: loops lean ±atan(d/h), the wrap included
+        d = 0.25 * p.w
+        j = np.arange(p.n_particles) // p.wales
+        zig = nat + np.column_stack([np.where(j % 2 == 0, d, 0.0), np.zeros(p.n_particles)])
+        skew = JacquardResult(p, net, "static", zig, True, "given").wale_skew()
+        np.testing.assert_allclose(skew["mean_angle_deg"], 0.0, atol=1e-9)
+        np.testing.assert_allclose(skew["max_abs_angle_deg"], np.degrees(np.arctan(d / p.h)), rtol=1e-12)
+        np.testing.assert_allclose(skew["mean_dx_mm"], d / 2, rtol=1e-12)
