@@ -36,3 +36,12 @@ def elastica_force(length: float, chord: float, R_f: float) -> float:
     """Pinned-pinned elastica, first mode: chord/ℓ = 2E(k)/K(k) − 1, P = 4K(k)² R_f / ℓ²."""
     m = brentq(lambda m: 2 * ellipe(m) / ellipk(m) - 1 - chord / length, 1e-12, 0.999)
     return 4 * ellipk(m) ** 2 * R_f / length ** 2
+
+
+@pytest.fixture
+def saved_figures(monkeypatch):
+    """Record the axes transforms of every figure saved during the test (tests/imagecheck.py)."""
+    from imagecheck import SavedFigures
+    figs = SavedFigures()
+    figs.install(monkeypatch)
+    return figs

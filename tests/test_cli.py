@@ -8,6 +8,8 @@ import pytest
 
 from knit_nlp.cli import main
 
+from imagecheck import check_weft_picture
+
 GOOD = """
 [fabric]
 courses = 2
@@ -23,7 +25,7 @@ displacement = [1.0, 0.5]
 """
 
 
-def test_solve_writes_contract_json_npz_png(write_problem, tmp_path, capsys):
+def test_solve_writes_contract_json_npz_png(write_problem, tmp_path, capsys, saved_figures):
     path = write_problem(GOOD, "good.toml")
     out = tmp_path / "out"
     assert main(["solve", str(path), "--out", str(out)]) == 0
@@ -40,7 +42,7 @@ def test_solve_writes_contract_json_npz_png(write_problem, tmp_path, capsys):
     assert set(r["clamps"][0]) >= {"loop", "point", "position", "reaction"}
     arrays = np.load(out / "good.full.npz")
     assert arrays["deformed"].shape[:2] == (2, 3) and arrays["natural"].shape == arrays["deformed"].shape
-    assert (out / "good.full.png").stat().st_size > 10_000
+    check_weft_picture(out / "good.full.png", r, 10.0, arrays["natural"], saved_figures)
     assert "Solve_Succeeded" in capsys.readouterr().out
 
 

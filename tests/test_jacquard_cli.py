@@ -9,6 +9,8 @@ import pytest
 
 from knit_nlp.cli import main
 
+from imagecheck import check_jacquard_picture
+
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
 
 GOOD = """\
@@ -40,7 +42,7 @@ def _write(tmp_path: Path, text: str, inlay: str = INLAY) -> Path:
 
 
 @pytest.mark.parametrize("solver", ["static", "explicit"])
-def test_solve_writes_json_and_png(tmp_path, capsys, solver):
+def test_solve_writes_json_and_png(tmp_path, capsys, solver, saved_figures):
     path = _write(tmp_path, GOOD)
     out = tmp_path / "out"
     assert main(["solve", str(path), "--out", str(out), "--solver", solver, "--svg"]) == 0
@@ -55,7 +57,7 @@ def test_solve_writes_json_and_png(tmp_path, capsys, solver):
     assert len(data["skew"]["mean_angle_deg"]) == 4
     assert (data["steps"] is None) == (solver == "static")
     assert data["residual_force"] < 1e-5
-    assert (out / "tiny.jacquard.png").stat().st_size > 1000
+    check_jacquard_picture(out / "tiny.jacquard.png", data, saved_figures)
     assert (out / "tiny.jacquard.svg").exists()
     assert "tiny" in capsys.readouterr().out
 

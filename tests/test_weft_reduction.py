@@ -92,9 +92,11 @@ def test_reduced_energy_is_never_below_full(write_problem, grid):
     assert red.energy.total >= full.energy.total - 1e-9
 
 
-def test_compare_writes_counts_energies_distances_and_warm_start(write_problem, tmp_path, capsys):
+def test_compare_writes_counts_energies_distances_and_warm_start(write_problem, tmp_path, capsys,
+                                                                saved_figures):
     import json
     from knit_nlp.cli import main
+    from imagecheck import check_overlay_picture
     path = _pull(write_problem, name="cmp.toml")
     assert main(["compare", str(path), "--out", str(tmp_path)]) == 0
     r = json.loads((tmp_path / "cmp.compare.json").read_text())
@@ -103,8 +105,13 @@ def test_compare_writes_counts_energies_distances_and_warm_start(write_problem, 
     assert red["energy"]["total"] >= full["energy"]["total"] - 1e-9
     assert r["distance"]["max"] >= r["distance"]["rms"] > 0
     assert warm["success"] and warm["iterations"] >= 0
-    assert (tmp_path / "cmp.compare.png").stat().st_size > 10_000
     assert "centreline distance" in capsys.readouterr().out
+    for flag in ("--full", "--reduced"):      # the same two solutions, as result files
+        assert main(["solve", str(path), flag, "--out", str(tmp_path / "solve")]) == 0
+    check_overlay_picture(tmp_path / "cmp.compare.png",
+                          json.loads((tmp_path / "solve" / "cmp.full.json").read_text()),
+                          json.loads((tmp_path / "solve" / "cmp.reduced.json").read_text()),
+                          10.0, saved_figures)
 
 
 def test_solve_reduced_by_default_when_the_file_has_a_reduction(write_problem, tmp_path):

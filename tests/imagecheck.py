@@ -1,0 +1,246 @@
+"""Checking written pictures by content: where their coloured pixels are, in data coordinates.
+
+``SavedFigures`` (the ``saved_figures`` fixture) records, for every figure the code under test
+saves, each axes' data-to-pixel transform at the saved resolution, the axes' and legend's pixel
+boxes; the test then reads the PNG back (matplotlib.image.imread) and compares the pixels of a
+colour class with curves computed independently from the result files.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib.image as mpimg
+import numpy as np
+from matplotlib.figure import Figure
+from scipy.integrate import cumulative_trapezoid
+from scipy.spatial import cKDTree
+
+
+@dataclass
+class SavedAxes:
+    transform: np.ndarray          # 3 x 3 affine: data -> display pixels (origin bottom left)
+    box: np.ndarray                # [x0, y0, x1, y1] display pixels
+    legend: np.ndarray | None      # the legend's box, if any
+
+
+class SavedFigures:
+    """Figures saved while the fixture is active, by file name."""
+
+    def __init__(self) -> None:
+        self.axes: dict[str, list[SavedAxes]] = {}
+
+    def install(self, monkeypatch) -> None:
+        original = Figure.savefig
+
+        def savefig(fig: Figure, fname, *args, **kwargs):
+            dpi = kwargs.get("dpi") or fig.dpi
+            old = fig.dpi
+            fig.set_dpi(dpi)
+            renderer = fig.canvas.get_renderer()
+            fig.canvas.draw()
+            self.axes[Path(fname).name] = [
+                SavedAxes(ax.transData.get_matrix().copy(), np.array(ax.bbox.extents),
+                          None if ax.get_legend() is None else
+                          np.array(ax.get_legend().get_window_extent(renderer).extents))
+                for ax in fig.axes if ax.get_label() != "<colorbar>"]
+            fig.set_dpi(old)
+            return original(fig, fname, *args, **kwargs)
+        monkeypatch.setattr(Figure, "savefig", savefig)
+
+
+def read_rgb(path: Path) -> np.ndarray:
+    """The PNG as floats (rows top to bottom, RGB in [0, 1])."""
+    return mpimg.imread(path)[..., :3].astype(float)
+
+
+def to_pixels(ax: SavedAxes, pts: np.ndarray, height: int) -> np.ndarray:
+    """Data points (k, 2) -> image (column, row) coordinates (rows from the top)."""
+    xy = pts @ ax.transform[:2, :2].T + ax.transform[:2, 2]
+    return np.column_stack([xy[:, 0], height - xy[:, 1]])
+
+
+def pixels_in_axes(ax: SavedAxes, mask: np.ndarray, border: float = 3.0) -> np.ndarray:
+    """(column, row) of the masked pixels inside the axes box and outside its legend."""
+    h = mask.shape[0]
+    rows, cols = np.nonzero(mask)
+    x, y = cols + 0.5, h - (rows + 0.5)
+    x0, y0, x1, y1 = ax.box
+    keep = (x > x0 + border) & (x < x1 - border) & (y > y0 + border) & (y < y1 - border)
+    if ax.legend is not None:
+        lx0, ly0, lx1, ly1 = ax.legend
+        keep &= ~((x > lx0 - border) & (x < lx1 + border) & (y > ly0 - border) & (y < ly1 + border))
+    return np.column_stack([cols[keep] + 0.5, rows[keep] + 0.5])
+
+
+def _outside_legend(ax: SavedAxes, px: np.ndarray, height: int) -> np.ndarray:
+    if ax.legend is None:
+        return np.ones(len(px), dtype=bool)
+    x, y = px[:, 0], height - px[:, 1]
+    lx0, ly0, lx1, ly1 = ax.legend
+    return ~((x > lx0) & (x < lx1) & (y > ly0) & (y < ly1))
+
+
+def distance_to(curve_px: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """Distance (pixels) from each pixel centre to the nearest of the densely sampled curve."""
+    return cKDTree(curve_px).query(px)[0]
+
+
+def polyline_points(lines: np.ndarray, per_segment: int = 16) -> np.ndarray:
+    """Dense points along polylines (..., S, 2), as drawn (straight segments)."""
+    a, b = lines[..., :-1, :], lines[..., 1:, :]
+    u = np.linspace(0.0, 1.0, per_segment, endpoint=False)[:, None]
+    return (a[..., None, :] + u * (b - a)[..., None, :]).reshape(-1, 2)
+
+
+def saturated(rgb: np.ndarray, chroma: float = 0.12) -> np.ndarray:
+    """Colourful pixels (max − min channel above ``chroma``)."""
+    return rgb.max(axis=-1) - rgb.min(axis=-1) > chroma
+
+
+def reddish(rgb: np.ndarray) -> np.ndarray:
+    """Red dominates (crimson markers and arrows, and their antialiased edges)."""
+    return (rgb[..., 0] >= rgb[..., 1]) & (rgb[..., 0] >= rgb[..., 2])
+
+
+def near(rgb: np.ndarray, colour: str, tol: float = 0.06) -> np.ndarray:
+    """Pixels within ``tol`` (each channel) of a '#rrggbb' colour."""
+    c = np.array([int(colour[k:k + 2], 16) / 255 for k in (1, 3, 5)])
+    return np.all(np.abs(rgb - c) < tol, axis=-1)
+
+
+def weft_centrelines(coefficients: np.ndarray, course_starts: np.ndarray, L: float,
+                     samples: int = 1500) -> np.ndarray:
+    """Dense course polylines (m, n·samples, 2) from a result JSON's loops, by the trapezoid
+    rule on θ(s) = a·φ(s), φ = [sin(2πks/L), k = 1..t; cos(2πks/L), k = 1..t; s; 1] (eqs. 1,
+    14-16), independent of the package's quadrature."""
+    m, n, nc = coefficients.shape
+    t = (nc - 2) // 2
+    s = np.linspace(0.0, L, samples)
+    k = np.arange(1, t + 1)[:, None]
+    basis = np.vstack([np.sin(2 * np.pi * k * s / L), np.cos(2 * np.pi * k * s / L), s, np.ones_like(s)])
+    out = np.zeros((m, n * samples, 2))
+    for i in range(m):
+        start = np.asarray(course_starts[i], dtype=float)
+        for j in range(n):
+            theta = coefficients[i, j] @ basis
+            xy = np.column_stack([cumulative_trapezoid(np.cos(theta), s, initial=0.0),
+                                  cumulative_trapezoid(np.sin(theta), s, initial=0.0)])
+            out[i, j * samples:(j + 1) * samples] = start + xy
+            start = start + xy[-1]
+    return out
+
+
+def check_weft_picture(path: Path, result: dict, L: float, natural: np.ndarray,
+                       figs: SavedFigures) -> dict[str, float]:
+    """The solution picture (weft/plot.py) shows the result where the result says it is:
+
+    - every coloured (viridis) pixel in the axes lies within 3 px of a deformed centreline
+      computed from the JSON's coefficients and course starts, and the centrelines are drawn
+      (a coloured pixel within 2 px of 97 % of their samples outside the legend and the
+      clamp squares);
+    - every light grey pixel lies within 3 px of a natural centreline (``natural``: the NPZ's
+      sampled loops (m, n, S, 2), drawn as polylines) or of a deformed one (antialiased edges);
+    - a crimson marker sits on every clamp's reported position.
+    Returns the measured fractions (for messages)."""
+    rgb = read_rgb(path)
+    (ax,) = figs.axes[path.name]
+    h = rgb.shape[0]
+    loops = result["loops"]
+    deformed = weft_centrelines(np.asarray(loops["coefficients"]), np.asarray(loops["course_starts"]), L)
+    curve = to_pixels(ax, deformed.reshape(-1, 2), h)
+    nat = to_pixels(ax, polyline_points(natural), h)
+    colour = saturated(rgb) & ~reddish(rgb)
+    px = pixels_in_axes(ax, colour)
+    off = float(np.mean(distance_to(curve, px) > 3.0))
+    held = to_pixels(ax, np.array([c["position"] for c in result["clamps"]]), h)
+    visible = curve[::7][_outside_legend(ax, curve[::7], h)]
+    if len(held):       # clamp squares are drawn over the yarn
+        visible = visible[distance_to(held, visible) > 8.0]
+    covered = float(np.mean(distance_to(px, visible) < 2.0))
+    grey_px = pixels_in_axes(ax, ~saturated(rgb, 0.04) & (rgb.mean(axis=-1) > 0.6)
+                             & (rgb.mean(axis=-1) < 0.85))
+    grey_off = float(np.mean(np.minimum(distance_to(nat, grey_px), distance_to(curve, grey_px)) > 3.0))
+    red_px = pixels_in_axes(ax, saturated(rgb, 0.3) & reddish(rgb), border=0.0)
+    red_gap = float(np.max(distance_to(red_px, held))) if len(held) else 0.0
+    stats = {"coloured_off_curve": off, "curve_covered": covered, "grey_off_natural": grey_off,
+             "clamp_marker_gap_px": red_gap, "coloured_pixels": len(px), "grey_pixels": len(grey_px)}
+    assert len(px) > 500 and len(grey_px) > 200, stats
+    assert off < 0.002 and covered > 0.97 and grey_off < 0.01 and red_gap < 2.0, stats
+    return stats
+
+
+def check_overlay_picture(path: Path, full: dict, reduced: dict, L: float,
+                          figs: SavedFigures) -> dict[str, float]:
+    """The compare picture (weft/plot.py ``plot_overlay``): black pixels lie on the full
+    model's centrelines, colourful (plasma) pixels on the reduced model's, each computed from
+    that model's result JSON; both are drawn (95 % of their samples have a pixel of their
+    colour within 2 px, where the other model's curve does not cover them)."""
+    rgb = read_rgb(path)
+    ax = figs.axes[path.name][0]
+    h = rgb.shape[0]
+    curves = {}
+    for key, res in (("full", full), ("reduced", reduced)):
+        loops = res["loops"]
+        lines = weft_centrelines(np.asarray(loops["coefficients"]), np.asarray(loops["course_starts"]), L)
+        curves[key] = to_pixels(ax, lines.reshape(-1, 2), h)
+    black = pixels_in_axes(ax, ~saturated(rgb, 0.08) & (rgb.mean(axis=-1) < 0.3))
+    colour = pixels_in_axes(ax, saturated(rgb, 0.25))
+    stats = {"black_off_full": float(np.mean(distance_to(curves["full"], black) > 3.0)),
+             "colour_off_reduced": float(np.mean(distance_to(curves["reduced"], colour) > 3.0))}
+    for key, px, other in (("full", black, "reduced"), ("reduced", colour, "full")):
+        samples = curves[key][::7]
+        samples = samples[distance_to(curves[other], samples) > 4.0]
+        stats[f"{key}_covered"] = float(np.mean(distance_to(px, samples) < 2.0))
+    assert len(black) > 300 and len(colour) > 300, stats
+    assert stats["black_off_full"] < 0.002 and stats["colour_off_reduced"] < 0.002, stats
+    assert stats["full_covered"] > 0.95 and stats["reduced_covered"] > 0.95, stats
+    return stats
+
+
+def jacquard_pillar_loops(final: np.ndarray, data: dict, nw: int, nc: int) -> np.ndarray:
+    """Control points (nw·nc, 6, 2) of the drawn pillar loops of tiled repeats, from the
+    result JSON's final particle positions: the loop of P(i, j) spans P(i, j) -> P(i, j+1)
+    (the next repeat's, N·h higher, across a periodic seam; straight up by h at a fixed top),
+    its lateral unit ⟂ to that scaled by w (jacquard/render.py, docs/jacquard.md)."""
+    from knit_nlp.jacquard.render import PILLAR
+    M, N, w, h = data["wales"], data["courses"], data["w_mm"], data["h_mm"]
+    x = np.asarray(final).reshape(N, M, 2)
+    jj, ii = np.meshgrid(np.arange(nc), np.arange(nw), indexing="ij")
+    i, j = ii.ravel(), jj.ravel()
+
+    def root(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        return x[j % N, i % M] + np.column_stack([(i - i % M) * w, (j - j % N) * h])
+    r = root(i, j)
+    top = root(i, j + 1)
+    if data["boundary"] == "fixed":
+        top = np.where(((j % N) == N - 1)[:, None], r + [0.0, h], top)
+    axis = top - r
+    lateral = np.column_stack([axis[:, 1], -axis[:, 0]]) / np.hypot(*axis.T)[:, None] * w
+    return r[:, None] + PILLAR[None, :, 1:2] * axis[:, None] + PILLAR[None, :, 0:1] * lateral[:, None]
+
+
+def check_jacquard_picture(path: Path, data: dict, figs: SavedFigures) -> dict[str, float]:
+    """The jacquard picture (jacquard/render.py): in each panel (natural left, simulated
+    right) the cream pillar-loop pixels lie on the loops built from the JSON's ``natural`` and
+    ``final`` particle positions (within 3 px), and 80 % of each loop curve carries cream
+    pixels within 2 px (the rest is under the front bar's underlaps, drawn on top)."""
+    from knit_nlp.jacquard.render import COLOURS, MAX_LOOPS, catmull_rom
+    rgb = read_rgb(path)
+    h_px = rgb.shape[0]
+    M, N = data["wales"], data["courses"]
+    nw = min(MAX_LOOPS, M * min(3, max(1, MAX_LOOPS // M)))
+    nc = min(MAX_LOOPS, N * min(3, max(1, MAX_LOOPS // N)))
+    cream = near(rgb, COLOURS["ground"], 0.08)
+    stats = {}
+    for ax, key in zip(figs.axes[path.name], ("natural", "final")):
+        ctrl = jacquard_pillar_loops(np.asarray(data["particles"][key]), data, nw, nc)
+        curve = to_pixels(ax, catmull_rom(ctrl, True, samples=24).reshape(-1, 2), h_px)
+        px = pixels_in_axes(ax, cream)
+        stats[f"{key}_off"] = float(np.mean(distance_to(curve, px) > 3.0))
+        stats[f"{key}_covered"] = float(np.mean(distance_to(px, curve[::3]) < 2.0))
+        stats[f"{key}_pixels"] = len(px)
+    assert stats["natural_pixels"] > 500 and stats["final_pixels"] > 500, stats
+    for key in ("natural", "final"):
+        assert stats[f"{key}_off"] < 0.002 and stats[f"{key}_covered"] > 0.8, stats
+    return stats
