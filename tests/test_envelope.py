@@ -138,6 +138,19 @@ def test_clamp_reaction_is_dV_by_dtarget(loaded, clamp, dim):
     _close(loaded.derivative("targets", (dim, clamp)), loaded.result["clamps"][clamp]["reaction"][dim])
 
 
+def test_clamps_hold_their_targets_and_angle(loaded):
+    """The reported position and angle are the clamped loop's own (0.15 rad at loop (1, 1)'s
+    start, where every other loop's angle differs)."""
+    pr, res = loaded.wnlp.problem, loaded.result
+    coeffs = np.asarray(res["loops"]["coefficients"])
+    angles = coeffs @ phi(0.0, pr.L, pr.t)[0]
+    assert np.min(np.abs(angles.ravel()[1:] - 0.15)) > 1e-3
+    assert res["clamps"][0]["angle"] == pytest.approx(0.15, abs=1e-9)
+    for c, out in zip(pr.clamps, res["clamps"]):
+        fixed = list(c.fix)
+        np.testing.assert_allclose(np.asarray(out["position"])[fixed], c.target[fixed], atol=1e-9)
+
+
 def test_clamp_reaction_moment_is_dV_by_dangle(loaded):
     _close(loaded.derivative("angles", (0, 0)), loaded.result["clamps"][0]["reaction_moment"])
 
@@ -174,6 +187,19 @@ def test_load_work_is_force_times_displacement(loaded):
 @pytest.mark.parametrize("q, k", [(0, 0), (0, 1), (1, 0), (1, 1)])
 def test_rigid_clamp_force_is_dV_by_dtranslation(rigid, q, k):
     _close(rigid.derivative("rigid", (k, q)), rigid.result["rigid_clamps"][q]["force"][k])
+
+
+def test_rigid_clamp_reports_its_motion(rigid):
+    pr = rigid.wnlp.problem
+    for rc, out in zip(pr.rigid_clamps, rigid.result["rigid_clamps"]):
+        assert out["translation"] == pytest.approx(rc.translation.tolist(), abs=0)
+        assert out["rotation"] == rc.rotation and out["centre"] == rc.centre.tolist()
+        c = rc.centre + rc.translation
+        rot = np.array([[np.cos(rc.rotation), -np.sin(rc.rotation)],
+                        [np.sin(rc.rotation), np.cos(rc.rotation)]])
+        for (loop, _, s), pt in zip(rc.points, out["points"]):
+            moved = c + rot @ (pr.natural_position(loop, s) - rc.centre)
+            np.testing.assert_allclose(pt["position"], moved, atol=1e-9)
 
 
 @pytest.mark.parametrize("q", [0, 1])
