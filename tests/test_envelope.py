@@ -50,6 +50,11 @@ loop = [1, 3]
 point = "end"
 displacement = [0.4, 0.0]
 fix = ["x"]
+[[clamp]]
+loop = [2, 1]
+point = "start"
+fix = []
+angle = -0.1
 [[load]]
 loop = [2, 2]
 point = "end"
@@ -140,19 +145,21 @@ def test_clamp_reaction_is_dV_by_dtarget(loaded, clamp, dim):
 
 def test_clamps_hold_their_targets_and_angle(loaded):
     """The reported position and angle are the clamped loop's own (0.15 rad at loop (1, 1)'s
-    start, where every other loop's angle differs)."""
+    start and −0.1 at loop (2, 1)'s, where every other loop's angle differs)."""
     pr, res = loaded.wnlp.problem, loaded.result
     coeffs = np.asarray(res["loops"]["coefficients"])
     angles = coeffs @ phi(0.0, pr.L, pr.t)[0]
-    assert np.min(np.abs(angles.ravel()[1:] - 0.15)) > 1e-3
+    assert np.sum(np.abs(angles - 0.15) < 1e-3) == 1 and np.sum(np.abs(angles + 0.1) < 1e-3) == 1
     assert res["clamps"][0]["angle"] == pytest.approx(0.15, abs=1e-9)
+    assert res["clamps"][3]["angle"] == pytest.approx(-0.1, abs=1e-9)      # loop (2, 1)
     for c, out in zip(pr.clamps, res["clamps"]):
         fixed = list(c.fix)
         np.testing.assert_allclose(np.asarray(out["position"])[fixed], c.target[fixed], atol=1e-9)
 
 
-def test_clamp_reaction_moment_is_dV_by_dangle(loaded):
-    _close(loaded.derivative("angles", (0, 0)), loaded.result["clamps"][0]["reaction_moment"])
+@pytest.mark.parametrize("clamp, row", [(0, 0), (3, 1)])
+def test_clamp_reaction_moment_is_dV_by_dangle(loaded, clamp, row):
+    _close(loaded.derivative("angles", (row, 0)), loaded.result["clamps"][clamp]["reaction_moment"])
 
 
 @pytest.mark.parametrize("load, dim", [(0, 0), (0, 1), (1, 0), (1, 1)])
