@@ -34,6 +34,8 @@ class SavedFigures:
         original = Figure.savefig
 
         def savefig(fig: Figure, fname, *args, **kwargs):
+            if not isinstance(fname, (str, Path)):          # a buffer (e.g. the SVG text)
+                return original(fig, fname, *args, **kwargs)
             dpi = kwargs.get("dpi") or fig.dpi
             old = fig.dpi
             fig.set_dpi(dpi)
@@ -198,11 +200,25 @@ def check_overlay_picture(path: Path, full: dict, reduced: dict, L: float,
     return stats
 
 
+def catmull_rom_closed(ctrl: np.ndarray, samples: int = 24) -> np.ndarray:
+    """Points on closed uniform Catmull-Rom splines through ``ctrl`` (n, K, 2): on each segment
+    p1 -> p2, ½[2p1 + (−p0 + p2)u + (2p0 − 5p1 + 4p2 − p3)u² + (−p0 + 3p1 − 3p2 + p3)u³]."""
+    k = ctrl.shape[1]
+    u = np.linspace(0.0, 1.0, samples, endpoint=False)[:, None]
+    out = []
+    for seg in range(k):
+        p0, p1, p2, p3 = (ctrl[:, (seg + d) % k][:, None] for d in (-1, 0, 1, 2))
+        out.append(0.5 * (2 * p1 + (p2 - p0) * u + (2 * p0 - 5 * p1 + 4 * p2 - p3) * u ** 2
+                          + (3 * p1 - p0 - 3 * p2 + p3) * u ** 3))
+    return np.concatenate(out, axis=1)
+
+
 def jacquard_pillar_loops(final: np.ndarray, data: dict, nw: int, nc: int) -> np.ndarray:
-    """Control points (nw·nc, 6, 2) of the drawn pillar loops of tiled repeats, from the
-    result JSON's final particle positions: the loop of P(i, j) spans P(i, j) -> P(i, j+1)
-    (the next repeat's, N·h higher, across a periodic seam; straight up by h at a fixed top),
-    its lateral unit ⟂ to that scaled by w (jacquard/render.py, docs/jacquard.md)."""
+    """Control points (nw·nc, 6, 2) of the drawn pillar loops (wales 0..nw-1, courses
+    0..nc-1, tiled across periodic repeats), from the result JSON's particle positions: the
+    loop of P(i, j) spans P(i, j) -> P(i, j+1) (the next repeat's, N·h higher, across a
+    periodic seam; straight up by h at a fixed top), its lateral unit ⟂ to that scaled by w
+    (docs/jacquard.md, "Rendering")."""
     from knit_nlp.jacquard.render import PILLAR
     M, N, w, h = data["wales"], data["courses"], data["w_mm"], data["h_mm"]
     x = np.asarray(final).reshape(N, M, 2)
@@ -221,26 +237,29 @@ def jacquard_pillar_loops(final: np.ndarray, data: dict, nw: int, nc: int) -> np
 
 
 def check_jacquard_picture(path: Path, data: dict, figs: SavedFigures) -> dict[str, float]:
-    """The jacquard picture (jacquard/render.py): in each panel (natural left, simulated
-    right) the cream pillar-loop pixels lie on the loops built from the JSON's ``natural`` and
-    ``final`` particle positions (within 3 px), and 80 % of each loop curve carries cream
-    pixels within 2 px (the rest is under the front bar's underlaps, drawn on top)."""
-    from knit_nlp.jacquard.render import COLOURS, MAX_LOOPS, catmull_rom
+    """The jacquard picture (jacquard/render.py: design grids, then the natural and the
+    simulated fabric): in each fabric panel the pillar-loop pixels (the ground yarn's colour)
+    lie on the loops built from the JSON's ``natural`` and ``final`` particle positions
+    (within 2.5 px), and 60 % of each panel's loop curves carry such pixels within 2 px (the
+    rest is under the front bar's underlaps and the back bar's, drawn on top; measured 73-80 %
+    on tests/test_jacquard_cli.py's tiny problem)."""
+    from knit_nlp.jacquard.render import COLOURS, MAX_LOOPS
     rgb = read_rgb(path)
     h_px = rgb.shape[0]
     M, N = data["wales"], data["courses"]
-    nw = min(MAX_LOOPS, M * min(3, max(1, MAX_LOOPS // M)))
-    nc = min(MAX_LOOPS, N * min(3, max(1, MAX_LOOPS // N)))
-    cream = near(rgb, COLOURS["ground"], 0.08)
+
+    def drawn(k: int) -> int:          # repeats tiled when periodic (up to MAX_LOOPS loops)
+        return min(MAX_LOOPS, k * (1 if data["boundary"] == "fixed" else min(3, max(1, MAX_LOOPS // k))))
+    ground = near(rgb, COLOURS["ground"], 0.03)
     stats = {}
-    for ax, key in zip(figs.axes[path.name], ("natural", "final")):
-        ctrl = jacquard_pillar_loops(np.asarray(data["particles"][key]), data, nw, nc)
-        curve = to_pixels(ax, catmull_rom(ctrl, True, samples=24).reshape(-1, 2), h_px)
-        px = pixels_in_axes(ax, cream)
-        stats[f"{key}_off"] = float(np.mean(distance_to(curve, px) > 3.0))
+    for ax, key in zip(figs.axes[path.name][-2:], ("natural", "final")):
+        ctrl = jacquard_pillar_loops(np.asarray(data["particles"][key]), data, drawn(M), drawn(N))
+        curve = to_pixels(ax, catmull_rom_closed(ctrl).reshape(-1, 2), h_px)
+        px = pixels_in_axes(ax, ground)
+        stats[f"{key}_off"] = float(np.mean(distance_to(curve, px) > 2.5))
         stats[f"{key}_covered"] = float(np.mean(distance_to(px, curve[::3]) < 2.0))
         stats[f"{key}_pixels"] = len(px)
     assert stats["natural_pixels"] > 500 and stats["final_pixels"] > 500, stats
     for key in ("natural", "final"):
-        assert stats[f"{key}_off"] < 0.002 and stats[f"{key}_covered"] > 0.8, stats
+        assert stats[f"{key}_off"] < 0.002 and stats[f"{key}_covered"] > 0.6, stats
     return stats

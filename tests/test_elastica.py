@@ -93,9 +93,9 @@ def test_tip_loaded_cantilever_converges_to_the_elastica(write_problem):
     errors = []
     for t in (2, 4, 8, 16):
         s = _double_cantilever(write_problem, t)
-        assert s.report.success, s.report.attempts
-        start, end = (np.asarray(ld["position"]) for ld in s.result["loads"])
-        mid = np.asarray(s.result["clamps"][0]["position"])
+        assert s.success, s.report.attempts
+        start, end = (ld.position for ld in s.loads)
+        mid = s.clamps[0].position
         # mirror symmetry about the clamp; both tips move along the force (downwards)
         np.testing.assert_allclose(start[1], end[1], atol=1e-8)
         np.testing.assert_allclose(mid[0] - start[0], end[0] - mid[0], atol=1e-8)

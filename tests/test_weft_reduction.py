@@ -127,23 +127,26 @@ def test_solve_reduced_by_default_when_the_file_has_a_reduction(write_problem, t
 
 
 def test_warm_from_reduced_reaches_the_cold_start_minimum():
-    """``--warm-from-reduced`` on diagonal_pull: the full model started from the lifted reduced
-    solution ends at the cold-start minimum (same energy, same loops). The start is really the
-    reduced solution (lifting is exact: feasible, and the full energy there equals the reduced one), which
-    is far from the minimum (the reduced energy is 1.8 × higher), and it is closer than the
-    natural state (fewer iterations)."""
-    from knit_nlp.weft.run import solve_problem, solve_warm_from_reduced
+    """``warm_from_reduced`` (``--warm-from-reduced``) on diagonal_pull: the full model started
+    from the lifted reduced solution ends at the cold-start minimum (same energy, same loops).
+    The start is really the reduced solution (lifting is exact: feasible, and the full energy
+    there equals the reduced one), which is far from the minimum (the reduced energy is 1.8 ×
+    higher), and it is closer than the natural state (fewer iterations)."""
+    from knit_nlp.weft.api import solve
+    from knit_nlp.weft.parametrisation import Full, Reduced
     from knit_nlp.weft.solve import WeftSolver
     pr = load_problem(PROBLEMS / "diagonal_pull.toml")
-    cold = solve_problem(pr)
-    red, warm = solve_warm_from_reduced(pr)
-    assert cold.report.success and red.report.success and warm.report.success
-    x0 = warm.wnlp.lift(red.wnlp.coefficients(red.report.x), red.wnlp.starts(red.report.x))
-    lifted = sum(float(v) for v in warm.wnlp.energy(x0, warm.wnlp.p0)[:2])
-    assert lifted == pytest.approx(red.result["energy"]["total"], rel=1e-9)
-    assert WeftSolver(warm.wnlp).violation(x0, warm.wnlp.p0) < 1e-8     # and feasible
-    assert red.result["energy"]["total"] > 1.5 * cold.result["energy"]["total"]
-    assert warm.result["energy"]["total"] == pytest.approx(cold.result["energy"]["total"], rel=1e-8)
-    np.testing.assert_allclose(warm.lines(), cold.lines(), atol=1e-5)
-    assert warm.result["warm_start"]["from"] == "reduced"
-    assert warm.report.iterations < cold.report.iterations
+    cold = solve(pr, Full())
+    warm = solve(pr, Full(), warm_from_reduced=True)
+    red = solve(pr, pr.reduction or Reduced())          # the reduced solve warm_from_reduced ran
+    assert cold.success and red.success and warm.success
+    assert warm.extra["warm_start"]["reduced_iterations"] == red.iterations
+    x0 = warm.nlp.lift(red.coefficients, red.starts)
+    lifted = sum(float(v) for v in warm.nlp.energy(x0, warm.nlp.p0)[:2])
+    assert lifted == pytest.approx(red.energy.total, rel=1e-9)
+    assert WeftSolver(warm.nlp).violation(x0, warm.nlp.p0) < 1e-8     # and feasible
+    assert red.energy.total > 1.5 * cold.energy.total
+    assert warm.energy.total == pytest.approx(cold.energy.total, rel=1e-8)
+    np.testing.assert_allclose(warm.centrelines(), cold.centrelines(), atol=1e-5)
+    assert warm.to_json()["warm_start"]["from"] == "reduced"
+    assert warm.iterations < cold.iterations
