@@ -92,7 +92,8 @@ def polyline_points(lines: np.ndarray, per_segment: int = 16) -> np.ndarray:
     """Dense points along polylines (..., S, 2), as drawn (straight segments)."""
     a, b = lines[..., :-1, :], lines[..., 1:, :]
     u = np.linspace(0.0, 1.0, per_segment, endpoint=False)[:, None]
-    return (a[..., None, :] + u * (b - a)[..., None, :]).reshape(-1, 2)
+    inner = (a[..., None, :] + u * (b - a)[..., None, :]).reshape(-1, 2)
+    return np.concatenate([inner, lines[..., -1, :].reshape(-1, 2)])
 
 
 def saturated(rgb: np.ndarray, chroma: float = 0.12) -> np.ndarray:
@@ -262,4 +263,27 @@ def check_jacquard_picture(path: Path, data: dict, figs: SavedFigures) -> dict[s
     assert stats["natural_pixels"] > 500 and stats["final_pixels"] > 500, stats
     for key in ("natural", "final"):
         assert stats[f"{key}_off"] < 0.002 and stats[f"{key}_covered"] > 0.6, stats
+    return stats
+
+
+def check_line_plot(path: Path, figs: SavedFigures, axes: int,
+                    series: dict[str, list[np.ndarray]]) -> dict[str, float]:
+    """A line plot shows its data: for each colour ('#rrggbb') the pixels of that colour in
+    axes number ``axes`` (outside the legend) lie within 4.5 px of one of its polylines (data
+    points (k, 2), drawn with markers), and 70 % of its first (solid) polyline carries such
+    pixels within 2 px (other series may cross it; later ones may be dotted)."""
+    rgb = read_rgb(path)
+    ax = figs.axes[path.name][axes]
+    h = rgb.shape[0]
+    stats = {}
+    for colour, lines in series.items():
+        curve = to_pixels(ax, np.concatenate([polyline_points(np.asarray(ln, dtype=float), 64)
+                                              for ln in lines]), h)
+        px = pixels_in_axes(ax, near(rgb, colour, 0.04))
+        solid = to_pixels(ax, polyline_points(np.asarray(lines[0], dtype=float), 64), h)
+        visible = solid[_outside_legend(ax, solid, h)]
+        stats[colour] = (float(np.mean(distance_to(curve, px) > 4.5)),
+                         float(np.mean(distance_to(px, visible) < 2.0)), len(px))
+        off, covered, count = stats[colour]
+        assert count > 50 and off < 0.002 and covered > 0.7, stats
     return stats

@@ -15,6 +15,8 @@ from knit_nlp.cli import main
 from knit_nlp.jacquard import load_problem, solve_static
 from knit_nlp.jacquard.render import _Tiling, figure
 
+from imagecheck import check_jacquard_picture
+
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
 README = PROBLEMS.parent / "README.md"
 LUMA = np.array([0.299, 0.587, 0.114])
@@ -111,7 +113,7 @@ def test_design_panels_show_the_designs(arrow):
         assert np.allclose(luma, expected, atol=0.1)
 
 
-def test_readme_letter_k_command(tmp_path, monkeypatch, capsys):
+def test_readme_letter_k_command(tmp_path, monkeypatch, capsys, saved_figures):
     """README, "Double-jacquard model": the letter K rendered and stretched, run exactly as the
     README writes it (from a scratch folder), printing what the README says it prints."""
     readme = README.read_text()
@@ -124,7 +126,8 @@ def test_readme_letter_k_command(tmp_path, monkeypatch, capsys):
     assert data["success"] and data["pulls"][0]["edge"] == "top"
     final = np.array(data["particles"]["final"])
     assert np.ptp(final[:, 1]) == pytest.approx(15 * 1.0 + 0.3)       # stretched 0.3 mm
-    assert (tmp_path / "results" / "jacquard_letter_k.jacquard.png").stat().st_size > 10_000
+    check_jacquard_picture(tmp_path / "results" / "jacquard_letter_k.jacquard.png", data,
+                           saved_figures)
     assert (tmp_path / "results" / "jacquard_letter_k.jacquard.svg").stat().st_size < 600_000
 
 

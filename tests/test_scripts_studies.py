@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from imagecheck import check_line_plot
+
 SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
 
 
@@ -20,15 +22,16 @@ def _script(name: str):
     return module
 
 
-def test_force_displacement_reaction_grows_and_does_the_work(tmp_path):
+def test_force_displacement_reaction_grows_and_does_the_work(tmp_path, saved_figures):
     """Every pull: the reaction along the pull is positive and grows with the displacement, and
     its work (trapezoid rule from the natural state) matches the stored energy."""
     fd = _script("force_displacement")
     tables = fd.main(["--size", "3", "--steps", "4", "--max-strain", "0.2", "--workers", "1",
                       "--out", str(tmp_path)])
     out = tmp_path / "force_displacement"
-    assert (out / "force_displacement.png").stat().st_size > 10_000
     assert json.loads((out / "summary.json").read_text())["complete"]
+    colours = {"course": "#1f77b4", "wale": "#ff7f0e", "diagonal": "#2ca02c"}   # tab: colours
+    reactions, energies = {}, {}
     for name in ("course", "wale", "diagonal"):
         rows = list(csv.DictReader((out / f"{name}.csv").open()))
         assert len(rows) == 4 and all(r["success"] == "True" for r in rows)
@@ -39,6 +42,12 @@ def test_force_displacement_reaction_grows_and_does_the_work(tmp_path):
         work = np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(d))])
         np.testing.assert_allclose(work[1:], u[1:], rtol=0.1, err_msg=name)
         assert [r["reaction"] for r in tables[name]] == pytest.approx(f[1:].tolist())
+        b = np.array([0.0] + [float(r["energy_bending"]) for r in rows])
+        reactions[colours[name]] = [np.column_stack([d, f])]
+        energies[colours[name]] = [np.column_stack([d, u]), np.column_stack([d, b])]
+    # the picture plots the CSVs: reaction (left) and total and bending energy (right)
+    check_line_plot(out / "force_displacement.png", saved_figures, 0, reactions)
+    check_line_plot(out / "force_displacement.png", saved_figures, 1, energies)
     # a rerun with other steps in the same folder must not reuse the cached points of this one;
     # equilibrium does not depend on the path taken to it
     again = fd.main(["--size", "3", "--steps", "2", "--max-strain", "0.2", "--workers", "1",
