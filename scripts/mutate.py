@@ -45,6 +45,7 @@ GUARDS = {
     "knit_nlp/jacquard/springs.py": ["tests/test_explicit_order.py",
                                      "tests/test_jacquard_static.py",
                                      "tests/test_jacquard_physics.py",
+                                     "tests/test_jacquard_pull.py",
                                      "tests/test_jacquard_cli.py",
                                      "tests/test_jacquard_images.py"],
 }

@@ -162,6 +162,15 @@ def test_clamps_hold_their_targets_and_angle(loaded):
         np.testing.assert_allclose(np.asarray(out["position"])[fixed], c.target[fixed], atol=1e-9)
 
 
+def test_clamps_loads_and_rigid_clamps_are_numbered_from_1(loaded, rigid):
+    """The typed result numbers them as problem files and ``WeftParams.with_`` do."""
+    res = WeftResult(loaded.wnlp, loaded.rep, loaded.params, 0.0, 0.0)
+    assert [c.number for c in res.clamps] == [1, 2, 3, 4]
+    assert [ld.number for ld in res.loads] == [1, 2]
+    res = WeftResult(rigid.wnlp, rigid.rep, rigid.params, 0.0, 0.0)
+    assert [r.number for r in res.rigid_clamps] == [1, 2]
+
+
 @pytest.mark.parametrize("clamp", [0, 3])
 def test_clamp_reaction_moment_is_dV_by_dangle(loaded, clamp):
     _close(loaded.derivative("angles", (clamp,)), loaded.result["clamps"][clamp]["reaction_moment"])
