@@ -41,6 +41,7 @@ def test_solve_writes_contract_json_npz_png(write_problem, tmp_path, capsys, sav
     assert np.array(r["loops"]["course_starts"]).shape == (2, 2)
     assert set(r["clamps"][0]) >= {"loop", "point", "position", "reaction"}
     arrays = np.load(out / "good.full.npz")
+    np.testing.assert_array_equal(arrays["s"], np.linspace(0.0, 10.0, arrays["deformed"].shape[2]))
     assert arrays["deformed"].shape[:2] == (2, 3) and arrays["natural"].shape == arrays["deformed"].shape
     check_weft_picture(out / "good.full.png", r, 10.0, arrays["natural"], saved_figures)
     assert "Solve_Succeeded" in capsys.readouterr().out

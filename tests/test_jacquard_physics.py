@@ -194,3 +194,14 @@ def test_wale_skew_of_known_displacements(boundary):
         np.testing.assert_allclose(skew["mean_angle_deg"], 0.0, atol=1e-9)
         np.testing.assert_allclose(skew["max_abs_angle_deg"], np.degrees(np.arctan(d / p.h)), rtol=1e-12)
         np.testing.assert_allclose(skew["mean_dx_mm"], d / 2, rtol=1e-12)
+
+
+def test_natural_grid_is_i_w_by_j_h():
+    """P(i, j) starts at (i·w, j·h), row j·M + i, with w = 10/dh and h = 10/dz (spec); w and
+    h both differ from 1 here, so a swapped or inverted spacing shows."""
+    p = _problem("#+#+\n+#+#\n#+#+\n+#+#", "+#+#\n#+#+\n+#+#\n#+#+", dz=4.0, dh=8.0)
+    assert p.w == pytest.approx(1.25) and p.h == pytest.approx(2.5)
+    nat = build_network(p).natural
+    for j in range(p.courses):
+        for i in range(p.wales):
+            np.testing.assert_allclose(nat[j * p.wales + i], [i * 1.25, j * 2.5], rtol=1e-15)
