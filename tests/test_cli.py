@@ -36,6 +36,7 @@ def test_solve_writes_contract_json_npz_png(write_problem, tmp_path, capsys, sav
     assert r["problem"] == "good" and r["model"] == "full" and r["success"] is True
     e = r["energy"]
     assert e["total"] == pytest.approx(e["spring"] + e["bending"])
+    assert e["spring"] > 1e-4 and e["bending"] > 1e-4      # two courses: crossing springs work
     assert r["n_parameters"] == 2 * 3 * 8 + 2 * 2
     assert np.array(r["loops"]["coefficients"]).shape == (2, 3, 8)
     assert np.array(r["loops"]["course_starts"]).shape == (2, 2)

@@ -205,3 +205,11 @@ def test_natural_grid_is_i_w_by_j_h():
     for j in range(p.courses):
         for i in range(p.wales):
             np.testing.assert_allclose(nat[j * p.wales + i], [i * 1.25, j * 2.5], rtol=1e-15)
+    # pillar (ground) springs join P(i, j) to P(i, j+1), across the periodic seam to the next
+    # repeat's P(i, 0) = N·h higher: every one is h long in the natural grid
+    s = build_network(p).springs
+    ground = s.kind == KINDS.index("ground")
+    assert ground.sum() == p.wales * p.courses
+    np.testing.assert_allclose(s.l_init[ground], 2.5, rtol=1e-15)
+    seam = ground & (s.shift[:, 1] != 0)
+    np.testing.assert_allclose(s.shift[seam], [[0.0, 4 * 2.5]] * p.wales, rtol=1e-15)
