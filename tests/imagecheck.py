@@ -35,14 +35,15 @@ class SavedFigures:
         original = Figure.savefig
 
         def savefig(fig: Figure, fname, *args, **kwargs):
-            if not isinstance(fname, (str, Path)):          # a buffer (e.g. the SVG text)
+            name = _saved_name(fname)
+            if name is None:                                # a buffer (e.g. the SVG text)
                 return original(fig, fname, *args, **kwargs)
             dpi = kwargs.get("dpi") or fig.dpi
             old = fig.dpi
             fig.set_dpi(dpi)
             renderer = fig.canvas.get_renderer()
             fig.canvas.draw()
-            self.axes[Path(fname).name] = [
+            self.axes[name] = [
                 SavedAxes(ax.transData.get_matrix().copy(), np.array(ax.bbox.extents),
                           None if ax.get_legend() is None else
                           np.array(ax.get_legend().get_window_extent(renderer).extents))
@@ -50,6 +51,20 @@ class SavedFigures:
             fig.set_dpi(old)
             return original(fig, fname, *args, **kwargs)
         monkeypatch.setattr(Figure, "savefig", savefig)
+
+
+def _saved_name(fname) -> str | None:
+    """The file name a figure is saved under: a path's, or for an open file the name it will
+    be renamed to (knit_nlp.atomic writes ``.<name>.<random><suffix>`` beside it first)."""
+    if isinstance(fname, (str, Path)):
+        return Path(fname).name
+    raw = getattr(fname, "name", None)
+    if not isinstance(raw, (str, Path)):
+        return None
+    tmp = Path(raw)
+    if not tmp.name.startswith("."):
+        return tmp.name
+    return tmp.name[1:-len(tmp.suffix) or None].rsplit(".", 1)[0]
 
 
 def read_rgb(path: Path) -> np.ndarray:
