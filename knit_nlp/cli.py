@@ -133,6 +133,7 @@ def _cmd_inverse(args: argparse.Namespace) -> int:
     """``control``, ``fit`` and ``overlay`` (weft only; knit_nlp.weft.inverse.run)."""
     from .tomlio import load_toml
     from .weft.inverse import run
+    check_out(args.out)
     if args.command == "control":
         path = resolve(args.problem)
         return run.control_file(path, load_toml(path), Path(args.out))
@@ -250,6 +251,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     vary = [sweep.parse_axis("--vary", a) for a in args.vary]
     along = [sweep.parse_axis("--path", a) for a in args.path]
     paths = sweep.sweep_paths(doc, problem, vary, along)
+    prepare_out(str(Path(args.out) / name), "sweep", ())
     summary = run_with_options(name, paths, Path(args.out), args)
     keys = [a.key for a in (*vary, *along)]
     out = Path(args.out) / name
@@ -271,20 +273,33 @@ COMMANDS = {"list": _cmd_list, "solve": _cmd_solve, "compare": _cmd_compare, "sw
             "control": _cmd_inverse, "fit": _cmd_inverse, "overlay": _cmd_inverse}
 
 
-def prepare_out(out: str, name: str, kinds: tuple[str, ...]) -> Path:
-    """The output folder, created: refused (one line, exit 2) if it names a file, lies under a
-    file, cannot be created or written, or holds a non-file where an output must go. Called
-    after the problem is read and checked, before solving: bad input writes nothing."""
+def check_out(out: str) -> Path:
+    """The output folder, checked without creating anything: refused (one line, exit 2) if it
+    names a file, lies under a file, or its nearest existing folder cannot be written."""
     folder = Path(out)
     if not out or "\0" in out:
         raise ProblemError("--out", "", "", f"not a usable folder name: {quoted(out)}")
     try:
         if folder.exists() and not folder.is_dir():
             raise ProblemError(out, "", "", "--out names an existing file; give a folder")
-        existing = next(p for p in (folder, *folder.parents) if p.exists())
-        if not existing.is_dir():
-            raise ProblemError(out, "", "", f"--out lies under {quoted(existing)}, which is "
-                               "not a folder")
+        existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
+    except OSError as err:
+        raise ProblemError(out, "", "", f"cannot use the output folder "
+                           f"({shown(err.strerror or err)})") from None
+    if not existing.is_dir():
+        raise ProblemError(out, "", "", f"--out lies under {quoted(existing)}, which is "
+                           "not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ProblemError(out, "", "", f"cannot write into {quoted(existing)}")
+    return folder
+
+
+def prepare_out(out: str, name: str, kinds: tuple[str, ...]) -> Path:
+    """The output folder, checked (:func:`check_out`) and created; also refused if it holds a
+    non-file where an output must go. Called after the problem is read and checked, before
+    solving: bad input writes nothing."""
+    folder = check_out(out)
+    try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise ProblemError(out, "", "", f"cannot create the output folder "

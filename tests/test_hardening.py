@@ -358,3 +358,27 @@ def test_a_diverged_explicit_run_exits_1_and_still_draws(tmp_path, capsys):
                                   ["control", "/dev/zero"]])
 def test_the_inverse_commands_read_only_regular_files(tmp_path, capsys, argv):
     refused(tmp_path, capsys, argv + ["--out", str(tmp_path / "out")], "not a regular file")
+
+
+@pytest.mark.parametrize("argv", [
+    ["control", "place_stitch"],
+    ["fit", "fit_example/fit_shear", "--observations", "OBS"],
+    ["sweep", "wada_fig7", "--vary", "material.k_b=0.01:0.02:2"],
+    ["overlay", "RESULT", "PHOTO", "--match", "1,1,start=0,0"],
+])
+def test_every_command_refuses_an_out_under_a_file(argv, tmp_path, capsys):
+    """control, fit, sweep and overlay check --out before any work, as solve does: one line,
+    exit 2, nothing written (a file where the folder should be, or above it)."""
+    from knit_nlp.cli import main
+    from knit_nlp.problems import problems_dir
+    blocker = tmp_path / "afile"
+    blocker.write_text("keep me")
+    fit_dir = problems_dir() / "fit_example"
+    subst = {"OBS": str(fit_dir / "observations.csv"), "RESULT": str(blocker),
+             "PHOTO": str(fit_dir / "photo.png"),
+             "fit_example/fit_shear": str(fit_dir / "fit_shear.toml")}
+    for out in (blocker, blocker / "sub"):
+        code = main([subst.get(a, a) for a in argv] + ["--out", str(out)])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "--out" in err, err
+    assert blocker.read_text() == "keep me" and sorted(tmp_path.iterdir()) == [blocker]
