@@ -284,13 +284,14 @@ def check_out(out: str) -> Path:
             raise ProblemError(out, "", "", "--out names an existing file; give a folder")
         existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
     except OSError as err:
-        raise ProblemError(out, "", "", f"cannot use the output folder "
+        raise ProblemError(out, "", "", f"cannot create the output folder "
                            f"({shown(err.strerror or err)})") from None
     if not existing.is_dir():
         raise ProblemError(out, "", "", f"--out lies under {quoted(existing)}, which is "
                            "not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
-        raise ProblemError(out, "", "", f"cannot write into {quoted(existing)}")
+        raise ProblemError(out, "", "", f"cannot create the output folder (cannot write into "
+                           f"{quoted(existing)})")
     return folder
 
 
