@@ -6,7 +6,6 @@ import shutil
 import warnings
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from knit_nlp.cli import main

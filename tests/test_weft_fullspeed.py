@@ -205,7 +205,6 @@ def test_coarse_problem_scales_the_pull_and_merges_points():
     """The course pull: 20 left and 20 right edge clamps become 10 + 10 with the displacement
     halved in proportion (r = 9/19), and the corner keeps both coordinates."""
     pr = parse_problem(course_pull(20), "p")
-    wnlp = build_nlp(pr)
     cp = start.coarse_problem(pr, WeftParams.of(pr), 10, 10)
     assert len(cp.clamps) == 20 and cp.clamps[0].fix == (True, True)
     right = [c for c in cp.clamps if c.loop[1] == 10]

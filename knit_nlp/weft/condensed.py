@@ -35,7 +35,8 @@ import numpy as np
 from ..layout import Layout
 from .basis import bending_diagonal, n_coeffs, phi
 from .kinematics import LoopIntegrals
-from .nlp import ClampRows, eval_points, n_parameters, rigid_natural_points, special_points
+from .nlp import (ClampRows, NLPSizes, eval_points, n_parameters, rigid_natural_points,
+                  special_points)
 from .params import WeftParams, param_layout
 from .parametrisation import Reduced
 from .problem import WeftProblem
@@ -94,7 +95,7 @@ class _Point:
     col: int
 
 
-class CondensedNLP:
+class CondensedNLP(NLPSizes):
     """The condensed reduced NLP; exposes what ``WeftSolver``, ``solve`` and ``WeftResult`` use
     of ``WeftNLP`` (nlp, layouts x, p, g, x0, params, p0, specials, clamp/load/rigid points and
     rows, energy, coefficients, starts, lift, special_positions, n_parameters, model)."""
@@ -135,18 +136,6 @@ class CondensedNLP:
                             pr.natural_starts())
 
     # ----------------------------------------------------------------- set-up
-    @property
-    def p0(self) -> np.ndarray:
-        """The problem's own parameter vector."""
-        return self.params.vector()
-
-    @property
-    def n_variables(self) -> int:
-        return self.x.size
-
-    @property
-    def n_constraints(self) -> int:
-        return self.g.size
 
     def _g_layout(self) -> tuple[Layout, list[ClampRows], list[slice]]:
         """Constraint rows: clamp positions and angles, then rigid-clamp points."""

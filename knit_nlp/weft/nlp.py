@@ -54,8 +54,30 @@ class ClampRows:
     angle: slice | None
 
 
+class NLPSizes:
+    """What every weft NLP (lifted ``WeftNLP``, condensed ``CondensedNLP``) derives the same way
+    from its layouts ``x``, ``g`` and its ``params``."""
+
+    x: Layout
+    g: Layout
+    params: WeftParams
+
+    @property
+    def p0(self) -> np.ndarray:
+        """The problem's own parameter vector."""
+        return self.params.vector()
+
+    @property
+    def n_variables(self) -> int:
+        return self.x.size
+
+    @property
+    def n_constraints(self) -> int:
+        return self.g.size
+
+
 @dataclass
-class WeftNLP:
+class WeftNLP(NLPSizes):
     """An assembled NLP with everything needed to solve it and read its solution.
 
     ``clamp_rows[q]`` and ``rigid_rows[q]`` locate clamp q's and rigid clamp q's constraint rows
@@ -92,18 +114,6 @@ class WeftNLP:
         """``full`` or ``reduced``: the name results and files use."""
         return self.parametrisation.name
 
-    @property
-    def p0(self) -> np.ndarray:
-        """The problem's own parameter vector."""
-        return self.params.vector()
-
-    @property
-    def n_variables(self) -> int:
-        return self.x.size
-
-    @property
-    def n_constraints(self) -> int:
-        return self.g.size
 
     def coefficients(self, xval: np.ndarray) -> np.ndarray:
         """Loop coefficients (m, n, 2t+2) of a solution vector."""
