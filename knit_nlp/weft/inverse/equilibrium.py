@@ -32,6 +32,11 @@ from ..problem import WeftProblem
 from ..params import WeftParams
 from ..solve import SolveReport, WeftSolver, solve
 
+try:    # with the module, not inside the first stability check: a one-time 0.15-0.5 s import,
+    import scipy.sparse.linalg  # noqa: F401  (Python's, not a solve's cost; measured)
+except ImportError:             # pragma: no cover  (scipy is optional: the dense check then)
+    pass
+
 SHIFT = -1e-6               # σ of the shift-invert Lanczos: just below zero
 RHO = 1e3                   # first penalty of the inertia test, times max|H| / max|JᵀJ|
 RHO_MAX = 1e9               # largest penalty tried (same scaling) before declaring a saddle
