@@ -141,13 +141,17 @@ def test_a_study_resumes_past_a_damaged_cache_entry(tmp_path, capsys, damage):
 
 
 def test_library_imports_leave_matplotlibs_backend_alone(tmp_path):
-    """Solving and saving both models' pictures through the library keeps the caller's backend."""
+    """Solving and saving both models' pictures, and importing every library module, keeps the
+    caller's backend."""
     code = textwrap.dedent(f"""
         import matplotlib
         matplotlib.use("svg")
         import knit_nlp
         for name in ("wada_fig7", "jacquard_stripe"):
             knit_nlp.solve(name).save({str(tmp_path)!r})
+        import importlib, pkgutil
+        for mod in pkgutil.walk_packages(knit_nlp.__path__, "knit_nlp."):
+            importlib.import_module(mod.name)
         print(matplotlib.get_backend())
     """)
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,

@@ -8,6 +8,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..figures import new_figure, save_figure
 from ..jsonio import write_csv
 
 
@@ -64,14 +65,10 @@ def _abscissa(values: list[Any]) -> np.ndarray:
 def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], title: str) -> Path:
     """Energy (and, for weft, the largest clamp force) against the first key, one line per
     combination of the other keys; failed points as crosses on the axis."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     rows = summary["points"]
     weft = any("clamps" in r for r in rows)
-    fig, axes = plt.subplots(1, 2 if weft else 1, figsize=(11 if weft else 6, 4.3), squeeze=False)
+    fig = new_figure(figsize=(11 if weft else 6, 4.3))
+    axes = fig.subplots(1, 2 if weft else 1, squeeze=False)
     x_key, others = keys[0], keys[1:]
     group = lambda r: tuple(str(r["label"][k]) for k in others)  # noqa: E731
     for name, members in itertools.groupby(sorted(rows, key=group), key=group):
@@ -98,7 +95,4 @@ def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], titl
             ax.legend(fontsize=7)
     fig.suptitle(f"{title} (x on the axis: not converged or lost)", fontsize=10)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100)

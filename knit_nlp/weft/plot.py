@@ -30,7 +30,7 @@ ARROW_FRACTION = 0.15          # the largest arrow is this fraction of the fabri
 NEGLIGIBLE = 1e-6              # arrows below this fraction of the largest (or below tol) are not drawn
 
 
-def _course_lines(lines: np.ndarray) -> list[np.ndarray]:
+def course_lines(lines: np.ndarray) -> list[np.ndarray]:
     """One polyline per course from (m, n, S, 2) loop samples."""
     return [np.concatenate(list(course), axis=0) for course in lines]
 
@@ -95,7 +95,7 @@ def solution_figure(result: "WeftResult", natural: np.ndarray, deformed: np.ndar
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     size = float(np.max(hi - lo))
     fig, ax = _figure(hi - lo)
-    ax.add_collection(LineCollection(_course_lines(natural), colors="0.8", linewidths=1.0,
+    ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0,
                                      label="natural", zorder=1))
     if colour == "displacement":
         mag = np.linalg.norm(deformed - natural, axis=-1)
@@ -105,7 +105,7 @@ def solution_figure(result: "WeftResult", natural: np.ndarray, deformed: np.ndar
         fig.colorbar(lc, ax=ax, label=f"displacement [{units.length}]", shrink=0.8)
     else:
         m = len(deformed)
-        lc = LineCollection(_course_lines(deformed), array=np.arange(1, m + 1), cmap="viridis",
+        lc = LineCollection(course_lines(deformed), array=np.arange(1, m + 1), cmap="viridis",
                             linewidths=1.8, zorder=2)
         lc.set_clim(0.5, m + 0.5)
         ax.add_collection(lc)
@@ -183,9 +183,9 @@ def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndar
     pts = np.concatenate([natural.reshape(-1, 2)] + [d.reshape(-1, 2) for _, d in frames])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     fig, ax = _figure(hi - lo, width=6.0)
-    ax.add_collection(LineCollection(_course_lines(natural), colors="0.8", linewidths=1.0))
+    ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0))
     m = len(natural)
-    lc = LineCollection(_course_lines(frames[0][1]), array=np.arange(1, m + 1), cmap="viridis",
+    lc = LineCollection(course_lines(frames[0][1]), array=np.arange(1, m + 1), cmap="viridis",
                         linewidths=1.6)
     lc.set_clim(0.5, m + 0.5)
     ax.add_collection(lc)
@@ -200,7 +200,7 @@ def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndar
     with temporary_path(path) as tmp:
         with writer.saving(fig, str(tmp), dpi=80):
             for title, lines in frames:
-                lc.set_segments(_course_lines(lines))
+                lc.set_segments(course_lines(lines))
                 ax.set_title(title, fontsize=9)
                 writer.grab_frame()
     return path
@@ -233,7 +233,7 @@ def plot_overlay(path: Path, full: np.ndarray, reduced: np.ndarray, title: str,
     units = units or Units()
     pts = np.concatenate([full.reshape(-1, 2), reduced.reshape(-1, 2)])
     fig, ax = _figure(pts.max(axis=0) - pts.min(axis=0))
-    ax.add_collection(LineCollection(_course_lines(full), colors="k", linewidths=0.8))
+    ax.add_collection(LineCollection(course_lines(full), colors="k", linewidths=0.8))
     err = np.linalg.norm(full - reduced, axis=-1)
     lc = LineCollection(_segments(reduced), array=0.5 * (err[..., :-1] + err[..., 1:]).ravel(),
                         cmap="plasma", linewidths=2.0)

@@ -4,21 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.collections import LineCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
-
-from ..plot import _course_lines  # noqa: E402
-
-
-def _save(fig, path: Path, dpi: int = 110) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path
+from ...figures import new_figure, save_figure
+from ..plot import course_lines
 
 
 def plot_control(path: Path, natural: np.ndarray, start: np.ndarray, achieved: np.ndarray,
@@ -26,11 +16,12 @@ def plot_control(path: Path, natural: np.ndarray, start: np.ndarray, achieved: n
                  title: str) -> Path:
     """Natural (grey), start (dashed) and achieved loops; goals (crosses) and the points that
     reached for them (dots); arrows from each actuated clamp's start target to its answer."""
-    fig, ax = plt.subplots(figsize=(7, 7))
-    ax.add_collection(LineCollection(_course_lines(natural), colors="0.8", linewidths=1.0, label="natural"))
-    ax.add_collection(LineCollection(_course_lines(start), colors="0.45", linewidths=0.8,
+    fig = new_figure(figsize=(7, 7))
+    ax = fig.subplots()
+    ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0, label="natural"))
+    ax.add_collection(LineCollection(course_lines(start), colors="0.45", linewidths=0.8,
                                      linestyles="dashed", label="start"))
-    ax.add_collection(LineCollection(_course_lines(achieved), colors="tab:blue", linewidths=1.5,
+    ax.add_collection(LineCollection(course_lines(achieved), colors="tab:blue", linewidths=1.5,
                                      label="achieved"))
     if len(goals):
         ax.plot(goals[:, 0], goals[:, 1], "x", color="crimson", ms=10, mew=2, label="goal")
@@ -45,14 +36,15 @@ def plot_control(path: Path, natural: np.ndarray, start: np.ndarray, achieved: n
     ax.set_title(title, fontsize=10)
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_fit(path: Path, cases: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]], title: str) -> Path:
     """One panel per case: fitted centrelines, observed points (crosses), fitted points (dots)."""
-    fig, axes = plt.subplots(1, len(cases), figsize=(5 * len(cases), 5), squeeze=False)
+    fig = new_figure(figsize=(5 * len(cases), 5))
+    axes = fig.subplots(1, len(cases), squeeze=False)
     for ax, (name, lines, observed, fitted) in zip(axes[0], cases):
-        ax.add_collection(LineCollection(_course_lines(lines), colors="tab:blue", linewidths=1.0))
+        ax.add_collection(LineCollection(course_lines(lines), colors="tab:blue", linewidths=1.0))
         ax.plot(observed[:, 0], observed[:, 1], "x", color="crimson", ms=7, label="observed")
         ax.plot(fitted[:, 0], fitted[:, 1], "o", mfc="none", color="k", ms=6, label="fitted")
         ax.autoscale()
@@ -61,7 +53,7 @@ def plot_fit(path: Path, cases: list[tuple[str, np.ndarray, np.ndarray, np.ndarr
         ax.legend(fontsize=8)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_on_image(path: Path, image: np.ndarray, lines_px: np.ndarray, matches_px: np.ndarray,
@@ -69,10 +61,10 @@ def plot_on_image(path: Path, image: np.ndarray, lines_px: np.ndarray, matches_p
     """The image at its own resolution with centrelines (pixel coordinates) drawn over it."""
     h, w = image.shape[:2]
     dpi = 100
-    fig = plt.figure(figsize=(w / dpi, h / dpi), dpi=dpi)
+    fig = new_figure(figsize=(w / dpi, h / dpi), dpi=dpi)
     ax = fig.add_axes((0, 0, 1, 1))
     ax.imshow(image, extent=(-0.5, w - 0.5, h - 0.5, -0.5), interpolation="nearest")
-    ax.add_collection(LineCollection(_course_lines(lines_px), colors="deepskyblue", linewidths=1.2))
+    ax.add_collection(LineCollection(course_lines(lines_px), colors="deepskyblue", linewidths=1.2))
     ax.plot(matches_px[:, 0], matches_px[:, 1], "o", mfc="none", color="yellow", ms=10, mew=2)
     ax.plot(mapped_px[:, 0], mapped_px[:, 1], "+", color="red", ms=10, mew=2)
     if observed_px is not None and len(observed_px):
@@ -80,4 +72,4 @@ def plot_on_image(path: Path, image: np.ndarray, lines_px: np.ndarray, matches_p
     ax.set_xlim(-0.5, w - 0.5)
     ax.set_ylim(h - 0.5, -0.5)
     ax.axis("off")
-    return _save(fig, path, dpi=dpi)
+    return save_figure(fig, path, dpi=dpi)
