@@ -34,10 +34,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .basis import n_coeffs
 from .condensed import CondensedNLP
-from .nlp import build_nlp
-from .parametrisation import Adaptive, Reduced
+from .nlp import build_nlp, n_parameters
+from .parametrisation import Adaptive, Full, Reduced
 from .problem import WeftProblem
 from .sampling import centrelines, solution_centrelines
 from .solve import SolveReport, WeftSolver, solve
@@ -72,6 +71,7 @@ class AdaptiveRun:
     """The final model and report, and every step taken."""
 
     cnlp: CondensedNLP
+    solver: WeftSolver
     report: SolveReport
     steps: list[AdaptiveStep] = field(default_factory=list)
     build_s: float = 0.0
@@ -120,16 +120,11 @@ def refine(red: Reduced, eta: np.ndarray, t: int) -> Reduced:
     return replace(red, courses=tuple(sorted(courses)), wales=tuple(sorted(wales)))
 
 
-def n_reduced_parameters(pr: WeftProblem, red: Reduced) -> int:
-    """The paper's count for a grid: p·q·2t + 2p + 2m."""
-    return len(red.courses) * len(red.wales) * 2 * pr.t + 2 * len(red.courses) + 2 * pr.courses
-
-
 def solve_adaptive(pr: WeftProblem, cfg: Adaptive = Adaptive(), samples: int = 21,
                    continuation: int | None = None) -> AdaptiveRun:
     """Refine the representatives from the corners (module docstring); return the last solve."""
     tol = cfg.tolerance if cfg.tolerance is not None else 0.1 * pr.L
-    budget = cfg.max_parameters or (pr.n_loops * n_coeffs(pr.t) + 2 * pr.courses) * 3 // 10
+    budget = cfg.max_parameters or n_parameters(pr, Full()) * 3 // 10
     red = Reduced().resolve(pr.courses, pr.wales)
     probe = NewtonProbe(pr)
     run, start = None, None
@@ -148,13 +143,14 @@ def solve_adaptive(pr: WeftProblem, cfg: Adaptive = Adaptive(), samples: int = 2
         step = AdaptiveStep(red.courses, red.wales, cnlp.n_parameters, spring + bend,
                             rep.iterations, rep.solve_s, rep.success, est, lines)
         if run is None:
-            run = AdaptiveRun(cnlp, rep, [step], build_s)
+            run = AdaptiveRun(cnlp, solver, rep, [step], build_s)
         else:
             rep.add_effort(run.report)
-            run.cnlp, run.report, run.build_s = cnlp, rep, run.build_s + build_s
+            run.cnlp, run.solver, run.report = cnlp, solver, rep
+            run.build_s += build_s
             run.steps.append(step)
         finer = refine(red, eta, pr.t)
         if (not rep.success or est <= tol or finer == red
-                or n_reduced_parameters(pr, finer) > budget):
+                or n_parameters(pr, finer) > budget):
             return run
         red, start = finer, (coeffs, starts)

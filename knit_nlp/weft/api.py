@@ -68,7 +68,7 @@ def _adaptive(problem: WeftProblem, cfg: Adaptive, params: WeftParams | None,
     if params is not None and not np.array_equal(params.vector(), WeftParams.of(problem).vector()):
         raise ValueError("adaptive representatives solve at the problem's own parameters")
     run = solve_adaptive(problem, cfg, continuation=continuation)
-    viol = WeftSolver(run.cnlp).violation(run.report.x, run.cnlp.p0)
+    viol = run.solver.violation(run.report.x, run.cnlp.p0)
     return WeftResult(run.cnlp, run.report, run.cnlp.params, run.build_s, viol,
                       {"adaptive": {"steps": [st.as_dict() for st in run.steps],
                                     "estimate": run.steps[-1].estimate}})
