@@ -40,7 +40,7 @@ from .nlp import (ClampRows, NLPSizes, eval_points, n_parameters, rigid_natural_
 from .params import WeftParams, param_layout
 from .parametrisation import Reduced
 from .problem import WeftProblem
-from .reduction import CourseMap, course_maps, n_reduced
+from .reduction import CourseMap, course_maps, n_reduced, with_clamped
 
 
 class _NumericFunction(ca.Callback):
@@ -95,12 +95,17 @@ class _Point:
     col: int
 
 
+RANK_TOL = 1e-8        # singular values below this fraction of the largest count as zero
+
+
 class CondensedNLP(NLPSizes):
     """The condensed reduced NLP; exposes what ``WeftSolver``, ``solve`` and ``WeftResult`` use
     of ``WeftNLP`` (nlp, layouts x, p, g, x0, params, p0, specials, clamp/load/rigid points and
     rows, energy, coefficients, starts, lift, special_positions, n_parameters, model)."""
 
     model = "reduced"
+    extended_from: Reduced | None = None   # the representatives asked for, if build_condensed
+    #                                        added the clamped courses and wales
 
     def __init__(self, pr: WeftProblem, reduced: Reduced) -> None:
         self.problem = pr
@@ -470,6 +475,15 @@ class CondensedNLP(NLPSizes):
                 {"grad_f": grad, "jac_g": jac, "hess_lag": hess, "calc_lam_p": False,
                  "calc_lam_x": False})
 
+    def clamp_rank(self) -> tuple[int, int]:
+        """(rank, rows) of the constraint Jacobian at the natural start: rank < rows means the
+        clamps are not independent in this reduced space (no LICQ; see ``with_clamped``)."""
+        jac = self.jacobian(self.w(self.x0), self.p0)
+        if jac.size == 0:
+            return 0, jac.shape[0]
+        sv = np.linalg.svd(jac, compute_uv=False)
+        return int(np.sum(sv > RANK_TOL * sv[0])), jac.shape[0]
+
     # --------------------------------------------------------------- reading
     def coefficients(self, x: np.ndarray) -> np.ndarray:
         """Loop coefficients (m, n, 2t+2) of a solver vector."""
@@ -511,5 +525,20 @@ def _nonzeros(dense: np.ndarray, sp: ca.Sparsity) -> np.ndarray:
 
 
 def build_condensed(pr: WeftProblem, reduced: Reduced = Reduced()) -> CondensedNLP:
-    """The condensed reduced model of a problem over ``reduced`` (default: the corner form)."""
-    return CondensedNLP(pr, reduced)
+    """The condensed reduced model of a problem over ``reduced`` (default: the corner form).
+
+    Where the clamps' constraints are dependent at the natural start (``clamp_rank``), the
+    courses and wales of the clamped loops are made representative (``reduction.with_clamped``)
+    and ``extended_from`` records the representatives asked for. Measured: the 20 × 20 course
+    pull over an even 6 × 6 grid took 8 905 iterations to a "solved to acceptable level" and the
+    corner form on 30 × 30 converged to a state with every course alike; extended, 19 and 6
+    iterations, 0.06 and 0.11 RMS from the full model (README, "Large fabrics")."""
+    cnlp = CondensedNLP(pr, reduced)
+    rank, rows = cnlp.clamp_rank()
+    if rank < rows:
+        wider = with_clamped(cnlp.reduction, pr)
+        if wider != cnlp.reduction:
+            asked = cnlp.reduction
+            cnlp = CondensedNLP(pr, wider)
+            cnlp.extended_from = asked
+    return cnlp

@@ -13,7 +13,7 @@ Count: p·q·2t + 2p representative parameters (+ 2m course starts, which stay f
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -86,3 +86,22 @@ def reduction_map(pr: WeftProblem, reduced: Reduced) -> np.ndarray:
         rows = slice(i * n * nc, (i + 1) * n * nc)
         T[rows, cm.cols] = cm.T.reshape(n * nc, -1)
     return T
+
+
+def clamped_loops(pr: WeftProblem) -> list[tuple[int, int]]:
+    """The 1-based (course, wale) of every clamped loop: point clamps and rigid-clamp points."""
+    return [c.loop for c in pr.clamps] + [loop for rc in pr.rigid_clamps
+                                          for loop, _, _ in rc.points]
+
+
+def with_clamped(red: Reduced, pr: WeftProblem) -> Reduced:
+    """``red`` (resolved) with the course and the wale of every clamped loop made representative.
+
+    Why: a clamp on an interpolated course (wale) constrains a shape the representatives fix.
+    Where several do (the course pull holds both ends of every course), their constraint rows
+    are linear combinations of each other at the natural state (every loop alike; measured on
+    the 20 × 20 course pull with an even 6 × 6 grid: rank 27 of 41) and IPOPT, without LICQ,
+    wanders for thousands of iterations (``condensed.build_condensed`` checks the rank)."""
+    loops = clamped_loops(pr)
+    return replace(red, courses=tuple(sorted(set(red.courses) | {i for i, _ in loops})),
+                   wales=tuple(sorted(set(red.wales) | {j for _, j in loops})))

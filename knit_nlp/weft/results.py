@@ -236,6 +236,18 @@ class WeftResult(Outcome):
         return {"model": self.model, "n_parameters": self.nlp.n_parameters,
                 "reactions": [c.reaction.round(6).tolist() for c in self.clamps]}
 
+    def representatives(self) -> dict[str, Any] | None:
+        """The reduced model's representative courses and wales (None for the full model), with
+        ``asked`` where the clamped ones were added (``condensed.build_condensed``)."""
+        red = getattr(self.nlp, "reduction", None)
+        if red is None:
+            return None
+        out: dict[str, Any] = {"courses": list(red.courses), "wales": list(red.wales)}
+        asked = getattr(self.nlp, "extended_from", None)
+        if asked is not None:
+            out["asked"] = {"courses": list(asked.courses), "wales": list(asked.wales)}
+        return out
+
     def to_json(self) -> dict[str, Any]:
         """The contract's result JSON (README, "Result JSON") with its documented extensions."""
         rep = self.report
@@ -255,6 +267,9 @@ class WeftResult(Outcome):
             "loops": {"course_starts": self.starts[:, 0].tolist(),
                       "coefficients": self.coefficients.tolist()},
         }
+        reps = self.representatives()
+        if reps is not None:
+            result["representatives"] = reps
         source = source_record(self.problem.source)
         if source:
             result["source"] = source

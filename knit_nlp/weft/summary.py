@@ -17,6 +17,10 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
              f" load work {e.load_work:.6g} [{u.energy}]",
              f"  {nlp.n_parameters} parameters, {nlp.n_variables} variables, "
              f"{nlp.n_constraints} constraints, max violation {r.violation:.2e} [{u.length}]"]
+    reps = r.representatives()
+    if reps is not None and "asked" in reps:
+        lines.append(f"  representatives {_grid(reps['asked'])} extended to {_grid(reps)}: the "
+                     "clamps were dependent with their courses/wales interpolated")
     groups: dict[str, list] = {}
     for c in r.clamps:
         if c.group:
@@ -36,6 +40,13 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
         lines.append("  NOT CONVERGED: " + "; ".join(r.report.attempts))
     lines.append("  wrote " + ", ".join(str(p) for p in paths))
     return "\n".join(lines)
+
+
+def _grid(reps: dict) -> str:
+    """"courses [1, 5], wales [1, 5]" shortened to counts beyond 8 entries."""
+    def one(v: list[int]) -> str:
+        return str(v) if len(v) <= 8 else f"{len(v)} of {v[0]}..{v[-1]}"
+    return f"courses {one(reps['courses'])}, wales {one(reps['wales'])}"
 
 
 def compare_summary(cmp: Comparison, paths: list[Path]) -> str:
