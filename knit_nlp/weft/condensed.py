@@ -1,28 +1,35 @@
 """The reduced model condensed to the paper's variables, with derivatives assembled by hand.
 
-Variables: the reduced parameters z (eqs. 22-27, ``reduction.course_map``) and the course starts
-(x_i^0, y_i^0): p·q·2t + 2p + 2m numbers, the paper's count. Loop starts are not variables: the
-start of loop (i, j) is the course start plus the end displacements of loops (i, 1..j−1) (eq. 1),
-so every position is course start + a prefix sum of per-loop integrals + the loop's own integral.
+Variables: the reduced parameters z (eqs. 22-27, ``reduction.course_map``) and the start of
+every shooting segment of ``segment`` loops along each course (the first is the course start
+(x_i^0, y_i^0)); with one segment per course this is the paper's count p·q·2t + 2p + 2m. Inside
+a segment loop starts are not variables: the start of loop (i, j) is its segment's start plus
+the end displacements of the segment's earlier loops (eq. 1); between segments the chaining
+of eq. (1) is a constraint ("chain" rows: the next segment starts where this one ends).
+Multiple shooting, because single shooting along whole courses made IPOPT take 42-89
+iterations on diagonal pulls (the chained positions are far more nonlinear in z than each
+segment's), against 8-12 in segments of 12 loops, to the same minimum (README, "Large
+fabrics").
 
 Every nonlinear term is one loop's integral D_k(a_k) (2 × P displacements at the material points
 the model needs) with a_k = T_k·z. The derivatives are assembled from per-loop blocks, never by
 differentiating through the map:
 
 - gradient: point adjoints ψ (spring forces, loads, multipliers) → μ_k = ψ_k plus, at s = L, the
-  suffix sum of the course's later adjoints (the transpose of the prefix sum) → ∂/∂a_k =
+  sum of the later adjoints in the segment (the transpose of the prefix sum) → ∂/∂a_k =
   J_kᵀμ_k + bending → ∂/∂z = Σ_k T_kᵀ ∂/∂a_k;
-- Jacobian rows of the clamps: ∂P/∂w = e(course start) + Σ_{j'<j} J_{(i,j'),L}T_{(i,j')} + J_{k,p}T_k;
+- Jacobian rows of clamps and chains: ∂P/∂w = e(segment start) + Σ_{earlier j' in the segment}
+  J_{(i,j'),L}T_{(i,j')} + J_{k,p}T_k;
 - Hessian of the Lagrangian: Σ_k T_kᵀ(Σ_p μ_kp·∇²D_kp + σ R_f diag(D))T_k + σ Σ_springs QᵀMQ with
   Q = ∂(spring vector)/∂w and M = Fᵀdiag(k_a, k_b)F (eqs. 6-10: the springs are quadratic in
   the positions, so this is exact, not Gauss-Newton).
 
 D_k, J_k and Σ_p μ_kp∇²D_kp are closed forms over all loops at once (``kinematics.LoopIntegrals``,
 the full model's quadrature; measured faster than mapped CasADi Functions); the rest is numpy over
-course blocks of width |cols_i| ≤ 2·q·2t + 4, so set-up and each evaluation are linear in the
-loops. IPOPT sees f, g and these derivatives through ``casadi.Callback`` objects given to
-``nlpsol`` as ``grad_f``, ``jac_g`` and ``hess_lag``; the Hessian's sparsity is structural
-(courses couple only with their neighbours through the springs).
+course blocks, so set-up and each evaluation are linear in the loops. Jacobian and Hessian are
+assembled as nonzeros of a structural block pattern (never as dense matrices) and handed to
+IPOPT through ``casadi.Callback`` objects (``grad_f``, ``jac_g``, ``hess_lag``) that write into
+CasADi's buffers.
 """
 from __future__ import annotations
 
@@ -79,11 +86,17 @@ class _NumericFunction(ca.Callback):
         self._reverse = self.reverse()                  # CasADi keeps no reference
         return self._reverse
 
-    def eval(self, arg):
-        outs = self.fn(*[np.asarray(a.full()).ravel() for a in arg])
-        return [ca.DM(sp, np.asarray(o, dtype=float).ravel().tolist()) if not sp.is_dense()
-                else ca.DM(np.asarray(o, dtype=float).reshape(sp.size1(), sp.size2(), order="F"))
-                for sp, o in zip(self.sp_out, outs)]
+    def has_eval_buffer(self) -> bool:
+        return True
+
+    def eval_buffer(self, arg, res) -> int:
+        """Read the inputs' and write the outputs' nonzeros in place (measured: converting a
+        million Hessian nonzeros to a DM through a list cost about 0.1 s per evaluation)."""
+        outs = self.fn(*[np.frombuffer(a, dtype=np.float64) for a in arg])
+        for r, o in zip(res, outs):
+            if r is not None and len(r):
+                np.frombuffer(r, dtype=np.float64)[:] = np.ravel(o)
+        return 0
 
 
 @dataclass
@@ -96,6 +109,7 @@ class _Point:
 
 
 RANK_TOL = 1e-8        # singular values below this fraction of the largest count as zero
+SEGMENT = 12           # loops per shooting segment along a course (README, "Large fabrics")
 
 
 class CondensedNLP(NLPSizes):
@@ -107,14 +121,21 @@ class CondensedNLP(NLPSizes):
     extended_from: Reduced | None = None   # the representatives asked for, if build_condensed
     #                                        added the clamped courses and wales
 
-    def __init__(self, pr: WeftProblem, reduced: Reduced) -> None:
+    def __init__(self, pr: WeftProblem, reduced: Reduced, segment: int | None = None) -> None:
         self.problem = pr
         m, n, t = pr.courses, pr.wales, pr.t
         self.parametrisation = self.reduction = reduced.resolve(m, n)
+        # shooting segments along every course: loop j (0-based) is in segment j // segment
+        self.segment = max(1, min(int(segment or SEGMENT), n))
+        self.n_seg = -(-n // self.segment)
+        self.seg_of = np.arange(n) // self.segment
+        self.seg_first = np.arange(self.n_seg) * self.segment
+        self.seg_last = np.minimum(self.seg_first + self.segment, n) - 1
         self.nc, self.nz = n_coeffs(t), n_reduced(self.reduction, t)
         self.maps: list[CourseMap] = course_maps(pr, self.reduction)
         # columns of w = (z, course starts) each course depends on
-        self.cw = [np.concatenate([cm.cols, self.nz + 2 * i + np.arange(2)])
+        S = self.n_seg
+        self.cw = [np.concatenate([cm.cols, self.nz + 2 * S * i + np.arange(2 * S)])
                    for i, cm in enumerate(self.maps)]
         self.specials, self.clamp_points, self.load_points, self.rigid_points = special_points(pr)
         evals = eval_points(pr, self.specials)
@@ -127,15 +148,15 @@ class CondensedNLP(NLPSizes):
         self.sp_points = [_Point(*divmod(sp.k, n), col[sp.s]) for sp in self.specials]
         self.x = Layout()
         self.x.add("coeffs", self.nz, 1)
-        self.x.add("course_starts", 2, m)
+        self.x.add("segment_starts", 2, m * self.n_seg)
         self.p = param_layout(pr)
         self.params = WeftParams.of(pr)
         self.g, self.clamp_rows, self.rigid_rows = self._g_layout()
         self.n_parameters = n_parameters(pr, self.reduction)
         self._loop_functions()
         self._cache: dict[str, object] = {}
-        self._sparsities()
         self.unit = self._units()
+        self._sparsities()
         self.nlp, self.nlpsol_options = self._oracles()
         self.x0 = self.lift(np.broadcast_to(pr.natural.coeffs, (m, n, self.nc)).copy(),
                             pr.natural_starts())
@@ -158,6 +179,8 @@ class CondensedNLP(NLPSizes):
         for q, idx in enumerate(self.rigid_points):
             gl.add(f"rigid{q}", 2 * len(idx), 1)
             rigid_rows.append(gl.slice(f"rigid{q}"))
+        if self.n_seg > 1:
+            gl.add("chain", 2 * (self.n_seg - 1), self.problem.courses)
         return gl, clamp_rows, rigid_rows
 
     def _loop_functions(self) -> None:
@@ -167,32 +190,57 @@ class CondensedNLP(NLPSizes):
                                        pr.quadrature_nodes)
         self.bend_diag = bending_diagonal(pr.L, pr.t)
 
-    def _row_columns(self) -> list[np.ndarray]:
-        """Columns of w each constraint row depends on, in g order."""
-        pr, rows = self.problem, []
-        for q, (c, sp) in enumerate(zip(pr.clamps, self.clamp_points)):
-            rows += [self.cw[self.sp_points[sp].i]] * sum(c.fix)
+    def _jacobian_blocks(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(rows, columns of w) of every dense block of ∂g/∂w, in the order ``_jacobian_values``
+        fills them: a clamp's held coordinates (columns of its course), its angle (the course's
+        z only), each rigid-clamp point, and per course its chaining rows."""
+        pr, blocks, r = self.problem, [], 0
+        for c, sp in zip(pr.clamps, self.clamp_points):
+            i = self.sp_points[sp].i
+            if sum(c.fix):
+                blocks.append((r + np.arange(sum(c.fix)), self.cw[i]))
+                r += sum(c.fix)
             if c.angle is not None:
-                rows.append(self.maps[(c.loop[0] - 1)].cols)
+                blocks.append((np.array([r]), self.maps[i].cols))
+                r += 1
         for idx in self.rigid_points:
             for sp in idx:
-                rows += [self.cw[self.sp_points[sp].i]] * 2
-        return rows
+                blocks.append((r + np.arange(2), self.cw[self.sp_points[sp].i]))
+                r += 2
+        k = 2 * (self.n_seg - 1)
+        for i in range(pr.courses if k else 0):
+            blocks.append((r + k * i + np.arange(k), self.cw[i]))
+        return blocks
+
+    def _hessian_blocks(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Dense blocks of ∇²ℒ: per course its loops' (z of the course), then per pair of
+        neighbouring courses their springs' (both courses' columns)."""
+        blocks = [(cm.cols, cm.cols) for cm in self.maps]
+        if self.springs:
+            for i in range(1, self.problem.courses):
+                cols = np.union1d(self.cw[i - 1], self.cw[i])
+                blocks.append((cols, cols))
+        return blocks
 
     def _sparsities(self) -> None:
         nw = self.x.size
-        rows = self._row_columns()
-        mask = np.zeros((len(rows), nw), dtype=bool)
-        for r, cols in enumerate(rows):
-            mask[r, cols] = True
-        self.jac_sp = _sparsity(mask)
-        self.jac_mask = mask
-        h = np.zeros((nw, nw), dtype=bool)
-        for i, cw in enumerate(self.cw):
-            block = np.union1d(cw, self.cw[i - 1]) if i and self.springs else cw
-            h[np.ix_(block, block)] = True
-        self.hess_mask = np.triu(h)
-        self.hess_sp = _sparsity(self.hess_mask)
+        self.jac_sp, self.jac_idx = _block_pattern((self.g.size, nw), self._jacobian_blocks())
+        self.hess_sp, self.hess_idx = _block_pattern((nw, nw), self._hessian_blocks(), upper=True)
+        u = self.unit
+        rows, cols = (np.asarray(v, dtype=int) for v in self.jac_sp.get_triplet())
+        self.jac_scale = u[cols]
+        rows, cols = (np.asarray(v, dtype=int) for v in self.hess_sp.get_triplet())
+        self.hess_scale = u[rows] * u[cols]
+
+    @property
+    def jac_mask(self) -> np.ndarray:
+        """The Jacobian's structural pattern as a dense boolean array (for checks)."""
+        return _dense(self.jac_sp, np.ones(self.jac_sp.nnz(), dtype=bool))
+
+    @property
+    def hess_mask(self) -> np.ndarray:
+        """The Hessian's structural upper triangle as a dense boolean array (for checks)."""
+        return _dense(self.hess_sp, np.ones(self.hess_sp.nnz(), dtype=bool))
 
     # ------------------------------------------------------------ evaluation
     def _coeffs(self, w: np.ndarray) -> np.ndarray:
@@ -209,14 +257,20 @@ class CondensedNLP(NLPSizes):
             A = self._coeffs(w)
             theta, D = self.integrals.values(A.reshape(-1, self.nc))
             Y = D.reshape(m, n, self.P, 2)
-            X0 = w[self.nz:].reshape(m, 2)
-            offsets = np.cumsum(Y[:, :, self.pL], axis=1) - Y[:, :, self.pL]
-            st = {"key": key, "A": A, "theta": theta, "Y": Y,
-                  "pos": X0[:, None, None, :] + offsets[:, :, None, :] + Y}
+            X0 = w[self.nz:].reshape(m, self.n_seg, 2)
+            offsets = self._within_segment(np.cumsum(Y[:, :, self.pL], axis=1)
+                                           - Y[:, :, self.pL])
+            st = {"key": key, "A": A, "theta": theta, "Y": Y, "X0": X0,
+                  "pos": X0[:, self.seg_of, None, :] + offsets[:, :, None, :] + Y}
             self._cache["state"] = st
         if derivatives and "J" not in st:
             st["J"] = self.integrals.jacobians(st["theta"]).reshape(m, n, self.P, 2, self.nc)
         return st
+
+    def _within_segment(self, exclusive: np.ndarray) -> np.ndarray:
+        """Exclusive prefix sums along courses (axis 1) restarted at every segment's first
+        loop: each loop's offset from its segment's start."""
+        return exclusive - exclusive[:, self.seg_first][:, self.seg_of]
 
     def _spring_vectors(self, pos: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """(vector − rest, frame, (upper col, lower col)) for the BE and RH springs."""
@@ -282,6 +336,9 @@ class CondensedNLP(NLPSizes):
             pts = np.array([st["pos"][self.sp_points[s].i, self.sp_points[s].j,
                                       self.sp_points[s].col] for s in idx]).T
             out.append((pts - target).ravel(order="F"))
+        if self.n_seg > 1:               # each segment starts where the last one ends (eq. 1)
+            ends = st["pos"][:, self.seg_last[:-1], self.pL]            # (m, S−1, 2)
+            out.append(np.ravel(st["X0"][:, 1:] - ends))
         return np.concatenate([np.ravel(o) for o in out]) if out else np.zeros(0)
 
     def _adjoints(self, w: np.ndarray, p: np.ndarray, sigma: float, lam: np.ndarray,
@@ -314,15 +371,21 @@ class CondensedNLP(NLPSizes):
                 pt = self.sp_points[s]
                 psi[pt.i, pt.j, pt.col] += lam[r:r + 2]
                 r += 2
+        if self.n_seg > 1:
+            psi[:, self.seg_last[:-1], self.pL] -= self._chain_multipliers(lam)
         return psi, dA, par
+
+    def _chain_multipliers(self, lam: np.ndarray) -> np.ndarray:
+        """The multipliers of the segment chaining rows, (m, S−1, 2)."""
+        return lam[self.g.slice("chain")].reshape(self.problem.courses, self.n_seg - 1, 2)
 
     def _loop_adjoints(self, psi: np.ndarray) -> np.ndarray:
         """μ = ∂ℒ/∂D per loop: ψ plus, at s = L, the course's later loops' total (the transpose
         of the prefix sum that chains loop starts, eq. 1)."""
         tot = psi.sum(axis=2)
-        suffix = np.cumsum(tot[:, ::-1], axis=1)[:, ::-1] - tot
+        suffix = np.cumsum(tot[:, ::-1], axis=1)[:, ::-1] - tot        # loops after j
         mu = psi.copy()
-        mu[:, :, self.pL] += suffix
+        mu[:, :, self.pL] += suffix - suffix[:, self.seg_last][:, self.seg_of]
         return mu
 
     def gradient(self, w: np.ndarray, p: np.ndarray, sigma: float = 1.0,
@@ -345,55 +408,78 @@ class CondensedNLP(NLPSizes):
         mu = self._loop_adjoints(psi)
         ga = (np.einsum("ijpd,ijpdc->ijc", mu, st["J"])
               + sigma * par["R_f"] * self.bend_diag * (st["A"] - self.problem.natural.coeffs) + dA)
-        return ga, psi.sum(axis=(1, 2))
+        gX0 = np.add.reduceat(psi.sum(axis=2), self.seg_first, axis=1)      # (m, S, 2)
+        if self.n_seg > 1:
+            gX0[:, 1:] += self._chain_multipliers(lam)
+        return ga, gX0
 
-    def _dpos(self, i: int, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(∂D_(i,j),p/∂w_local (n, P, 2, |cw_i|) without the chain, chain prefix (n, 2, |cw_i|))
-        for course i: positions' derivatives are own + prefix + e(course start)."""
-        cm = self.maps[i]
-        n, P = J.shape[1], J.shape[2]
-        own = np.matmul(J[i].reshape(n, 2 * P, self.nc), cm.T).reshape(n, P, 2, -1)
-        ends = own[:, self.pL]
-        prefix = np.cumsum(ends, axis=0) - ends
-        pad = np.zeros(own.shape[:-1] + (2,))
-        own = np.concatenate([own, pad], axis=-1)
-        prefix = np.concatenate([prefix, np.broadcast_to(np.eye(2), (prefix.shape[0], 2, 2))],
-                                axis=-1)
-        return own, prefix
+    def _dpos(self, st: dict, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """For course i, with respect to its z columns (``maps[i].cols``): every point's own
+        ∂D (n, P, 2, |cols_i|) and the within-segment prefix of the earlier loops' ends
+        (n, 2, |cols_i|); a position's derivative is own + prefix + e(its segment's start).
+        Kept with the state: the Jacobian and the Hessian at one point share it."""
+        cache = st.setdefault("dpos", {})
+        if i not in cache:
+            J, cm, n = st["J"], self.maps[i], self.problem.wales
+            own = np.matmul(J[i].reshape(n, -1, self.nc), cm.T).reshape(n, self.P, 2, -1)
+            ends = own[:, self.pL]
+            cache[i] = own, self._within_segment((np.cumsum(ends, axis=0) - ends)[None])[0]
+        return cache[i]
 
-    def jacobian(self, w: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """Dense ∂g/∂w (rows × nw) from the per-loop Jacobians and the chain."""
+    def _with_start(self, i: int, dz: np.ndarray, seg: np.ndarray) -> np.ndarray:
+        """Rows (k, 2, |cols_i|) of ∂(position)/∂z of course i's points in segments ``seg``
+        extended to all of ``cw[i]`` with e(the segment's start) (k, 2, |cw_i|)."""
+        S, k = self.n_seg, dz.shape[0]
+        start = np.zeros((k, 2, 2 * S))
+        start[np.arange(k), 0, 2 * seg] = 1.0
+        start[np.arange(k), 1, 2 * seg + 1] = 1.0
+        return np.concatenate([dz, start], axis=-1)
+
+    def _jacobian_values(self, w: np.ndarray, p: np.ndarray) -> list[np.ndarray]:
+        """The dense blocks of ∂g/∂w (``_jacobian_blocks``) from the per-loop Jacobians and
+        the chain: ∂(position) = own + prefix within the segment + e(segment start)."""
         pr = self.problem
         st = self._state(w, derivatives=True)
-        jac = np.zeros((self.g.size, self.x.size))
-        cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
-        def dpos(sp: int) -> tuple[np.ndarray, np.ndarray]:
+        def dpos(sp: int) -> np.ndarray:
             pt = self.sp_points[sp]
-            if pt.i not in cache:
-                cache[pt.i] = self._dpos(pt.i, st["J"])
-            own, prefix = cache[pt.i]
-            return own[pt.j, pt.col] + prefix[pt.j], self.cw[pt.i]
+            own, prefix = self._dpos(st, pt.i)
+            return self._with_start(pt.i, (own[pt.j, pt.col] + prefix[pt.j])[None],
+                                    self.seg_of[[pt.j]])[0]
 
-        r = 0
+        vals = []
         for c, sp in zip(pr.clamps, self.clamp_points):
-            d_, cols = dpos(sp)
-            for d in [d for d in range(2) if c.fix[d]]:
-                jac[r, cols] = d_[d]
-                r += 1
+            if sum(c.fix):
+                vals.append(dpos(sp)[[d for d in range(2) if c.fix[d]]])
             if c.angle is not None:
                 pt, cm = self.sp_points[sp], self.maps[self.sp_points[sp].i]
-                jac[r, cm.cols] = phi(c.s, pr.L, pr.t)[0] @ cm.T[pt.j]
-                r += 1
+                vals.append((phi(c.s, pr.L, pr.t)[0] @ cm.T[pt.j])[None])
         for idx in self.rigid_points:
-            for s in idx:
-                d_, cols = dpos(s)
-                jac[r:r + 2, cols] = d_
-                r += 2
-        return jac
+            vals += [dpos(sp) for sp in idx]
+        S = self.n_seg
+        for i in range(pr.courses if S > 1 else 0):
+            own, prefix = self._dpos(st, i)
+            last = self.seg_last[:-1]
+            # X0[s+1] − end of segment s
+            block = -self._with_start(i, own[last, self.pL] + prefix[last], np.arange(S - 1))
+            off = self.maps[i].cols.size
+            for s in range(S - 1):
+                block[s, :, off + 2 * (s + 1):off + 2 * (s + 2)] += np.eye(2)
+            vals.append(block.reshape(2 * (S - 1), -1))
+        return vals
 
-    def hessian(self, w: np.ndarray, p: np.ndarray, sigma: float, lam: np.ndarray) -> np.ndarray:
-        """Dense ∇²_w ℒ: Σ_k T_kᵀ(μ_k·∇²D_k + σ R_f diag(D))T_k + σ Σ_springs QᵀMQ."""
+    def jacobian_nonzeros(self, w: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """∂g/∂w at the nonzeros of ``jac_sp`` (CasADi's order)."""
+        return _scatter(self.jac_sp.nnz(), self.jac_idx, self._jacobian_values(w, p))
+
+    def jacobian(self, w: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Dense ∂g/∂w (rows × nw), for checks and the rank test."""
+        return _dense(self.jac_sp, self.jacobian_nonzeros(w, p))
+
+    def hessian_nonzeros(self, w: np.ndarray, p: np.ndarray, sigma: float,
+                         lam: np.ndarray) -> np.ndarray:
+        """The upper triangle of ∇²_w ℒ at the nonzeros of ``hess_sp``:
+        Σ_k T_kᵀ(μ_k·∇²D_k + σ R_f diag(D))T_k + σ Σ_springs QᵀMQ, block by block."""
         pr = self.problem
         m, n = pr.courses, pr.wales
         st = self._state(w, derivatives=True)
@@ -401,27 +487,54 @@ class CondensedNLP(NLPSizes):
         mu = self._loop_adjoints(psi)
         Hloop = (self.integrals.weighted_hessians(st["theta"], mu.reshape(m * n, self.P, 2))
                  .reshape(m, n, self.nc, self.nc) + sigma * par["R_f"] * np.diag(self.bend_diag))
-        H = np.zeros((self.x.size, self.x.size))
+        out = np.zeros(self.hess_sp.nnz() + 1)          # the last slot takes the lower triangle
         for i, cm in enumerate(self.maps):
             Ti = cm.T.reshape(n * self.nc, -1)
             HT = np.matmul(Hloop[i], cm.T).reshape(n * self.nc, -1)
-            H[np.ix_(cm.cols, cm.cols)] += Ti.T @ HT
+            out[self.hess_idx[i]] += Ti.T @ HT
         if self.springs and sigma != 0.0:
             mats = [self._spring_matrix(F, par) for F in (pr.crossings.frame_left,
                                                            pr.crossings.frame_right)]
-            below = self._dpos(0, st["J"])
             for i in range(1, m):
-                above = self._dpos(i, st["J"])
-                cols = np.union1d(self.cw[i - 1], self.cw[i])
-                lo, up = np.searchsorted(cols, self.cw[i - 1]), np.searchsorted(cols, self.cw[i])
-                for M, (pu, pl) in zip(mats, ((self.pB, self.pE), (self.pR, self.pH))):
-                    Q = np.zeros((n, 2, cols.size))
-                    Q[:, :, lo] += below[0][:, pl] + below[1]
-                    Q[:, :, up] -= above[0][:, pu] + above[1]
-                    MQ = np.matmul(M, Q).reshape(2 * n, -1)
-                    H[np.ix_(cols, cols)] += sigma * (Q.reshape(2 * n, -1).T @ MQ)
-                below = above
-        return H
+                out[self.hess_idx[m + i - 1]] += sigma * self._spring_block(st, i, mats)
+        return out[:-1]
+
+    def _spring_block(self, st: dict, i: int, mats: list[np.ndarray]) -> np.ndarray:
+        """Σ QᵀMQ over the springs between courses i−1 and i, on union(cw[i−1], cw[i]) =
+        (z columns of both, segment starts of course i−1, of course i). The spring vector is
+        v_j = Qz_j·z + X_(i−1,s(j)) − X_(i,s(j)) + const, so only the z part needs a product:
+        zz = Σ Qz_jᵀMQz_j, z–start = ±Σ_(j∈s) (MQz_j)ᵀ, start–start = ±(loops in s)·M."""
+        n, S = self.problem.wales, self.n_seg
+        zcols = np.union1d(self.maps[i - 1].cols, self.maps[i].cols)
+        cz = zcols.size
+        lo, up = np.searchsorted(zcols, self.maps[i - 1].cols), np.searchsorted(zcols, self.maps[i].cols)
+        (own_lo, pre_lo), (own_up, pre_up) = self._dpos(st, i - 1), self._dpos(st, i)
+        Qz = np.zeros((2, n, 2, cz))                     # per spring family
+        MQ = np.empty_like(Qz)
+        for f, (M, (pu, pl)) in enumerate(zip(mats, ((self.pB, self.pE), (self.pR, self.pH)))):
+            Qz[f][:, :, lo] += own_lo[:, pl] + pre_lo
+            Qz[f][:, :, up] -= own_up[:, pu] + pre_up
+            MQ[f] = np.matmul(M, Qz[f])
+        H = np.zeros((cz + 4 * S, cz + 4 * S))
+        H[:cz, :cz] = Qz.reshape(4 * n, cz).T @ MQ.reshape(4 * n, cz)
+        R = np.add.reduceat(MQ.sum(axis=0), self.seg_first, axis=0).reshape(2 * S, cz).T
+        H[:cz, cz:cz + 2 * S] = R
+        H[:cz, cz + 2 * S:] = -R
+        MM = self._start_blocks(mats)
+        H[cz:cz + 2 * S, cz:cz + 2 * S] = MM
+        H[cz + 2 * S:, cz + 2 * S:] = MM
+        H[cz:cz + 2 * S, cz + 2 * S:] = -MM
+        return H                     # its upper triangle is read (hess_idx)
+
+    def _start_blocks(self, mats: list[np.ndarray]) -> np.ndarray:
+        """blockdiag((loops in segment s)·(M_left + M_right)) over the segments (2S × 2S)."""
+        count = np.diff(np.r_[self.seg_first, self.problem.wales])
+        return np.kron(np.diag(count), mats[0] + mats[1])
+
+    def hessian(self, w: np.ndarray, p: np.ndarray, sigma: float, lam: np.ndarray) -> np.ndarray:
+        """Dense symmetric ∇²_w ℒ, for checks."""
+        upper = _dense(self.hess_sp, self.hessian_nonzeros(w, p, sigma, lam))
+        return upper + np.triu(upper, 1).T
 
     # ------------------------------------------------------------- IPOPT glue
     def w(self, x: np.ndarray) -> np.ndarray:
@@ -442,7 +555,6 @@ class CondensedNLP(NLPSizes):
         nw, ng, npar = self.x.size, self.g.size, self.p.size
         dense = ca.Sparsity.dense
         u = self.unit
-        uu = np.outer(u, u)
         # nlpsol builds the Lagrangian's gradient for its multiplier outputs from the reverse
         # derivative of (f, g); only its x part is provided (lam_p is not computed)
         adjoint = lambda: _NumericFunction(                                   # noqa: E731
@@ -460,12 +572,12 @@ class CondensedNLP(NLPSizes):
             [dense(nw), dense(npar)], [dense(1), dense(nw)], ["x", "p"], ["f", "grad_f_x"])
         jac = _NumericFunction(
             "condensed_jac_g", lambda x, p: (self._constraints(u * x, p),
-                                             _nonzeros(self.jacobian(u * x, p) * u, self.jac_sp)),
+                                             self.jacobian_nonzeros(u * x, p) * self.jac_scale),
             [dense(nw), dense(npar)], [dense(ng), self.jac_sp], ["x", "p"], ["g", "jac_g_x"])
         hess = _NumericFunction(
             "condensed_hess_lag",
-            lambda x, p, sf, lg: (_nonzeros(self.hessian(u * x, p, float(sf[0]), lg) * uu,
-                                            self.hess_sp),),
+            lambda x, p, sf, lg: (self.hessian_nonzeros(u * x, p, float(sf[0]), lg)
+                                  * self.hess_scale,),
             [dense(nw), dense(npar), dense(1), dense(ng)], [self.hess_sp],
             ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
         self._callbacks = (fg, grad, jac, hess)             # CasADi keeps no reference
@@ -501,44 +613,77 @@ class CondensedNLP(NLPSizes):
 
     def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
         """The solver vector whose loops are closest (least squares in the coefficients) to
-        ``coeffs`` (m, n, 2t+2), with the course starts of ``starts`` (m, n, 2)."""
-        normal = np.zeros((self.nz, self.nz))
-        rhs = np.zeros(self.nz)
-        for i, cm in enumerate(self.maps):
+        ``coeffs`` (m, n, 2t+2), with the segment starts of ``starts`` (m, n, 2). The normal
+        matrix Σ T_iᵀT_i couples only representative courses that share a course, so it is
+        solved sparse (CasADi's csparse; measured: a dense least-squares solve took 28 s for
+        the 5 000 parameters of the 100 × 100 course pull)."""
+        sp, idx = self._normal_pattern()
+        values, rhs = np.zeros(sp.nnz() + 1), np.zeros(self.nz)
+        for i, (cm, ix) in enumerate(zip(self.maps, idx)):
             Ti = cm.T.reshape(-1, cm.cols.size)
-            normal[np.ix_(cm.cols, cm.cols)] += Ti.T @ Ti
+            values[ix] += Ti.T @ Ti
             rhs[cm.cols] += Ti.T @ coeffs[i].ravel()
-        z = np.linalg.lstsq(normal, rhs, rcond=None)[0]
-        return np.concatenate([z, starts[:, 0, :].ravel()]) / self.unit
+        z = np.asarray(ca.solve(ca.DM(sp, values[:-1]), ca.DM(rhs), "csparse")).ravel()
+        return np.concatenate([z, starts[:, self.seg_first, :].ravel()]) / self.unit
+
+    def _normal_pattern(self) -> tuple[ca.Sparsity, list[np.ndarray]]:
+        if "normal" not in self._cache:
+            self._cache["normal"] = _block_pattern((self.nz, self.nz),
+                                                   [(cm.cols, cm.cols) for cm in self.maps])
+        return self._cache["normal"]
 
 
-def _sparsity(mask: np.ndarray) -> ca.Sparsity:
-    """CasADi sparsity of a boolean mask."""
-    cols, rows = np.nonzero(mask.T)
-    return ca.Sparsity.triplet(mask.shape[0], mask.shape[1], rows.tolist(), cols.tolist())
+def _block_pattern(shape: tuple[int, int], blocks: list[tuple[np.ndarray, np.ndarray]],
+                   upper: bool = False) -> tuple[ca.Sparsity, list[np.ndarray]]:
+    """The sparsity covering dense blocks (rows, cols) of a matrix (their upper triangle only
+    if ``upper``), and per block the index of each entry among the nonzeros in CasADi's
+    column-major order (entries left out: index nnz, a slot to drop)."""
+    keys = []
+    for rows, cols in blocks:
+        R, C = np.meshgrid(rows, cols, indexing="ij")
+        k = C.astype(np.int64) * shape[0] + R
+        keys.append(np.where(R <= C, k, -1) if upper else k)
+    mark = np.zeros(shape[0] * shape[1] + 1, dtype=bool)   # the last entry takes the −1s
+    for k in keys:
+        mark[k] = True
+    uniq = np.flatnonzero(mark[:-1])
+    sp = ca.Sparsity.triplet(shape[0], shape[1], (uniq % shape[0]).tolist(),
+                             (uniq // shape[0]).tolist())
+    return sp, [np.where(k >= 0, np.searchsorted(uniq, k), uniq.size) for k in keys]
 
 
-def _nonzeros(dense: np.ndarray, sp: ca.Sparsity) -> np.ndarray:
-    """The entries of ``dense`` at the nonzeros of ``sp``, in CasADi's (column-major) order."""
+def _scatter(nnz: int, idx: list[np.ndarray], values: list[np.ndarray]) -> np.ndarray:
+    """Nonzeros from non-overlapping dense blocks (``_block_pattern`` indices)."""
+    out = np.zeros(nnz + 1)
+    for i, v in zip(idx, values):
+        out[i] = v
+    return out[:-1]
+
+
+def _dense(sp: ca.Sparsity, nonzeros: np.ndarray) -> np.ndarray:
+    """The dense matrix of a sparsity's nonzeros."""
     rows, cols = sp.get_triplet()
-    return dense[np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)]
+    out = np.zeros((sp.size1(), sp.size2()), dtype=nonzeros.dtype)
+    out[np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)] = nonzeros
+    return out
 
 
-def build_condensed(pr: WeftProblem, reduced: Reduced = Reduced()) -> CondensedNLP:
-    """The condensed reduced model of a problem over ``reduced`` (default: the corner form).
+def build_condensed(pr: WeftProblem, reduced: Reduced = Reduced(),
+                    segment: int | None = None) -> CondensedNLP:
+    """The condensed reduced model of a problem over ``reduced`` (default: the corner form),
+    with shooting segments of ``segment`` loops (default ``SEGMENT``).
 
-    Where the clamps' constraints are dependent at the natural start (``clamp_rank``), the
-    courses and wales of the clamped loops are made representative (``reduction.with_clamped``)
-    and ``extended_from`` records the representatives asked for. Measured: the 20 × 20 course
-    pull over an even 6 × 6 grid took 8 905 iterations to a "solved to acceptable level" and the
-    corner form on 30 × 30 converged to a state with every course alike; extended, 19 and 6
-    iterations, 0.06 and 0.11 RMS from the full model (README, "Large fabrics")."""
-    cnlp = CondensedNLP(pr, reduced)
-    rank, rows = cnlp.clamp_rank()
-    if rank < rows:
-        wider = with_clamped(cnlp.reduction, pr)
-        if wider != cnlp.reduction:
-            asked = cnlp.reduction
-            cnlp = CondensedNLP(pr, wider)
-            cnlp.extended_from = asked
+    Where the clamps' constraints are dependent at the natural start (``clamp_rank`` of the
+    single-shooting model, whose only rows are the clamps), the courses and wales of the
+    clamped loops are made representative (``reduction.with_clamped``) and ``extended_from``
+    records the representatives asked for. Measured: the 20 × 20 course pull over an even
+    6 × 6 grid took 8 905 iterations to a "solved to acceptable level" and the corner form on
+    30 × 30 converged to a state with every course alike; extended, 19 and 6 iterations, 0.06
+    and 0.11 RMS from the full model (README, "Large fabrics")."""
+    red = reduced.resolve(pr.courses, pr.wales)
+    rank, rows = CondensedNLP(pr, red, segment=pr.wales).clamp_rank()
+    wider = with_clamped(red, pr) if rank < rows else red
+    cnlp = CondensedNLP(pr, wider, segment=segment)
+    if wider != red:
+        cnlp.extended_from = red
     return cnlp

@@ -48,7 +48,8 @@ def n_reduced(red: Reduced, t: int) -> int:
     return len(red.courses) * len(red.wales) * 2 * t + 2 * len(red.courses)
 
 
-def course_map(i: int, red: Reduced, n: int, t: int, L: float) -> CourseMap:
+def course_map(i: int, red: Reduced, n: int, t: int, L: float,
+               V: np.ndarray | None = None) -> CourseMap:
     """The rows of T for the loops of 1-based course ``i`` (eqs. 20-23; see the module docstring)."""
     p, q, h = len(red.courses), len(red.wales), 2 * t
     wi = hat_weights(i, red.courses)
@@ -57,7 +58,7 @@ def course_map(i: int, red: Reduced, n: int, t: int, L: float) -> CourseMap:
     lin_cols = p * q * h + np.arange(2 * p).reshape(p, 2)
     cols = np.concatenate([hat_cols[rs].ravel(), lin_cols[rs].ravel()])
     nh = rs.size * q * h
-    V = np.array([hat_weights(j, red.wales) for j in range(1, n + 1)])          # n × q
+    V = wale_weights(red, n) if V is None else V                                 # n × q
     T = np.zeros((n, h + 2, cols.size))
     T[:, :h, :nh] = np.einsum("r,jc,kl->jkrcl", wi[rs], V, np.eye(h)).reshape(n, h, nh)
     T[0, h, nh + 2 * np.arange(rs.size)] = wi[rs]                               # eq. (23)
@@ -71,10 +72,16 @@ def course_map(i: int, red: Reduced, n: int, t: int, L: float) -> CourseMap:
     return CourseMap(cols, T)
 
 
+def wale_weights(red: Reduced, n: int) -> np.ndarray:
+    """Hat weights (n × q) of every wale over the representative wales (eq. 22's μ_j)."""
+    return np.array([hat_weights(j, red.wales) for j in range(1, n + 1)])
+
+
 def course_maps(pr: WeftProblem, reduced: Reduced) -> list[CourseMap]:
     """Every course's block of the map, course 1 first."""
     red = reduced.resolve(pr.courses, pr.wales)
-    return [course_map(i, red, pr.wales, pr.t, pr.L) for i in range(1, pr.courses + 1)]
+    V = wale_weights(red, pr.wales)
+    return [course_map(i, red, pr.wales, pr.t, pr.L, V) for i in range(1, pr.courses + 1)]
 
 
 def reduction_map(pr: WeftProblem, reduced: Reduced) -> np.ndarray:
