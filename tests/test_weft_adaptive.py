@@ -5,7 +5,8 @@ from dataclasses import replace
 import numpy as np
 
 from knit_nlp.cli import main
-from knit_nlp.weft.adaptive import bisect, bisections_left, distance, indicator, solve_adaptive, solve_grid
+from knit_nlp.weft.adaptive import (bisect, bisections_left, distance, indicator, solve_adaptive,
+                                   solve_grid)
 from knit_nlp.weft.api import solve as solve_model
 from knit_nlp.weft.cases import diagonal_pull
 from knit_nlp.weft.parametrisation import Full, Reduced
