@@ -6,7 +6,10 @@ condensed reduced model on the corner form, even k × k grids and adaptive repre
 iterations, build and solve time, the solve split into function/derivative evaluations
 (IPOPT's ``t_wall_nlp_*``) and IPOPT's own time, parameters, energy, the largest and RMS
 centreline distance to the full solution (21 samples per loop), and the speed-up over full
-(build + solve, in this process). For the adaptive run also every step's true RMS error.
+(build + solve, in this process). For the adaptive run also every step's estimate and true RMS
+error; its iterations and times include the indicator's solves of the bisected candidate grids
+(``adaptive.indicator``), and it is compared with the best of the even grids run here that has
+at most its parameters.
 
     python scripts/bench_large.py                 # 30 x 30 diagonal pull (a few minutes)
     python scripts/bench_large.py --pulls course  # the course pull (slow: see the README)

@@ -1,12 +1,13 @@
 """Adaptive representatives: the hierarchical error indicator and the refinement loop."""
 import json
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 
 from knit_nlp.cli import main
-from knit_nlp.weft.adaptive import (bisect, bisections_left, distance, indicator, solve_adaptive,
-                                   solve_grid)
+from knit_nlp.weft.adaptive import (MARK, Indicator, _next_grid, bisect, bisections_left, distance,
+                                   indicator, solve_adaptive, solve_grid)
 from knit_nlp.weft.api import solve as solve_model
 from knit_nlp.weft.cases import diagonal_pull
 from knit_nlp.weft.parametrisation import Full, Reduced
@@ -49,6 +50,27 @@ def test_bisections():
     assert bisect((1, 2, 3)) == (1, 2, 3)
     assert [bisections_left(r) for r in [(1, 30), (1, 15, 30), (1, 2, 3), (1,), (1, 3, 7)]] == [
         5, 4, 0, 0, 2]
+
+
+def test_marking_per_added_parameter_within_the_budget():
+    # 8 x 8 (t = 3), grid courses (1, 4, 8) x wales (1, 8): a course index adds 2·2t + 2 = 14
+    # parameters, a wale index 3·2t = 18. δ_c lives on course 6 (interval [4, 8] scores 8/14),
+    # δ_w on wale 3 with 0.3 x that score per parameter: marked at MARK = 0.25, not at 0.5.
+    pr = parse_problem(diagonal_pull(8), "<8x8>")
+    grid = SimpleNamespace(red=Reduced((1, 4, 8), (1, 8)))
+    dc, dw = np.zeros((8, 8)), np.zeros((8, 8))
+    dc[5, :] = 1.0
+    dw[:, 2] = np.sqrt(0.3 * (8 / 14) * 18 / 8)
+    both = Reduced((1, 4, 6, 8), (1, 4, 8))
+    cand = SimpleNamespace(red=Reduced((1, 4, 6, 8), (1, 8)), report=SimpleNamespace(success=True))
+    ind = Indicator(np.zeros((8, 8)), 0.0, {"c": dc, "w": dw}, {"c": cand})
+    assert MARK == 0.25
+    assert _next_grid(pr, grid, ind, 96) == (both, None)          # 4·3·2t + 2·4 + 2·8 = 96
+    assert _next_grid(pr, grid, ind, 95) == (cand.red, cand)      # over budget: the best only,
+    assert _next_grid(pr, grid, ind, 72)[1] is cand               # and the candidate's solve reused
+    assert _next_grid(pr, grid, ind, 71) is None                  # nothing fits
+    dw[:, 2] *= 0.9                                               # 0.243 < MARK: courses only
+    assert _next_grid(pr, grid, ind, 10 ** 6)[0] == cand.red
 
 
 def test_indicator_vanishes_at_the_full_solution():
@@ -104,3 +126,4 @@ def test_refinement_is_monotone_and_reported(write_problem, tmp_path):
         st.n_parameters for st in run.steps]
     assert res["n_parameters"] == run.steps[-1].n_parameters
     assert res["adaptive"]["estimate"] == estimates[-1]
+    assert abs(res["energy"]["total"] - energies[-1]) < 1e-9 * energies[-1]
