@@ -32,8 +32,9 @@ Start from the corner form; after each solve of the condensed reduced model
    estimate above the tolerance (true RMS 0.64, 12 grids); MARK = 0.5 at 2 032 (0.25, 11
    grids, 70 s), MARK = 0.25 at 2 140 (0.25, 8 grids, 64 s), both stopping at the tolerance.
 3. **Stop** when the estimate is at most ``tolerance``, no marked bisection fits
-   ``max_parameters``, every index is representative, or a solve fails. The candidates of the last grid are solved
-   for its estimate even when they exceed the budget (they are the estimator, not the model).
+   ``max_parameters``, every index is representative, or a solve fails. The candidates of the
+   last grid are solved for its estimate even when they exceed the budget (they are the
+   estimator, not the model).
 """
 from __future__ import annotations
 
