@@ -10,7 +10,7 @@ from knit_nlp.weft.adaptive import (MARK, Indicator, _next_grid, bisect, bisecti
                                    indicator, solve_adaptive, solve_grid)
 from knit_nlp.weft.api import solve as solve_model
 from knit_nlp.weft.cases import diagonal_pull
-from knit_nlp.weft.parametrisation import Full, Reduced
+from knit_nlp.weft.parametrisation import Adaptive, Full, Reduced
 from knit_nlp.weft.problem import load_problem, parse_problem
 
 # the diagonal pull of scripts/bench_weft.py on 12 x 12 (the corner H of loop (1, 12) stretched
@@ -53,24 +53,51 @@ def test_bisections():
 
 
 def test_marking_per_added_parameter_within_the_budget():
-    # 8 x 8 (t = 3), grid courses (1, 4, 8) x wales (1, 8): a course index adds 2·2t + 2 = 14
-    # parameters, a wale index 3·2t = 18. δ_c lives on course 6 (interval [4, 8] scores 8/14),
-    # δ_w on wale 3 with 0.3 x that score per parameter: marked at MARK = 0.25, not at 0.5.
+    # 8 x 8 (t = 3), grid (1, 4, 8) x (1, 4, 8): a course index adds 3·2t + 2 = 20 parameters,
+    # a wale index 3·2t = 18. δ_c lives on courses 1 and 5 (each course interval scores 8/20,
+    # endpoints included), δ_w on loop (2, 6): only wale interval [4, 8] scores, 0.26 x the
+    # course intervals' per parameter: marked at MARK = 0.25, not at 0.5 or with 18 for 20
     pr = parse_problem(diagonal_pull(8), "<8x8>")
-    grid = SimpleNamespace(red=Reduced((1, 4, 8), (1, 8)))
+    grid = SimpleNamespace(red=Reduced((1, 4, 8), (1, 4, 8)))
     dc, dw = np.zeros((8, 8)), np.zeros((8, 8))
-    dc[5, :] = 1.0
-    dw[:, 2] = np.sqrt(0.3 * (8 / 14) * 18 / 8)
-    both = Reduced((1, 4, 6, 8), (1, 4, 8))
-    cand = SimpleNamespace(red=Reduced((1, 4, 6, 8), (1, 8)), report=SimpleNamespace(success=True))
+    dc[[0, 4], :] = 1.0
+    dw[1, 5] = np.sqrt(0.26 * (8 / 20) * 18)
+    courses = Reduced((1, 2, 4, 6, 8), (1, 4, 8))
+    cand = SimpleNamespace(red=courses, report=SimpleNamespace(success=True))
     ind = Indicator(np.zeros((8, 8)), 0.0, {"c": dc, "w": dw}, {"c": cand})
     assert MARK == 0.25
-    assert _next_grid(pr, grid, ind, 96) == (both, None)          # 4·3·2t + 2·4 + 2·8 = 96
-    assert _next_grid(pr, grid, ind, 95) == (cand.red, cand)      # over budget: the best only,
-    assert _next_grid(pr, grid, ind, 72)[1] is cand               # and the candidate's solve reused
-    assert _next_grid(pr, grid, ind, 71) is None                  # nothing fits
-    dw[:, 2] *= 0.9                                               # 0.243 < MARK: courses only
-    assert _next_grid(pr, grid, ind, 10 ** 6)[0] == cand.red
+    both = Reduced((1, 2, 4, 6, 8), (1, 4, 6, 8))                  # 5·4·2t + 2·5 + 2·8 = 146
+    assert _next_grid(pr, grid, ind, 146) == (both, None)
+    assert _next_grid(pr, grid, ind, 145) == (courses, cand)       # within budget: the courses,
+    assert _next_grid(pr, grid, ind, 116)[1] is cand               # the candidate's solve reused;
+    assert _next_grid(pr, grid, ind, 115) == (Reduced((1, 4, 6, 8), (1, 4, 8)), None)  # best first
+    assert _next_grid(pr, grid, ind, 94) == (Reduced((1, 4, 8), (1, 4, 6, 8)), None)
+    assert _next_grid(pr, grid, ind, 93) is None                   # nothing fits
+    dw *= 0.95                                                     # 0.235 < MARK: courses only
+    assert _next_grid(pr, grid, ind, 10 ** 6)[0] == courses
+
+
+def test_distance_is_the_rms_over_the_samples():
+    a = np.zeros((2, 3, 5, 2))
+    b = a.copy()
+    b[1, 2, :, 0], b[1, 2, :, 1] = 3.0, 4.0
+    b[0, 0, 0] = [1.0, 0.0]
+    d = distance(a, b)
+    assert d.shape == (2, 3)
+    assert np.allclose(d[1, 2], 5.0) and np.allclose(d[0, 0], np.sqrt(1 / 5))
+    assert np.count_nonzero(d) == 2
+
+
+def test_default_tolerance_and_budget():
+    # 6 x 6 without a budget: stops at the first grid whose estimate is <= 0.1·L = 1.0
+    pr = parse_problem(diagonal_pull(6), "<6x6>")
+    est = [st.estimate for st in solve_adaptive(pr, Adaptive(max_parameters=10 ** 6)).steps]
+    assert est[-1] <= 0.1 * pr.L < min(est[:-1]), est
+    # 8 x 8 with the default tolerance: the default budget (30 % of 528 = 158) binds
+    pr = parse_problem(diagonal_pull(8), "<8x8>")
+    run = solve_adaptive(pr, Adaptive())
+    assert run.steps[-1].estimate > 0.1 * pr.L
+    assert 132 < run.steps[-1].n_parameters <= 158
 
 
 def test_indicator_vanishes_at_the_full_solution():
