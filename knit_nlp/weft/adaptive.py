@@ -43,7 +43,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .condensed import CondensedNLP
+from .condensed import CondensedNLP, build_condensed
 from .nlp import n_parameters
 from .parametrisation import Adaptive, Full, Reduced
 from .problem import WeftProblem
@@ -103,16 +103,18 @@ class GridSolve:
 def solve_grid(pr: WeftProblem, red: Reduced, start: GridSolve | None = None,
                samples: int = 21, continuation: int | None = None) -> GridSolve:
     """Build and solve the condensed model on ``red``, from ``start``'s loops lifted (its grid
-    must be contained in ``red`` for the lift to be exact) or the model's default start."""
+    must be contained in ``red`` for the lift to be exact) or the model's default start.
+    ``build_condensed`` may add the clamped courses and wales (dependent clamps); the result's
+    ``red`` is the grid solved."""
     t0 = time.perf_counter()
-    cnlp = CondensedNLP(pr, red)
+    cnlp = build_condensed(pr, red)
     solver = WeftSolver(cnlp)
     build_s = time.perf_counter() - t0
     x0 = None if start is None else cnlp.lift(start.coeffs, start.starts)
     rep = solve(cnlp, solver, x0=x0, continuation=continuation)
     coeffs, starts = cnlp.coefficients(rep.x), cnlp.starts(rep.x)
     spring, bend, _ = cnlp.energy(rep.x, cnlp.p0)
-    return GridSolve(red, cnlp, solver, rep, coeffs, starts,
+    return GridSolve(cnlp.reduction, cnlp, solver, rep, coeffs, starts,
                      centrelines(coeffs, starts, pr.L, pr.t, samples)[0], spring + bend, build_s)
 
 
