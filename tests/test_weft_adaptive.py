@@ -87,10 +87,11 @@ def test_marking_per_added_parameter_within_the_budget():
 
 
 def test_distance_is_the_rms_over_the_samples():
-    a = np.zeros((2, 3, 5, 2))
+    a = np.linspace(1.0, 2.0, 60).reshape(2, 3, 5, 2)
     b = a.copy()
-    b[1, 2, :, 0], b[1, 2, :, 1] = 3.0, 4.0
-    b[0, 0, 0] = [1.0, 0.0]
+    b[1, 2, :, 0] += 3.0
+    b[1, 2, :, 1] += 4.0
+    b[0, 0, 0] += [1.0, 0.0]
     d = distance(a, b)
     assert d.shape == (2, 3)
     assert np.allclose(d[1, 2], 5.0) and np.allclose(d[0, 0], np.sqrt(1 / 5))
