@@ -6,11 +6,22 @@ condensed reduced model on the corner form, even k × k grids and adaptive repre
 iterations, build and solve time, the solve split into function/derivative evaluations
 (IPOPT's ``t_wall_nlp_*``) and IPOPT's own time, parameters, energy, the largest and RMS
 centreline distance to the full solution (21 samples per loop), and the speed-up over full
-(build + solve, in this process). For the adaptive run also every step's true RMS error.
+(build + solve, in this process). For the adaptive run also every step's estimate and true RMS
+error; its iterations and times include the indicator's solves of the bisected candidate grids
+(``adaptive.indicator``), and it is compared with the best of the even grids run here that has
+at most its parameters.
 
     python scripts/bench_large.py                 # 30 x 30 diagonal pull (a few minutes)
     python scripts/bench_large.py --pulls course  # the course pull (slow: see the README)
     python scripts/bench_large.py --sizes 50 100 --grids 2 6 --pulls diagonal --skip-adaptive
+    python scripts/bench_large.py --nested --skip-adaptive --grids  # what tensor grids can reach
+
+``--nested``: how well each tensor grid can do when solved well (the bound for the adaptive
+targets). Every product of the bisection chains {1, n} → {1, n/2, n} → … (5 levels at 30) in
+courses and wales, each solved warm-started from the finest already solved grid it contains
+(lifted exactly, so the energy cannot rise along a chain); then even k × k grids for k = 2 …
+``--nested-even`` warm-started from the previous even grid (lifted by least squares: even grids
+are not nested). Only the distances to the full solution are of interest there, not times.
 
 BLAS runs on one thread (OPENBLAS_NUM_THREADS=1 unless set): measured, the condensed model's
 small dense products are about 2x slower with threads on the shared 2-core machine.
@@ -31,7 +42,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from study_reduction import even  # noqa: E402
 
-from knit_nlp.weft.adaptive import solve_adaptive  # noqa: E402
+from knit_nlp.weft.adaptive import bisect, solve_adaptive, solve_grid  # noqa: E402
 from knit_nlp.weft.api import solve  # noqa: E402
 from knit_nlp.weft.cases import course_pull, diagonal_pull  # noqa: E402
 from knit_nlp.weft.parametrisation import Adaptive, Full, Reduced  # noqa: E402
@@ -63,7 +74,42 @@ def row(case: str, model: str, params: int, its: int, build: float, solve_s: flo
             f"{'' if ok else ' NOT CONVERGED'}")
 
 
-def run_case(case: str, doc: dict, grids: list[int], adaptive: bool) -> None:
+def nested(case: str, pr, ref: np.ndarray, full_params: int, even_up_to: int) -> None:
+    """The --nested tables (module docstring): params, iterations, energy, max and RMS distance
+    per grid solved warm along bisection chains and along even grids."""
+    chains = []
+    for size in (pr.courses, pr.wales):
+        chain = [(1, size) if size > 1 else (1,)]
+        while bisect(chain[-1]) != chain[-1]:
+            chain.append(bisect(chain[-1]))
+        chains.append(chain[:5])
+    solved = {}
+    for a, courses in enumerate(chains[0]):
+        for b, wales in enumerate(chains[1]):
+            start = max((g for g in solved.values() if set(g.red.courses) <= set(courses)
+                         and set(g.red.wales) <= set(wales)),
+                        key=lambda g: g.cnlp.n_parameters, default=None)
+            g = solve_grid(pr, Reduced(courses, wales), start, SAMPLES)
+            solved[a, b] = g
+            err = distances(g.lines, ref)
+            print(f"| {case} | nested courses {len(courses)} x wales {len(wales)} | "
+                  f"{g.cnlp.n_parameters} ({100 * g.cnlp.n_parameters / full_params:.1f} %) | "
+                  f"{g.report.iterations} | {g.energy:.5g} | {err[0]:.3g} | {err[1]:.3g} |"
+                  f"{'' if g.report.success else ' NOT CONVERGED'}", flush=True)
+    prev = None
+    for k in range(2, even_up_to + 1):
+        g = solve_grid(pr, Reduced(tuple(even(k, pr.courses)), tuple(even(k, pr.wales))), prev,
+                       SAMPLES)
+        err = distances(g.lines, ref)
+        print(f"| {case} | even {k}x{k} warm from the previous | {g.cnlp.n_parameters} "
+              f"({100 * g.cnlp.n_parameters / full_params:.1f} %) | {g.report.iterations} | "
+              f"{g.energy:.5g} | {err[0]:.3g} | {err[1]:.3g} |"
+              f"{'' if g.report.success else ' NOT CONVERGED'}", flush=True)
+        prev = g
+
+
+def run_case(case: str, doc: dict, grids: list[int], adaptive: bool,
+             nested_even: int | None = None) -> None:
     pr = parse_problem(doc, f"<{case}>")
     full = solve(pr, Full())
     ref = full.centrelines(SAMPLES)
@@ -71,6 +117,10 @@ def run_case(case: str, doc: dict, grids: list[int], adaptive: bool) -> None:
               full.report.solve_s, full.report.stats, full.energy.total, (0.0, 0.0), None,
               full.success), flush=True)
     full_time = full.build_s + full.report.solve_s
+    if nested_even is not None:
+        print("| case | grid | parameters (% of full) | iterations | energy | max distance | "
+              "RMS distance |\n|---|---|---:|---:|---:|---:|---:|", flush=True)
+        nested(case, pr, ref, full.nlp.n_parameters, nested_even)
     m, n = pr.courses, pr.wales
     even_errors = []
     for k in grids:
@@ -112,6 +162,10 @@ def main() -> None:
                     help="even k x k grids (2 = the corner form)")
     ap.add_argument("--pulls", nargs="*", default=["diagonal"], choices=["diagonal", "course"])
     ap.add_argument("--skip-adaptive", action="store_true")
+    ap.add_argument("--nested", action="store_true",
+                    help="also the tensor grids along bisection chains, solved warm (docstring)")
+    ap.add_argument("--nested-even", type=int, default=16, metavar="K",
+                    help="with --nested: even grids 2..K warm-started in turn")
     args = ap.parse_args()
     print("| case | model | parameters | iterations | build s | solve s | evaluations s | "
           "IPOPT own s | build + solve s | speed-up | energy | max distance | RMS distance |")
@@ -119,7 +173,8 @@ def main() -> None:
     docs = {"diagonal": diagonal_pull, "course": course_pull}
     for size in args.sizes:
         for pull in args.pulls:
-            run_case(f"{pull} {size}x{size}", docs[pull](size), args.grids, not args.skip_adaptive)
+            run_case(f"{pull} {size}x{size}", docs[pull](size), args.grids, not args.skip_adaptive,
+                     args.nested_even if args.nested else None)
 
 
 if __name__ == "__main__":

@@ -1,31 +1,40 @@
 """Adaptive representatives for the reduction (the paper's open question: which loops).
 
 Start from the corner form; after each solve of the condensed reduced model
-(``condensed.CondensedNLP``):
+(``condensed.CondensedNLP``) on the tensor grid G:
 
-1. **Indicator** per loop: the full model's first Newton steps from the prolonged reduced
-   solution (``PROBE_ITERATIONS`` IPOPT iterations of the full NLP, built once, started from
-   the lifted loops), measured as each loop's RMS centreline displacement η_ij in length
-   units. Near the full solution this is the reduced solution's error, so it is zero at a full
-   solution and its RMS over the fabric is the error *estimate*. Measured against the true
-   error (Spearman rank correlation over loops; estimate against true RMS):
-   one step from the corner form: 0.97 (12 × 12 diagonal pull; 8.1 against 6.0), 0.98
-   (8 × 8 course pull; 0.21 against 0.19), 0.36 (9 × 7 diagonal; 1.2 against 4.6);
-   30 × 30 diagonal: from the corner form −0.33 (1.1 against 14.3; 3 steps −0.30, 2.0),
-   from the even 6 × 6 grid −0.44 after one step (0.05 against 6.2) but 0.96 after three
-   (7.6) and 1.00 after six (6.17 against 6.17). Far from the full solution the Hessian is
-   indefinite and IPOPT's regularisation shortens the steps, so the estimate is then too low.
-   The full model's stationarity residual (gradient of the Lagrangian with the best
-   continuity multipliers) was tried first and ranked loops against the error (−0.39, −0.53;
-   0.09): it is largest beside the clamps, while the error accumulates far from them.
-2. **Marking**: between consecutive representative courses (wales) the indicator's squares are
-   summed over the loops the interval interpolates; every interval scoring at least
-   ``MARK`` × the largest, per parameter its bisection adds, is bisected (tensor grid).
-3. **Re-solve** warm-started from the previous solution lifted exactly into the finer grid
-   (the spaces are nested: piecewise-linear hats on a refined grid contain the coarse ones), so
-   the energy cannot rise.
-4. **Stop** when the estimate is at most ``tolerance`` or the next grid would exceed
-   ``max_parameters``.
+1. **Hierarchical indicator.** For each axis (courses, wales) whose representatives are not yet
+   every index, the *candidate* grid bisects every interval of that axis (``bisect``) and is
+   solved warm-started from G's solution lifted exactly (the spaces are nested: piecewise-linear
+   hats on a refined grid contain the coarse ones). δ_a per loop is the RMS centreline distance
+   (length units) between G's solution and candidate a's. The indicator is
+   η = √(Σ_a (R_a·δ_a)²), R_a the number of bisections axis a still needs before every index is
+   representative; the *estimate* is the RMS of η over the loops. The factor R_a is the
+   telescoping sum of the remaining bisections' changes assuming no saturation (each later
+   change as large as this one): measured on the 30 × 30 diagonal pull the changes do not
+   shrink until the grid is nearly full (RMS 3.9, 4.0, 3.3, 3.7 along 2² → 3² → 5² → 9² → 17²)
+   so the plain difference δ underestimates the error 2.5-6 × on coarse grids (true RMS 14.3,
+   difference 2.6 from the corners). η is zero where G's solution is also the finer grids'
+   (at the full solution, when G contains it) and ranks loops like the true error: along the
+   30 × 30 run (README) Spearman 0.81-0.96 over the loops and estimate / true RMS 0.90-2.0.
+   Measured and not kept: a few full-model IPOPT iterations from the lifted solution (the
+   previous indicator): far from the full solution the Hessian is indefinite and IPOPT's
+   regularisation shortens the steps, so it estimated 0.31 for a true RMS error of 10.6 and
+   ranked loops against the error (Spearman −0.33 from the corners); the full model's
+   stationarity residual (largest beside the clamps, while the error accumulates far from them).
+2. **Marking.** Each representative interval of either axis scores the δ_a² summed over the
+   loops it interpolates, per parameter its bisection adds; every interval scoring at least
+   ``MARK`` × the best is bisected, best first, as long as the grid stays within
+   ``max_parameters`` (a candidate's solve is reused when the marked grid is that candidate;
+   otherwise the marked grid is solved warm-started from G's solution, again exactly nested).
+   So the energy never rises. Measured on the 30 × 30 diagonal pull: choosing instead the
+   candidate axis with the largest energy drop per parameter ended at 1 740 parameters with an
+   estimate above the tolerance (true RMS 0.64, 12 grids); MARK = 0.5 at 2 032 (0.25, 11
+   grids, 70 s), MARK = 0.25 at 2 140 (0.25, 8 grids, 64 s), both stopping at the tolerance.
+3. **Stop** when the estimate is at most ``tolerance``, no marked bisection fits
+   ``max_parameters``, every index is representative, or a solve fails. The candidates of the
+   last grid are solved for its estimate even when they exceed the budget (they are the
+   estimator, not the model).
 """
 from __future__ import annotations
 
@@ -34,15 +43,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .condensed import CondensedNLP
-from .nlp import build_nlp, n_parameters
+from .condensed import CondensedNLP, build_condensed
+from .nlp import n_parameters
 from .parametrisation import Adaptive, Full, Reduced
 from .problem import WeftProblem
-from .sampling import centrelines, solution_centrelines
+from .sampling import centrelines
 from .solve import SolveReport, WeftSolver, solve
 
-MARK = 0.5
-PROBE_ITERATIONS = 3
+MARK = 0.25
 
 
 @dataclass
@@ -77,80 +85,156 @@ class AdaptiveRun:
     build_s: float = 0.0
 
 
-class NewtonProbe:
-    """A few IPOPT iterations of the full model (built once) from a prolonged reduced solution."""
+@dataclass
+class GridSolve:
+    """The condensed model on one grid, solved: its loops, centrelines and energy."""
 
-    def __init__(self, pr: WeftProblem) -> None:
-        self.full = build_nlp(pr)
-        self.solver = WeftSolver(self.full, max_iter=PROBE_ITERATIONS)
-
-    def step(self, coeffs: np.ndarray, starts: np.ndarray, samples: int) -> np.ndarray:
-        """η (m, n): per loop, the RMS centreline displacement (length units) of the full
-        model's first Newton steps from the loops ``coeffs``, ``starts`` (module docstring)."""
-        pr = self.full.problem
-        x0 = self.full.lift(coeffs, starts)
-        rep = self.solver.once(self.full.p0, x0)
-        before = centrelines(coeffs, starts, pr.L, pr.t, samples)[0]
-        after = solution_centrelines(self.full, rep.x, samples)
-        return np.sqrt(np.mean(np.sum((after - before) ** 2, axis=-1), axis=-1))
+    red: Reduced
+    cnlp: CondensedNLP
+    solver: WeftSolver
+    report: SolveReport
+    coeffs: np.ndarray
+    starts: np.ndarray
+    lines: np.ndarray
+    energy: float
+    build_s: float
 
 
-def _bisections(reps: tuple[int, ...], scores: np.ndarray) -> list[tuple[float, int]]:
-    """(score, new index) for every representative interval that can be bisected; ``scores``
-    are per course (wale) sums of η²."""
-    out = []
+def solve_grid(pr: WeftProblem, red: Reduced, start: GridSolve | None = None,
+               samples: int = 21, continuation: int | None = None) -> GridSolve:
+    """Build and solve the condensed model on ``red``, from ``start``'s loops lifted (its grid
+    must be contained in ``red`` for the lift to be exact) or the model's default start.
+    ``build_condensed`` may add the clamped courses and wales (dependent clamps); the result's
+    ``red`` is the grid solved."""
+    t0 = time.perf_counter()
+    cnlp = build_condensed(pr, red)
+    solver = WeftSolver(cnlp)
+    build_s = time.perf_counter() - t0
+    x0 = None if start is None else cnlp.lift(start.coeffs, start.starts)
+    rep = solve(cnlp, solver, x0=x0, continuation=continuation)
+    coeffs, starts = cnlp.coefficients(rep.x), cnlp.starts(rep.x)
+    spring, bend, _ = cnlp.energy(rep.x, cnlp.p0)
+    return GridSolve(cnlp.reduction, cnlp, solver, rep, coeffs, starts,
+                     centrelines(coeffs, starts, pr.L, pr.t, samples)[0], spring + bend, build_s)
+
+
+def bisect(reps: tuple[int, ...], marked: set[int] | None = None) -> tuple[int, ...]:
+    """``reps`` with the midpoint of every interval wider than one index (of those starting at
+    a representative in ``marked``, if given) added."""
+    out = set(reps)
     for lo, hi in zip(reps[:-1], reps[1:]):
-        if hi - lo > 1:
-            out.append((float(scores[lo - 1:hi].sum()), (lo + hi) // 2))
-    return out
+        if hi - lo > 1 and (marked is None or lo in marked):
+            out.add((lo + hi) // 2)
+    return tuple(sorted(out))
 
 
-def refine(red: Reduced, eta: np.ndarray, t: int) -> Reduced:
-    """Bisect every interval whose indicator per added parameter is at least MARK × the best."""
+def bisections_left(reps: tuple[int, ...]) -> int:
+    """How many uniform bisections ``reps`` needs until every index is representative."""
+    count = 0
+    while any(hi - lo > 1 for lo, hi in zip(reps[:-1], reps[1:])):
+        reps, count = bisect(reps), count + 1
+    return count
+
+
+def distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per loop (m, n): RMS distance between two sets of sampled centrelines (m, n, s, 2)."""
+    return np.sqrt(np.mean(np.sum((a - b) ** 2, axis=-1), axis=-1))
+
+
+@dataclass
+class Indicator:
+    """The hierarchical indicator of one grid's solution (module docstring, item 1)."""
+
+    eta: np.ndarray                                  # (m, n) per loop, length units
+    estimate: float                                  # RMS of eta
+    delta: dict[str, np.ndarray]                     # axis "c" / "w": per loop δ_a
+    candidates: dict[str, GridSolve]                 # axis: the bisected grid, solved
+
+
+def indicator(pr: WeftProblem, grid: GridSolve, samples: int = 21,
+              continuation: int | None = None) -> Indicator:
+    """Solve the course- and wale-bisected grids of ``grid`` warm-started from it and measure
+    how far each loop moves (module docstring, item 1)."""
+    red = grid.red
+    eta2 = np.zeros((pr.courses, pr.wales))
+    delta, cands = {}, {}
+    for axis in ("c", "w"):
+        reps = red.courses if axis == "c" else red.wales
+        left = bisections_left(reps)
+        if left == 0:
+            continue
+        finer = (replace(red, courses=bisect(reps)) if axis == "c"
+                 else replace(red, wales=bisect(reps)))
+        cand = solve_grid(pr, finer, grid, samples, continuation)
+        cands[axis] = cand
+        delta[axis] = distance(grid.lines, cand.lines)
+        eta2 += (left * delta[axis]) ** 2
+    return Indicator(np.sqrt(eta2), float(np.sqrt(np.mean(eta2))), delta, cands)
+
+
+def _next_grid(pr: WeftProblem, grid: GridSolve, ind: Indicator,
+               budget: int) -> tuple[Reduced, GridSolve | None] | None:
+    """The next grid (and its solve when a candidate's is reused), or None (module docstring,
+    item 2)."""
+    red, t = grid.red, pr.t
     p, q = len(red.courses), len(red.wales)
-    cand = [(s / (q * 2 * t + 2), "c", k) for s, k in _bisections(red.courses, (eta ** 2).sum(1))]
-    cand += [(s / (p * 2 * t), "w", k) for s, k in _bisections(red.wales, (eta ** 2).sum(0))]
-    if not cand:
-        return red
-    best = max(c[0] for c in cand)
-    courses, wales = set(red.courses), set(red.wales)
-    for score, axis, k in cand:
-        if score >= MARK * best:
-            (courses if axis == "c" else wales).add(k)
-    return replace(red, courses=tuple(sorted(courses)), wales=tuple(sorted(wales)))
+    scored = []                                     # (δ² per added parameter, axis, lo)
+    for axis in ind.delta:
+        reps = red.courses if axis == "c" else red.wales
+        d2 = (ind.delta[axis] ** 2).sum(1 if axis == "c" else 0)    # per course (wale)
+        per = q * 2 * t + 2 if axis == "c" else p * 2 * t           # parameters one index adds
+        scored += [(float(d2[lo - 1:hi].sum()) / per, axis, lo)
+                   for lo, hi in zip(reps[:-1], reps[1:]) if hi - lo > 1]
+    if not scored:
+        return None
+    scored.sort(reverse=True)
+    marked: dict[str, set[int]] = {"c": set(), "w": set()}
+    finer = red
+    for score, axis, lo in scored:
+        if score < MARK * scored[0][0]:
+            break
+        marked[axis].add(lo)
+        trial = Reduced(bisect(red.courses, marked["c"]), bisect(red.wales, marked["w"]))
+        if n_parameters(pr, trial) > budget:
+            marked[axis].discard(lo)
+            continue
+        finer = trial
+    if finer == red:
+        return None
+    reuse = next((c for c in ind.candidates.values() if c.red == finer and c.report.success),
+                 None)
+    return finer, reuse
 
 
 def solve_adaptive(pr: WeftProblem, cfg: Adaptive = Adaptive(), samples: int = 21,
                    continuation: int | None = None) -> AdaptiveRun:
-    """Refine the representatives from the corners (module docstring); return the last solve."""
+    """Refine the representatives from the corners (module docstring); return the last grid's
+    solve."""
     tol = cfg.tolerance if cfg.tolerance is not None else 0.1 * pr.L
     budget = cfg.max_parameters or n_parameters(pr, Full()) * 3 // 10
-    red = Reduced().resolve(pr.courses, pr.wales)
-    probe = NewtonProbe(pr)
-    run, start = None, None
+    grid = solve_grid(pr, Reduced().resolve(pr.courses, pr.wales), None, samples, continuation)
+    run = None
     while True:
-        t0 = time.perf_counter()
-        cnlp = CondensedNLP(pr, red)
-        solver = WeftSolver(cnlp)
-        build_s = time.perf_counter() - t0
-        x0 = None if start is None else cnlp.lift(*start)
-        rep = solve(cnlp, solver, x0=x0, continuation=continuation)
-        coeffs, starts = cnlp.coefficients(rep.x), cnlp.starts(rep.x)
-        lines = centrelines(coeffs, starts, pr.L, pr.t, samples)[0]
-        eta = probe.step(coeffs, starts, samples)
-        est = float(np.sqrt(np.mean(eta ** 2)))
-        spring, bend, _ = cnlp.energy(rep.x, cnlp.p0)
-        step = AdaptiveStep(red.courses, red.wales, cnlp.n_parameters, spring + bend,
-                            rep.iterations, rep.solve_s, rep.success, est, lines)
+        rep = grid.report
+        ind = indicator(pr, grid, samples, continuation) if rep.success else None
+        est = ind.estimate if ind is not None else float("nan")
+        red = grid.red
+        step = AdaptiveStep(red.courses, red.wales, grid.cnlp.n_parameters, grid.energy,
+                            rep.iterations, rep.solve_s, rep.success, est, grid.lines)
         if run is None:
-            run = AdaptiveRun(cnlp, solver, rep, [step], build_s)
+            run = AdaptiveRun(grid.cnlp, grid.solver, rep, [step], grid.build_s)
         else:
             rep.add_effort(run.report)
-            run.cnlp, run.solver, run.report = cnlp, solver, rep
-            run.build_s += build_s
+            run.cnlp, run.solver, run.report = grid.cnlp, grid.solver, rep
+            run.build_s += grid.build_s
             run.steps.append(step)
-        finer = refine(red, eta, pr.t)
-        if (not rep.success or est <= tol or finer == red
-                or n_parameters(pr, finer) > budget):
+        if ind is None:
             return run
-        red, start = finer, (coeffs, starts)
+        for cand in ind.candidates.values():       # the estimator's solves are this run's effort
+            rep.add_effort(cand.report)
+            run.build_s += cand.build_s
+        nxt = None if est <= tol else _next_grid(pr, grid, ind, budget)
+        if nxt is None:
+            return run
+        red, reuse = nxt
+        grid = reuse if reuse is not None else solve_grid(pr, red, grid, samples, continuation)
