@@ -71,16 +71,44 @@ def rigid_start(wnlp: WeftNLP, p: np.ndarray) -> np.ndarray:
 
 def start_point(wnlp: WeftNLP, p: np.ndarray, start: str,
                 log: list[str] | None = None) -> np.ndarray:
-    """The decision vector a solve starts from: ``natural`` or ``rigid`` (the reduced model
-    always starts natural: its map fixes the turn in every loop's parameters)."""
+    """The decision vector a solve starts from: ``natural``, ``rigid`` (full model only) or
+    ``multilevel``: coarser fabrics first for the full model (:func:`multilevel_start`), the
+    corner form first for a finer reduced grid (:func:`corner_start`)."""
     if start not in STARTS:
         raise ValueError(f"unknown start {start!r}; use one of {', '.join(STARTS)}")
-    if start == "natural" or wnlp.model != "full":
+    if start == "natural" or (wnlp.model != "full" and start == "rigid"):
         return wnlp.x0
     if start == "rigid":
         return rigid_start(wnlp, p)
-    x = multilevel_start(wnlp, p, log)
+    x = multilevel_start(wnlp, p, log) if wnlp.model == "full" else corner_start(wnlp, p, log)
     return wnlp.x0 if x is None else x
+
+
+def corner_start(cnlp, p: np.ndarray, log: list[str] | None = None) -> np.ndarray | None:
+    """For the condensed reduced model over a grid finer than the corners: solve the corner form
+    (``build_condensed(problem, Reduced())``, the coarsest grid, contained in every grid) at
+    the same parameters from its natural state and lift its loops into this grid. None for the
+    corner form itself, the lifted reduced model, or a failed corner solve. Measured
+    (diagonal pulls, corner then grid against the grid from its natural state): 16 × 16 over
+    8 × 8, 9 + 13 against 45 iterations; 30 × 30 over 15 × 15, 8 + 15 against 103, where the
+    natural start ends in another minimum (energy 114.47 against 55.29); 24 × 24 over 12 × 12,
+    87.98 against 36.33; 100 × 100 over 6 × 6, 11 + 6 against 11, the same minimum."""
+    from .condensed import CondensedNLP, build_condensed
+    from .parametrisation import Reduced
+    from .solve import WeftSolver, solve
+    if not isinstance(cnlp, CondensedNLP):
+        return None
+    pr = cnlp.problem
+    corner = build_condensed(pr, Reduced())
+    if corner.reduction == cnlp.reduction:
+        return None
+    rep = solve(corner, WeftSolver(corner), params=WeftParams.from_vector(pr, p),
+                start="natural")
+    if log is not None:
+        log.append(f"corner start: {rep.status} ({rep.iterations} it, {rep.solve_s:.2f} s)")
+    if not rep.success:
+        return None
+    return cnlp.lift(corner.coefficients(rep.x), corner.starts(rep.x))
 
 
 def coarse_size(m: int) -> int:
