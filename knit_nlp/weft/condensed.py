@@ -133,7 +133,7 @@ class CondensedNLP(NLPSizes):
         self.seg_last = np.minimum(self.seg_first + self.segment, n) - 1
         self.nc, self.nz = n_coeffs(t), n_reduced(self.reduction, t)
         self.maps: list[CourseMap] = course_maps(pr, self.reduction)
-        # columns of w = (z, course starts) each course depends on
+        # columns of w = (z, segment starts) each course depends on
         S = self.n_seg
         self.cw = [np.concatenate([cm.cols, self.nz + 2 * S * i + np.arange(2 * S)])
                    for i, cm in enumerate(self.maps)]
@@ -380,8 +380,8 @@ class CondensedNLP(NLPSizes):
         return lam[self.g.slice("chain")].reshape(self.problem.courses, self.n_seg - 1, 2)
 
     def _loop_adjoints(self, psi: np.ndarray) -> np.ndarray:
-        """μ = ∂ℒ/∂D per loop: ψ plus, at s = L, the course's later loops' total (the transpose
-        of the prefix sum that chains loop starts, eq. 1)."""
+        """μ = ∂ℒ/∂D per loop: ψ plus, at s = L, the total of the later loops of its segment
+        (the transpose of the prefix sum that chains loop starts, eq. 1)."""
         tot = psi.sum(axis=2)
         suffix = np.cumsum(tot[:, ::-1], axis=1)[:, ::-1] - tot        # loops after j
         mu = psi.copy()
@@ -400,9 +400,9 @@ class CondensedNLP(NLPSizes):
 
     def coefficient_gradient(self, w: np.ndarray, p: np.ndarray, sigma: float,
                              lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """∂ℒ/∂a_k for every loop (m, n, nc) and ∂ℒ/∂(course starts) (m, 2), with the
-        positions chained along courses (the full model's gradient with loop starts
-        eliminated)."""
+        """∂ℒ/∂a_k for every loop (m, n, nc) and ∂ℒ/∂(segment starts) (m, S, 2), with the
+        positions chained along each segment (the full model's gradient with the loop starts
+        inside segments eliminated; the chaining rows' multipliers included)."""
         st = self._state(w, derivatives=True)
         psi, dA, par = self._adjoints(w, p, sigma, lam)
         mu = self._loop_adjoints(psi)
@@ -538,12 +538,12 @@ class CondensedNLP(NLPSizes):
 
     # ------------------------------------------------------------- IPOPT glue
     def w(self, x: np.ndarray) -> np.ndarray:
-        """Model variables w = (z, course starts) of a solver vector x: w = unit ⊙ x."""
+        """Model variables w = (z, segment starts) of a solver vector x: w = unit ⊙ x."""
         return self.unit * np.asarray(x, dtype=float).ravel()
 
     def _units(self) -> np.ndarray:
         """Solver units: z_r in units of 1/‖T e_r‖ (a unit step moves the loop coefficients by 1
-        in RMS over the fabric), course starts in length units. Measured: without it the
+        in RMS over the fabric), segment starts in length units. Measured: without it the
         gradient in z, a sum over every loop a parameter moves, cannot get below IPOPT's
         tolerance on 50 × 50 (rounding), and more iterations are needed."""
         norms = np.zeros(self.nz)
@@ -602,7 +602,7 @@ class CondensedNLP(NLPSizes):
         return self._coeffs(self.w(x))
 
     def starts(self, x: np.ndarray) -> np.ndarray:
-        """Loop start points (m, n, 2): course starts plus the chained end displacements."""
+        """Loop start points (m, n, 2): segment starts plus the chained end displacements."""
         st = self._state(self.w(x))
         return st["pos"][:, :, self.pL] - st["Y"][:, :, self.pL]
 
