@@ -22,6 +22,17 @@ def test_course_pull_clamps_are_dependent_over_the_corner_form(pull):
     # end-minus-start rows are combinations of courses 1 and 12's at the natural state
     rank, rows = CondensedNLP(pull, Reduced()).clamp_rank()
     assert rows == 2 * 12 + 1 and rank < rows
+    # the chaining rows of shorter shooting segments are eliminated: the same clamp rows
+    one, seg = CondensedNLP(pull, Reduced()), CondensedNLP(pull, Reduced(), segment=3)
+    assert (one.n_seg, seg.n_seg) == (1, 4)
+    course_start = np.concatenate([[k, k + 1] for k in range(one.nz, one.x.size, 2)])
+    seg_start = np.concatenate([[k, k + 1] for k in range(seg.nz, seg.x.size, 2 * 4)])
+    for pick, c in ((np.r_[:one.nz, course_start], one), (np.r_[:seg.nz, seg_start], seg)):
+        assert not np.any(np.delete(c.clamp_jacobian(c.w(c.x0), c.p0), pick, axis=1))
+    np.testing.assert_allclose(
+        seg.clamp_jacobian(seg.w(seg.x0), seg.p0)[:, np.r_[:seg.nz, seg_start]],
+        one.jacobian(one.w(one.x0), one.p0)[:, np.r_[:one.nz, course_start]], atol=1e-12)
+    assert seg.clamp_rank() == (rank, rows)
     extended = build_condensed(pull, Reduced())
     assert extended.reduction == Reduced(tuple(range(1, 13)), (1, 12))
     assert extended.extended_from == Reduced((1, 12), (1, 12))

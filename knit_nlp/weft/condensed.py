@@ -142,6 +142,7 @@ class CondensedNLP(NLPSizes):
         self.P, col = len(evals), {s: q for q, s in enumerate(evals)}
         self.pL = col[pr.L]
         self.springs = pr.courses > 1 and pr.crossings is not None
+        self.spring_z = self._spring_columns() if self.springs else []
         if self.springs:
             c = pr.crossings
             self.pB, self.pE, self.pR, self.pH = (col[c.s[k]] for k in ("B", "E", "R", "H"))
@@ -217,10 +218,22 @@ class CondensedNLP(NLPSizes):
         neighbouring courses their springs' (both courses' columns)."""
         blocks = [(cm.cols, cm.cols) for cm in self.maps]
         if self.springs:
-            for i in range(1, self.problem.courses):
-                cols = np.union1d(self.cw[i - 1], self.cw[i])
+            S2 = 2 * self.n_seg
+            for i, (zcols, _, _) in enumerate(self.spring_z, start=1):
+                # = union(cw[i−1], cw[i]): z columns, then course i−1's and i's segment starts
+                cols = np.concatenate([zcols, self.cw[i - 1][-S2:], self.cw[i][-S2:]])
                 blocks.append((cols, cols))
         return blocks
+
+    def _spring_columns(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per pair of neighbouring courses (i−1, i): the union of their z columns and where
+        each course's columns sit in it (set-up, used by every Hessian evaluation)."""
+        out = []
+        for below, above in zip(self.maps[:-1], self.maps[1:]):
+            zcols = np.union1d(below.cols, above.cols)
+            out.append((zcols, np.searchsorted(zcols, below.cols),
+                        np.searchsorted(zcols, above.cols)))
+        return out
 
     def _sparsities(self) -> None:
         nw = self.x.size
@@ -435,15 +448,22 @@ class CondensedNLP(NLPSizes):
         start[np.arange(k), 1, 2 * seg + 1] = 1.0
         return np.concatenate([dz, start], axis=-1)
 
-    def _jacobian_values(self, w: np.ndarray, p: np.ndarray) -> list[np.ndarray]:
+    def _jacobian_values(self, w: np.ndarray, p: np.ndarray,
+                         whole_courses: bool = False) -> list[np.ndarray]:
         """The dense blocks of ∂g/∂w (``_jacobian_blocks``) from the per-loop Jacobians and
-        the chain: ∂(position) = own + prefix within the segment + e(segment start)."""
+        the chain: ∂(position) = own + prefix within the segment + e(segment start). With
+        ``whole_courses`` the clamp rows only, as single shooting has them: the prefix over all
+        of the course's earlier loops and e(the course start), the chaining rows eliminated."""
         pr = self.problem
         st = self._state(w, derivatives=True)
 
         def dpos(sp: int) -> np.ndarray:
             pt = self.sp_points[sp]
             own, prefix = self._dpos(st, pt.i)
+            if whole_courses:
+                before = own[:pt.j, self.pL].sum(axis=0)
+                return self._with_start(pt.i, (own[pt.j, pt.col] + before)[None],
+                                        np.zeros(1, int))[0]
             return self._with_start(pt.i, (own[pt.j, pt.col] + prefix[pt.j])[None],
                                     self.seg_of[[pt.j]])[0]
 
@@ -457,7 +477,7 @@ class CondensedNLP(NLPSizes):
         for idx in self.rigid_points:
             vals += [dpos(sp) for sp in idx]
         S = self.n_seg
-        for i in range(pr.courses if S > 1 else 0):
+        for i in range(pr.courses if S > 1 and not whole_courses else 0):
             own, prefix = self._dpos(st, i)
             last = self.seg_last[:-1]
             # X0[s+1] − end of segment s
@@ -495,19 +515,20 @@ class CondensedNLP(NLPSizes):
         if self.springs and sigma != 0.0:
             mats = [self._spring_matrix(F, par) for F in (pr.crossings.frame_left,
                                                            pr.crossings.frame_right)]
+            MM = self._start_blocks(mats)
             for i in range(1, m):
-                out[self.hess_idx[m + i - 1]] += sigma * self._spring_block(st, i, mats)
+                out[self.hess_idx[m + i - 1]] += sigma * self._spring_block(st, i, mats, MM)
         return out[:-1]
 
-    def _spring_block(self, st: dict, i: int, mats: list[np.ndarray]) -> np.ndarray:
+    def _spring_block(self, st: dict, i: int, mats: list[np.ndarray],
+                      MM: np.ndarray) -> np.ndarray:
         """Σ QᵀMQ over the springs between courses i−1 and i, on union(cw[i−1], cw[i]) =
         (z columns of both, segment starts of course i−1, of course i). The spring vector is
         v_j = Qz_j·z + X_(i−1,s(j)) − X_(i,s(j)) + const, so only the z part needs a product:
-        zz = Σ Qz_jᵀMQz_j, z–start = ±Σ_(j∈s) (MQz_j)ᵀ, start–start = ±(loops in s)·M."""
+        zz = Σ Qz_jᵀMQz_j, z–start = ±Σ_(j∈s) (MQz_j)ᵀ, start–start = ±MM (``_start_blocks``)."""
         n, S = self.problem.wales, self.n_seg
-        zcols = np.union1d(self.maps[i - 1].cols, self.maps[i].cols)
+        zcols, lo, up = self.spring_z[i - 1]
         cz = zcols.size
-        lo, up = np.searchsorted(zcols, self.maps[i - 1].cols), np.searchsorted(zcols, self.maps[i].cols)
         (own_lo, pre_lo), (own_up, pre_up) = self._dpos(st, i - 1), self._dpos(st, i)
         Qz = np.zeros((2, n, 2, cz))                     # per spring family
         MQ = np.empty_like(Qz)
@@ -520,7 +541,6 @@ class CondensedNLP(NLPSizes):
         R = np.add.reduceat(MQ.sum(axis=0), self.seg_first, axis=0).reshape(2 * S, cz).T
         H[:cz, cz:cz + 2 * S] = R
         H[:cz, cz + 2 * S:] = -R
-        MM = self._start_blocks(mats)
         H[cz:cz + 2 * S, cz:cz + 2 * S] = MM
         H[cz + 2 * S:, cz + 2 * S:] = MM
         H[cz:cz + 2 * S, cz + 2 * S:] = -MM
@@ -588,13 +608,23 @@ class CondensedNLP(NLPSizes):
                  "calc_lam_x": False})
 
     def clamp_rank(self) -> tuple[int, int]:
-        """(rank, rows) of the constraint Jacobian at the natural start: rank < rows means the
-        clamps are not independent in this reduced space (no LICQ; see ``with_clamped``)."""
-        jac = self.jacobian(self.w(self.x0), self.p0)
+        """(rank, rows) of the clamps' rows of the single-shooting Jacobian at the natural
+        start (the chaining rows eliminated, so it does not depend on the segments): rank <
+        rows means the clamps are not independent in this reduced space (no LICQ; see
+        ``with_clamped``)."""
+        jac = self.clamp_jacobian(self.w(self.x0), self.p0)
         if jac.size == 0:
             return 0, jac.shape[0]
         sv = np.linalg.svd(jac, compute_uv=False)
         return int(np.sum(sv > RANK_TOL * sv[0])), jac.shape[0]
+
+    def clamp_jacobian(self, w: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Dense ∂(clamp rows)/∂w of single shooting (rows × nw): every clamped point chained
+        from its course start (the first segment's start column), as with one segment."""
+        vals = self._jacobian_values(w, p, whole_courses=True)
+        rows = self.g.slice("chain").start if "chain" in self.g.blocks else self.g.size
+        return _dense(self.jac_sp, _scatter(self.jac_sp.nnz(), self.jac_idx[:len(vals)],
+                                            vals))[:rows]
 
     # --------------------------------------------------------------- reading
     def coefficients(self, x: np.ndarray) -> np.ndarray:
@@ -673,17 +703,18 @@ def build_condensed(pr: WeftProblem, reduced: Reduced = Reduced(),
     """The condensed reduced model of a problem over ``reduced`` (default: the corner form),
     with shooting segments of ``segment`` loops (default ``SEGMENT``).
 
-    Where the clamps' constraints are dependent at the natural start (``clamp_rank`` of the
-    single-shooting model, whose only rows are the clamps), the courses and wales of the
+    Where the clamps' constraints are dependent at the natural start (``clamp_rank``: the
+    clamp rows of single shooting), the courses and wales of the
     clamped loops are made representative (``reduction.with_clamped``) and ``extended_from``
     records the representatives asked for. Measured: the 20 × 20 course pull over an even
     6 × 6 grid took 8 905 iterations to a "solved to acceptable level" and the corner form on
     30 × 30 converged to a state with every course alike; extended, 19 and 6 iterations, 0.06
     and 0.11 RMS from the full model (README, "Large fabrics")."""
-    red = reduced.resolve(pr.courses, pr.wales)
-    rank, rows = CondensedNLP(pr, red, segment=pr.wales).clamp_rank()
-    wider = with_clamped(red, pr) if rank < rows else red
-    cnlp = CondensedNLP(pr, wider, segment=segment)
-    if wider != red:
-        cnlp.extended_from = red
+    cnlp = CondensedNLP(pr, reduced, segment=segment)
+    rank, rows = cnlp.clamp_rank()
+    wider = with_clamped(cnlp.reduction, pr) if rank < rows else cnlp.reduction
+    if wider != cnlp.reduction:
+        asked = cnlp.reduction
+        cnlp = CondensedNLP(pr, wider, segment=segment)
+        cnlp.extended_from = asked
     return cnlp
