@@ -72,6 +72,15 @@ def row(case: str, model: str, params: int, its: int, build: float, solve_s: flo
             f"{'' if ok else ' NOT CONVERGED'}")
 
 
+def grid_row(case: str, label: str, g, full_params: int, ref: np.ndarray) -> str:
+    """One row of the --nested table: parameters (% of full), iterations, energy, distances."""
+    err = distances(g.lines, ref)
+    return (f"| {case} | {label} | {g.cnlp.n_parameters} "
+            f"({100 * g.cnlp.n_parameters / full_params:.1f} %) | {g.report.iterations} | "
+            f"{g.energy:.5g} | {err[0]:.3g} | {err[1]:.3g} |"
+            f"{'' if g.report.success else ' NOT CONVERGED'}")
+
+
 def nested(case: str, pr, ref: np.ndarray, full_params: int, even_up_to: int) -> None:
     """The --nested tables (module docstring): params, iterations, energy, max and RMS distance
     per grid solved warm along bisection chains and along even grids."""
@@ -89,20 +98,14 @@ def nested(case: str, pr, ref: np.ndarray, full_params: int, even_up_to: int) ->
                         key=lambda g: g.cnlp.n_parameters, default=None)
             g = solve_grid(pr, Reduced(courses, wales), start, SAMPLES)
             solved[a, b] = g
-            err = distances(g.lines, ref)
-            print(f"| {case} | nested courses {len(courses)} x wales {len(wales)} | "
-                  f"{g.cnlp.n_parameters} ({100 * g.cnlp.n_parameters / full_params:.1f} %) | "
-                  f"{g.report.iterations} | {g.energy:.5g} | {err[0]:.3g} | {err[1]:.3g} |"
-                  f"{'' if g.report.success else ' NOT CONVERGED'}", flush=True)
+            print(grid_row(case, f"nested courses {len(courses)} x wales {len(wales)}", g,
+                           full_params, ref), flush=True)
     prev = None
     for k in range(2, even_up_to + 1):
         g = solve_grid(pr, Reduced(tuple(even(k, pr.courses)), tuple(even(k, pr.wales))), prev,
                        SAMPLES)
-        err = distances(g.lines, ref)
-        print(f"| {case} | even {k}x{k} warm from the previous | {g.cnlp.n_parameters} "
-              f"({100 * g.cnlp.n_parameters / full_params:.1f} %) | {g.report.iterations} | "
-              f"{g.energy:.5g} | {err[0]:.3g} | {err[1]:.3g} |"
-              f"{'' if g.report.success else ' NOT CONVERGED'}", flush=True)
+        print(grid_row(case, f"even {k}x{k} warm from the previous", g, full_params, ref),
+              flush=True)
         prev = g
 
 
