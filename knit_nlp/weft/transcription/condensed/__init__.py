@@ -1,0 +1,1 @@
+"""The condensed reduced model, split by job (see ``nlp`` for the formulation)."""
