@@ -16,9 +16,9 @@ from .jacquard.result import JacquardResult
 from .problems import resolve
 from .tomlio import load_toml
 from .weft.api import Comparison
-from .weft.parametrisation import Adaptive, Full, Parametrisation, Reduced
-from .weft.problem import WeftProblem, parse_problem as parse_weft
-from .weft.results import WeftResult
+from .weft.model.parametrisation import Adaptive, Full, Parametrisation, Reduced
+from .weft.model.problem import WeftProblem, parse_problem as parse_weft
+from .weft.output.results import WeftResult
 
 Problem = Union[WeftProblem, JacquardProblem]
 Result = Union[WeftResult, JacquardResult]

@@ -20,8 +20,8 @@ from .api import MODELS, load_problem, parse_problem
 from .errors import ProblemError, quoted, shown
 from .problems import named_problems, resolve
 from .provenance import check_overwrite
-from .weft.export import EXPORTS
-from .weft.plot import COLOURINGS
+from .weft.output.export import EXPORTS
+from .weft.output.plot import COLOURINGS
 
 MAX_CONTINUATION = 1000
 # the middle part of the output names each command writes: <name>.<kind>.<suffix>
@@ -218,7 +218,7 @@ def _save_options(args: argparse.Namespace, model: str) -> dict[str, Any]:
 
 def _summary(model: str):
     if model == "weft":
-        from .weft.summary import solve_summary
+        from .weft.output.summary import solve_summary
     else:
         from .jacquard.summary import solve_summary
     return solve_summary
@@ -231,7 +231,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if compare is None:
         raise ProblemError(path, "", "model", f"compare is for weft problems; this is a "
                            f"{problem.model} problem")
-    from .weft.summary import compare_summary
+    from .weft.output.summary import compare_summary
     out = prepare_out(args.out, problem.name, OUTPUTS["compare"])
     check_overwrite(out.glob(f"{problem.name}.*.json"), path, args.force)
     cmp = compare(problem)

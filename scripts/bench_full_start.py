@@ -1,12 +1,12 @@
 """Benchmark: the full model on large fabrics, by start and derivatives (issue 14, items 3-4).
 
-For each size and pull (knit_nlp/weft/cases.py: the diagonal pull, eq. 28 scaled to the fabric,
+For each size and pull (knit_nlp/weft/model/cases.py: the diagonal pull, eq. 28 scaled to the fabric,
 and the course pull, left edge held, right edge pulled 25 % of the width), every configuration
 runs in its own process so that its peak memory (max RSS) is its own:
 
 - ``casadi``: natural start, CasADi's AD derivatives (the code before issue 14);
-- ``closed``: natural start, closed-form Jacobian and Hessian (knit_nlp/weft/derivatives.py);
-- ``multilevel``: the multilevel start (knit_nlp/weft/start.py: the same pull solved on a fabric
+- ``closed``: natural start, closed-form Jacobian and Hessian (knit_nlp/weft/transcription/derivatives.py);
+- ``multilevel``: the multilevel start (knit_nlp/weft/solving/starts.py: the same pull solved on a fabric
   with half the courses and wales, recursively, and prolonged), closed-form derivatives;
 - ``rigid``: the rigid-fit start (start.py) with closed-form derivatives;
 - ``closed+soc0`` / ``multilevel+soc0``: the same with IPOPT's ``max_soc = 0``.
@@ -35,7 +35,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))     # knit_nlp from this checkout
 
-from knit_nlp.weft.cases import course_pull, diagonal_pull  # noqa: E402
+from knit_nlp.weft.model.cases import course_pull, diagonal_pull  # noqa: E402
 
 CONFIGS = {"casadi": ("natural", "casadi", {}),
            "closed": ("natural", "closed_form", {}),
@@ -50,10 +50,10 @@ PULLS = {"diagonal": diagonal_pull, "course": course_pull}
 
 def run_one(n: int, pull: str, config: str) -> dict:
     """Read, build, set up, start and solve one case in this process; report effort and memory."""
-    from knit_nlp.weft.nlp import build_nlp
-    from knit_nlp.weft.problem import parse_problem
-    from knit_nlp.weft.solve import WeftSolver
-    from knit_nlp.weft.start import start_point
+    from knit_nlp.weft.transcription.full import build_nlp
+    from knit_nlp.weft.model.problem import parse_problem
+    from knit_nlp.weft.solving.solve import WeftSolver
+    from knit_nlp.weft.solving.starts import start_point
     start, derivatives, ipopt = CONFIGS[config]
     t0 = time.perf_counter()
     pr = parse_problem(PULLS[pull](n), f"<bench {pull} {n}x{n}>")

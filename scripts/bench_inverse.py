@@ -31,10 +31,10 @@ from knit_nlp.weft.inverse.control import Controller  # noqa: E402
 from knit_nlp.weft.inverse.fit import fit  # noqa: E402
 from knit_nlp.weft.inverse.observations import load_observations  # noqa: E402
 from knit_nlp.weft.inverse.spec import parse_control  # noqa: E402
-from knit_nlp.weft.nlp import build_nlp  # noqa: E402
-from knit_nlp.weft.problem import load_problem  # noqa: E402
-from knit_nlp.weft.params import WeftParams  # noqa: E402
-from knit_nlp.weft.solve import WeftSolver, solve  # noqa: E402
+from knit_nlp.weft.transcription.full import build_nlp  # noqa: E402
+from knit_nlp.weft.model.problem import load_problem  # noqa: E402
+from knit_nlp.weft.model.params import WeftParams  # noqa: E402
+from knit_nlp.weft.solving.solve import WeftSolver, solve  # noqa: E402
 
 PLACE = ROOT / "problems" / "place_stitch.toml"
 

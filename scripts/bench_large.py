@@ -40,11 +40,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from study_reduction import even  # noqa: E402
 
-from knit_nlp.weft.adaptive import bisect, solve_adaptive, solve_grid  # noqa: E402
+from knit_nlp.weft.solving.adaptive import bisect, solve_adaptive, solve_grid  # noqa: E402
 from knit_nlp.weft.api import solve  # noqa: E402
-from knit_nlp.weft.cases import course_pull, diagonal_pull  # noqa: E402
-from knit_nlp.weft.parametrisation import Adaptive, Full, Reduced  # noqa: E402
-from knit_nlp.weft.problem import parse_problem  # noqa: E402
+from knit_nlp.weft.model.cases import course_pull, diagonal_pull  # noqa: E402
+from knit_nlp.weft.model.parametrisation import Adaptive, Full, Reduced  # noqa: E402
+from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
 
 SAMPLES = 21
 

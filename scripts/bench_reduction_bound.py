@@ -27,15 +27,15 @@ import casadi as ca
 import numpy as np
 
 from knit_nlp.ipopt import ipopt_options
-from knit_nlp.weft.basis import n_coeffs
-from knit_nlp.weft.cases import course_pull, diagonal_pull
-from knit_nlp.weft.energy import bending_energy, spring_pair_energy
-from knit_nlp.weft.kinematics import loop_displacements
-from knit_nlp.weft.nlp import build_nlp, eval_points, special_points
-from knit_nlp.weft.parametrisation import Full, Reduced
-from knit_nlp.weft.problem import WeftProblem, parse_problem
-from knit_nlp.weft.reduction import reduction_map
-from knit_nlp.weft.solve import WeftSolver
+from knit_nlp.weft.model.basis import n_coeffs
+from knit_nlp.weft.model.cases import course_pull, diagonal_pull
+from knit_nlp.weft.model.energy import bending_energy, spring_pair_energy
+from knit_nlp.weft.model.kinematics import loop_displacements
+from knit_nlp.weft.transcription.full import build_nlp, eval_points, special_points
+from knit_nlp.weft.model.parametrisation import Full, Reduced
+from knit_nlp.weft.model.problem import WeftProblem, parse_problem
+from knit_nlp.weft.transcription.reduction import reduction_map
+from knit_nlp.weft.solving.solve import WeftSolver
 
 
 def condensed_nlp(pr: WeftProblem) -> tuple[dict, np.ndarray]:

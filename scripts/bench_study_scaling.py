@@ -20,7 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from knit_nlp.studies import LoadPath, open_executor, run_study
-from knit_nlp.weft.cases import diagonal_pull
+from knit_nlp.weft.model.cases import diagonal_pull
 
 
 def paths(n: int, count: int, steps: int) -> list[LoadPath]:

@@ -18,9 +18,9 @@ import numpy as np
 
 def run_one(n: int, reduced: bool) -> dict:
     from knit_nlp.weft.api import solve
-    from knit_nlp.weft.cases import diagonal_pull
-    from knit_nlp.weft.parametrisation import Full, Reduced
-    from knit_nlp.weft.problem import parse_problem
+    from knit_nlp.weft.model.cases import diagonal_pull
+    from knit_nlp.weft.model.parametrisation import Full, Reduced
+    from knit_nlp.weft.model.problem import parse_problem
     t0 = time.perf_counter()
     pr = parse_problem(diagonal_pull(n), f"<bench {n}x{n}>")
     r = solve(pr, Reduced() if reduced else Full())

@@ -43,9 +43,9 @@ from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.jsonio import write_csv  # noqa: E402
 from knit_nlp.studies import add_executor_arguments, run_with_options  # noqa: E402
 from knit_nlp.units import Units  # noqa: E402
-from knit_nlp.weft.cases import diagonal_pull, unclamped  # noqa: E402
-from knit_nlp.weft.problem import WeftProblem, parse_problem  # noqa: E402
-from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
+from knit_nlp.weft.model.cases import diagonal_pull, unclamped  # noqa: E402
+from knit_nlp.weft.model.problem import WeftProblem, parse_problem  # noqa: E402
+from knit_nlp.weft.model.centrelines import natural_centrelines, solution_centrelines  # noqa: E402
 from knit_nlp.weft.study import (LoadPath, WeftStudy, animate_path, point_solution,  # noqa: E402
                                   print_table)
 

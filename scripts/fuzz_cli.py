@@ -40,8 +40,8 @@ import matplotlib.image  # noqa: E402,F401
 import knit_nlp.jacquard.render  # noqa: E402,F401
 import knit_nlp.jacquard.summary  # noqa: E402,F401
 import knit_nlp.weft.api  # noqa: E402,F401
-import knit_nlp.weft.plot  # noqa: E402,F401
-import knit_nlp.weft.summary  # noqa: E402,F401
+import knit_nlp.weft.output.plot  # noqa: E402,F401
+import knit_nlp.weft.output.summary  # noqa: E402,F401
 from knit_nlp.cli import main  # noqa: E402
 
 DECOY = Path(tempfile.gettempdir()) / "knit_fuzz_decoy"

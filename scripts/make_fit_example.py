@@ -25,8 +25,8 @@ sys.path.insert(0, str(ROOT))
 from knit_nlp.weft.inverse.equilibrium import Equilibrium  # noqa: E402
 from knit_nlp.weft.inverse.overlay import Similarity  # noqa: E402
 from knit_nlp.weft.inverse.points import point_function  # noqa: E402
-from knit_nlp.weft.problem import load_problem  # noqa: E402
-from knit_nlp.weft.sampling import solution_centrelines  # noqa: E402
+from knit_nlp.weft.model.problem import load_problem  # noqa: E402
+from knit_nlp.weft.model.centrelines import solution_centrelines  # noqa: E402
 
 TRUTH = {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0}
 NOISE = 0.02

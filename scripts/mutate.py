@@ -8,10 +8,10 @@ written into a temporary copy of the checkout and the test files that guard that
 run against it (``pytest -x``, with a time limit); a mutant the tests pass is a *survivor*.
 
     python scripts/mutate.py                          # the three default modules
-    python scripts/mutate.py knit_nlp/weft/results.py --tests tests/test_envelope.py
+    python scripts/mutate.py knit_nlp/weft/output/results.py --tests tests/test_envelope.py
     python scripts/mutate.py --list                   # print the mutants, run nothing
     python scripts/mutate.py --lines 40-60 --json results/mutate.json
-    python scripts/mutate.py knit_nlp/weft/nlp.py --only 12 40   # re-run two mutants
+    python scripts/mutate.py knit_nlp/weft/transcription/full.py --only 12 40   # re-run two mutants
 
 Docstrings, type annotations and the numbers in ``raise``/error messages are not mutated.
 Mutants whose source is unchanged by ``ast.unparse`` (equivalent spellings) are skipped.
@@ -35,10 +35,10 @@ ROOT = Path(__file__).resolve().parent.parent
 
 # The test files that guard each module (run in this order; the fast, specific ones first).
 GUARDS = {
-    "knit_nlp/weft/results.py": ["tests/test_envelope.py", "tests/test_weft_rigid.py",
+    "knit_nlp/weft/output/results.py": ["tests/test_envelope.py", "tests/test_weft_rigid.py",
                                  "tests/test_weft_equilibrium.py", "tests/test_cli.py",
                                  "tests/test_study.py"],
-    "knit_nlp/weft/nlp.py": ["tests/test_envelope.py", "tests/test_elastica.py",
+    "knit_nlp/weft/transcription/full.py": ["tests/test_envelope.py", "tests/test_elastica.py",
                              "tests/test_weft_equilibrium.py", "tests/test_weft_rigid.py",
                              "tests/test_weft_reduction.py", "tests/test_weft_geometry.py",
                              "tests/test_cli.py"],

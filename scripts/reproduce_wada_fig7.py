@@ -35,10 +35,10 @@ from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.jsonio import write_json  # noqa: E402
 from knit_nlp.problems import resolve  # noqa: E402
 from knit_nlp.tomlio import load_toml  # noqa: E402
-from knit_nlp.weft.problem import parse_problem  # noqa: E402
+from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.api import solve as solve_problem  # noqa: E402
-from knit_nlp.weft.results import WeftResult as Solved  # noqa: E402
-from knit_nlp.weft.sampling import natural_centrelines  # noqa: E402
+from knit_nlp.weft.output.results import WeftResult as Solved  # noqa: E402
+from knit_nlp.weft.model.centrelines import natural_centrelines  # noqa: E402
 
 STUDY = "wada_fig7"
 

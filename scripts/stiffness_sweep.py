@@ -30,9 +30,9 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.jsonio import write_csv  # noqa: E402
 from knit_nlp.studies import add_executor_arguments, run_with_options  # noqa: E402
-from knit_nlp.weft.cases import diagonal_pull  # noqa: E402
-from knit_nlp.weft.problem import parse_problem  # noqa: E402
-from knit_nlp.weft.sampling import natural_centrelines, solution_centrelines  # noqa: E402
+from knit_nlp.weft.model.cases import diagonal_pull  # noqa: E402
+from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
+from knit_nlp.weft.model.centrelines import natural_centrelines, solution_centrelines  # noqa: E402
 from knit_nlp.weft.study import LoadPath, WeftStudy, point_solution, print_table  # noqa: E402
 
 STUDY = "stiffness_sweep"

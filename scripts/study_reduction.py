@@ -25,9 +25,9 @@ from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.jsonio import write_csv  # noqa: E402
 from knit_nlp.units import Units  # noqa: E402
 from knit_nlp.weft.api import solve  # noqa: E402
-from knit_nlp.weft.cases import course_pull, diagonal_pull  # noqa: E402
-from knit_nlp.weft.parametrisation import Full, Reduced  # noqa: E402
-from knit_nlp.weft.problem import parse_problem  # noqa: E402
+from knit_nlp.weft.model.cases import course_pull, diagonal_pull  # noqa: E402
+from knit_nlp.weft.model.parametrisation import Full, Reduced  # noqa: E402
+from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
 
 
 def even(count: int, n: int) -> list[int]:

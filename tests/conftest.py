@@ -8,10 +8,10 @@ import pytest
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
-from knit_nlp.weft.problem import load_problem
+from knit_nlp.weft.model.problem import load_problem
 from knit_nlp.weft.api import solve as solve_problem
-from knit_nlp.weft.parametrisation import Full, Reduced
-from knit_nlp.weft.results import WeftResult
+from knit_nlp.weft.model.parametrisation import Full, Reduced
+from knit_nlp.weft.output.results import WeftResult
 
 ROOT = Path(__file__).resolve().parent.parent
 PROBLEMS = ROOT / "problems"

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from knit_nlp.tomlio import load_toml
-from knit_nlp.weft.cases import EQ28_TARGET, course_pull, diagonal_pull, eq28_map
-from knit_nlp.weft.problem import load_problem
+from knit_nlp.weft.model.cases import EQ28_TARGET, course_pull, diagonal_pull, eq28_map
+from knit_nlp.weft.model.problem import load_problem
 
 from conftest import PROBLEMS
 

@@ -10,8 +10,8 @@ from concurrent.futures import Executor, Future, ThreadPoolExecutor
 import pytest
 
 from knit_nlp.studies import LoadPath, open_executor, run_study
-from knit_nlp.weft.cases import diagonal_pull
-from knit_nlp.weft.problem import parse_problem
+from knit_nlp.weft.model.cases import diagonal_pull
+from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.study import WeftStudy
 
 from test_study import _paths

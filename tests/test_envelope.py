@@ -25,12 +25,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from knit_nlp.weft.basis import phi
-from knit_nlp.weft.nlp import build_nlp
-from knit_nlp.weft.problem import load_problem
-from knit_nlp.weft.params import WeftParams
-from knit_nlp.weft.results import WeftResult
-from knit_nlp.weft.solve import WeftSolver
+from knit_nlp.weft.model.basis import phi
+from knit_nlp.weft.transcription.full import build_nlp
+from knit_nlp.weft.model.problem import load_problem
+from knit_nlp.weft.model.params import WeftParams
+from knit_nlp.weft.output.results import WeftResult
+from knit_nlp.weft.solving.solve import WeftSolver
 
 TOL = 1e-12
 STEP = 1e-4

@@ -7,7 +7,7 @@ import pytest
 
 from knit_nlp.cli import main
 from knit_nlp.weft.api import solve
-from knit_nlp.weft.problem import load_problem
+from knit_nlp.weft.model.problem import load_problem
 
 FABRIC = "[fabric]\ncourses = 3\nwales = 4\n"
 SHORT = FABRIC + """

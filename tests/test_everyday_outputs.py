@@ -14,8 +14,8 @@ from matplotlib.quiver import Quiver
 import knit_nlp
 from knit_nlp.cli import main
 from knit_nlp.weft.api import solve
-from knit_nlp.weft.plot import ARROW_FRACTION, DPI, drawn_arrows, round_reference, solution_figure
-from knit_nlp.weft.problem import load_problem
+from knit_nlp.weft.output.plot import ARROW_FRACTION, DPI, drawn_arrows, round_reference, solution_figure
+from knit_nlp.weft.model.problem import load_problem
 
 FABRIC = "[fabric]\ncourses = 3\nwales = 4\n"
 PULL = FABRIC + """

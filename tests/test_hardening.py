@@ -300,7 +300,7 @@ def test_api_refuses_an_unknown_jacquard_solver():
 def test_study_parameters_are_checked_like_the_file(kwargs, key):
     """WeftParams.with_ refuses what a problem file would (ValueError naming the value)."""
     from knit_nlp.weft.study import WeftStudy
-    from knit_nlp.weft.problem import parse_problem
+    from knit_nlp.weft.model.problem import parse_problem
     import tomllib
     study = WeftStudy(parse_problem(tomllib.loads(WEFT), "<s>"))
     with pytest.raises(ValueError, match=key):

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from knit_nlp.cli import main
 from knit_nlp.errors import ProblemError
 from knit_nlp.jacquard.problem import parse_problem as parse_jacquard
-from knit_nlp.weft.problem import parse_problem as parse_weft
+from knit_nlp.weft.model.problem import parse_problem as parse_weft
 
 SETTINGS = settings(max_examples=150, deadline=3000, derandomize=False,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
@@ -174,7 +174,7 @@ def test_cli_arguments_exit_0_or_2_with_one_line(tmp_path, capsys, argv):
     """Solving is stubbed out (returns 0): what is tested is everything before it."""
     with mock.patch.dict("knit_nlp.cli.MODELS", _STUBS), \
             mock.patch("knit_nlp.cli._summary", return_value=lambda result, paths: "solved"), \
-            mock.patch("knit_nlp.weft.summary.compare_summary", return_value="compared"), \
+            mock.patch("knit_nlp.weft.output.summary.compare_summary", return_value="compared"), \
             mock.patch("knit_nlp.cli.prepare_out", side_effect=_no_writes(tmp_path)):
         code = main(argv)
     out, err = capsys.readouterr()

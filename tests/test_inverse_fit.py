@@ -8,7 +8,7 @@ import pytest
 from knit_nlp.cli import main
 from knit_nlp.weft.inverse.fit import Fitter
 from knit_nlp.weft.inverse.observations import Observation
-from knit_nlp.weft.problem import load_problem
+from knit_nlp.weft.model.problem import load_problem
 
 TRUTH = {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0}
 CASES = {

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.study import LoadPath, WeftStudy, run_study
-from knit_nlp.weft.problem import parse_problem
+from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.api import solve as solve_problem
 
 from conftest import elastica_force

@@ -6,12 +6,12 @@ from types import SimpleNamespace
 import numpy as np
 
 from knit_nlp.cli import main
-from knit_nlp.weft.adaptive import (MARK, Indicator, _next_grid, bisect, bisections_left, distance,
+from knit_nlp.weft.solving.adaptive import (MARK, Indicator, _next_grid, bisect, bisections_left, distance,
                                    indicator, solve_adaptive, solve_grid)
 from knit_nlp.weft.api import solve as solve_model
-from knit_nlp.weft.cases import diagonal_pull
-from knit_nlp.weft.parametrisation import Adaptive, Full, Reduced
-from knit_nlp.weft.problem import load_problem, parse_problem
+from knit_nlp.weft.model.cases import diagonal_pull
+from knit_nlp.weft.model.parametrisation import Adaptive, Full, Reduced
+from knit_nlp.weft.model.problem import load_problem, parse_problem
 
 # the diagonal pull of scripts/bench_weft.py on 12 x 12 (the corner H of loop (1, 12) stretched
 # 1.883 x along the chord from the origin and turned 25.26 degrees)
@@ -32,7 +32,7 @@ displacement = {d}
 
 
 def _diagonal(write_problem, n, extra=""):
-    from knit_nlp.weft.natural import natural_loop, preset_coeffs
+    from knit_nlp.weft.model.natural import natural_loop, preset_coeffs
     loop = natural_loop(preset_coeffs("jersey", 3), 10.0, 3)
     h = np.array([(n - 1) * loop.wale_spacing, 0.0]) + loop.xy([6.420998])[0]
     c, s = np.cos(np.radians(25.26)), np.sin(np.radians(25.26))

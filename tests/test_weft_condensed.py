@@ -4,13 +4,13 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from knit_nlp.weft.cases import diagonal_pull
-from knit_nlp.weft.condensed import build_condensed
-from knit_nlp.weft.kinematics import LoopIntegrals, loop_displacements
-from knit_nlp.weft.nlp import build_nlp
-from knit_nlp.weft.parametrisation import Reduced
-from knit_nlp.weft.problem import load_problem, parse_problem
-from knit_nlp.weft.solve import WeftSolver, solve
+from knit_nlp.weft.model.cases import diagonal_pull
+from knit_nlp.weft.transcription.condensed.nlp import build_condensed
+from knit_nlp.weft.model.kinematics import LoopIntegrals, loop_displacements
+from knit_nlp.weft.transcription.full import build_nlp
+from knit_nlp.weft.model.parametrisation import Reduced
+from knit_nlp.weft.model.problem import load_problem, parse_problem
+from knit_nlp.weft.solving.solve import WeftSolver, solve
 
 # every kind of term: point clamps (one fixing x only), an angle clamp, a rigid clamp, a load
 # with force and moment

@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-from knit_nlp.weft.basis import phi
-from knit_nlp.weft.nlp import build_nlp
-from knit_nlp.weft.problem import load_problem
+from knit_nlp.weft.model.basis import phi
+from knit_nlp.weft.transcription.full import build_nlp
+from knit_nlp.weft.model.problem import load_problem
 from knit_nlp.weft.api import solve as solve_problem
-from knit_nlp.weft.solve import WeftSolver
+from knit_nlp.weft.solving.solve import WeftSolver
 
 from conftest import PROBLEMS, elastica_force, solve_text
 
@@ -242,8 +242,8 @@ def test_continuation_starts_from_parameters_that_hold_the_natural_state(write_p
     natural positions, clamp angles at the natural angles (nonzero at B and E of a jersey loop),
     rigid clamps unmoved, loads zero. There the natural configuration satisfies every
     constraint and is the minimum: IPOPT stays at it with zero energy and zero reactions."""
-    from knit_nlp.weft.params import WeftParams
-    from knit_nlp.weft.results import WeftResult
+    from knit_nlp.weft.model.params import WeftParams
+    from knit_nlp.weft.output.results import WeftResult
     w = build_nlp(load_problem(write_problem(NATURAL_PARAMETERS)))
     pr, natural = w.problem, WeftParams.natural(w.problem)
     p_nat = natural.vector()

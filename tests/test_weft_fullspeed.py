@@ -3,15 +3,15 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from knit_nlp.weft.derivatives import closed_form_derivatives
-from knit_nlp.weft.nlp import build_nlp
-from knit_nlp.weft.problem import load_problem, parse_problem
-from knit_nlp.weft import start
-from knit_nlp.weft.params import WeftParams
-from knit_nlp.weft.solve import WeftSolver, solve
-from knit_nlp.weft.start import rigid_start
+from knit_nlp.weft.transcription.derivatives import closed_form_derivatives
+from knit_nlp.weft.transcription.full import build_nlp
+from knit_nlp.weft.model.problem import load_problem, parse_problem
+from knit_nlp.weft.solving import starts as start
+from knit_nlp.weft.model.params import WeftParams
+from knit_nlp.weft.solving.solve import WeftSolver, solve
+from knit_nlp.weft.solving.starts import rigid_start
 
-from knit_nlp.weft.cases import course_pull, diagonal_pull
+from knit_nlp.weft.model.cases import course_pull, diagonal_pull
 
 from conftest import ROOT
 

@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 from scipy.special import j0
 
-from knit_nlp.weft.basis import bending_diagonal, continuity_rows, dphi, phi
-from knit_nlp.weft.crossings import CrossingError, find_crossings
-from knit_nlp.weft.energy import bending_energy, bending_energy_quadrature
-from knit_nlp.weft.natural import natural_loop, preset_coeffs
-from knit_nlp.weft.quadrature import panel_rule
+from knit_nlp.weft.model.basis import bending_diagonal, continuity_rows, dphi, phi
+from knit_nlp.weft.model.crossings import CrossingError, find_crossings
+from knit_nlp.weft.model.energy import bending_energy, bending_energy_quadrature
+from knit_nlp.weft.model.natural import natural_loop, preset_coeffs
+from knit_nlp.weft.model.quadrature import panel_rule
 
 
 @pytest.fixture(scope="module")

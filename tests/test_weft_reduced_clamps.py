@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.api import solve
-from knit_nlp.weft.cases import course_pull, diagonal_pull
-from knit_nlp.weft.condensed import CondensedNLP, build_condensed
-from knit_nlp.weft.parametrisation import Full, Reduced
-from knit_nlp.weft.problem import parse_problem
-from knit_nlp.weft.reduction import with_clamped
+from knit_nlp.weft.model.cases import course_pull, diagonal_pull
+from knit_nlp.weft.transcription.condensed.nlp import CondensedNLP, build_condensed
+from knit_nlp.weft.model.parametrisation import Full, Reduced
+from knit_nlp.weft.model.problem import parse_problem
+from knit_nlp.weft.transcription.reduction import with_clamped
 
 
 @pytest.fixture(scope="module")

@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-from knit_nlp.weft.basis import continuity_rows
-from knit_nlp.weft.nlp import n_parameters
-from knit_nlp.weft.parametrisation import Full, Reduced
-from knit_nlp.weft.problem import load_problem
-from knit_nlp.weft.reduction import reduction_map
+from knit_nlp.weft.model.basis import continuity_rows
+from knit_nlp.weft.transcription.full import n_parameters
+from knit_nlp.weft.model.parametrisation import Full, Reduced
+from knit_nlp.weft.model.problem import load_problem
+from knit_nlp.weft.transcription.reduction import reduction_map
 
 from conftest import PROBLEMS, solve_text
 
@@ -133,8 +133,8 @@ def test_warm_from_reduced_reaches_the_cold_start_minimum():
     there equals the reduced one), which is far from the minimum (the reduced energy is 1.8 ×
     higher), and it is closer than the natural state (fewer iterations)."""
     from knit_nlp.weft.api import solve
-    from knit_nlp.weft.parametrisation import Full, Reduced
-    from knit_nlp.weft.solve import WeftSolver
+    from knit_nlp.weft.model.parametrisation import Full, Reduced
+    from knit_nlp.weft.solving.solve import WeftSolver
     pr = load_problem(PROBLEMS / "diagonal_pull.toml")
     cold = solve(pr, Full())
     warm = solve(pr, Full(), warm_from_reduced=True)

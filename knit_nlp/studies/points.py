@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..weft.parametrisation import Full, Parametrisation
+from ..weft.model.parametrisation import Full, Parametrisation
 
 TIMEOUT_EXIT = 86          # the watchdog's exit code (seen in Dask's worker logs)
 _STUDIES: "OrderedDict[str, Any]" = OrderedDict()   # per-process memo of built weft NLPs
@@ -71,7 +71,7 @@ def _doc_key(doc: dict[str, Any], parametrisation: Parametrisation) -> str:
 
 def weft_study(doc: dict[str, Any], parametrisation: Parametrisation):
     """The process's built :class:`~knit_nlp.weft.study.WeftStudy` of ``doc`` (memoised)."""
-    from ..weft.problem import parse_problem
+    from ..weft.model.problem import parse_problem
     from ..weft.study import WeftStudy
 
     key = _doc_key(doc, parametrisation)

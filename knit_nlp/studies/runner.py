@@ -31,7 +31,7 @@ import numpy as np
 
 from ..atomic import atomic_file
 from ..jsonio import write_json
-from ..weft.parametrisation import Full, Parametrisation
+from ..weft.model.parametrisation import Full, Parametrisation
 from ..errors import ArgumentError
 from .executors import capacity, local_pool, open_executor
 from .points import PointOutcome, PointTask, solve_point, this_process

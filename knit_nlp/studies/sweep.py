@@ -30,8 +30,8 @@ import numpy as np
 from ..errors import ArgumentError, ProblemError
 from ..jacquard.problem import SYMBOLS, SYSTEMS, JacquardProblem
 from ..jacquard.problem import parse_problem as parse_jacquard
-from ..weft.params import MATERIAL, WeftParams
-from ..weft.problem import WeftProblem
+from ..weft.model.params import MATERIAL, WeftParams
+from ..weft.model.problem import WeftProblem
 from .points import set_key
 from .runner import LoadPath
 

@@ -12,11 +12,11 @@ reduced model as solved) -> ``guesses``, ``solve`` (IPOPT) and ``adaptive`` -> `
 from __future__ import annotations
 
 from .api import Comparison, compare, solve
-from .nlp import WeftNLP, build_nlp
-from .params import WeftParams
-from .parametrisation import Adaptive, Full, Parametrisation, Reduced
-from .problem import Clamp, Load, RigidClamp, SolverOptions, WeftProblem, load_problem, parse_problem
-from .results import ClampReaction, LoadResult, RigidClampReaction, WeftResult
+from .transcription.full import WeftNLP, build_nlp
+from .model.params import WeftParams
+from .model.parametrisation import Adaptive, Full, Parametrisation, Reduced
+from .model.problem import Clamp, Load, RigidClamp, SolverOptions, WeftProblem, load_problem, parse_problem
+from .output.results import ClampReaction, LoadResult, RigidClampReaction, WeftResult
 
 __all__ = ["WeftProblem", "Clamp", "Load", "RigidClamp", "SolverOptions", "WeftParams", "Full",
            "Reduced", "Adaptive", "Parametrisation", "WeftNLP", "WeftResult", "ClampReaction",

@@ -17,16 +17,16 @@ import numpy as np
 
 from ..jsonio import write_json
 from ..provenance import source_record
-from .adaptive import solve_adaptive
-from .condensed import build_condensed
-from .nlp import build_nlp
-from .params import WeftParams
-from .parametrisation import Adaptive, Full, Parametrisation, Reduced
-from .plot import plot_overlay
-from .problem import WeftProblem
-from .results import WeftResult
-from .sampling import SAMPLES
-from .solve import WeftSolver, solve as solve_nlp
+from .solving.adaptive import solve_adaptive
+from .transcription.condensed.nlp import build_condensed
+from .transcription.full import build_nlp
+from .model.params import WeftParams
+from .model.parametrisation import Adaptive, Full, Parametrisation, Reduced
+from .output.plot import plot_overlay
+from .model.problem import WeftProblem
+from .output.results import WeftResult
+from .model.centrelines import SAMPLES
+from .solving.solve import WeftSolver, solve as solve_nlp
 
 
 def solve(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,

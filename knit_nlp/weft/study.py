@@ -14,12 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .nlp import build_nlp
-from .params import WeftParams
-from .parametrisation import Full, Parametrisation
-from .problem import WeftProblem, parse_problem
-from .results import WeftResult
-from .solve import SolveReport, WeftSolver, solve
+from .transcription.full import build_nlp
+from .model.params import WeftParams
+from .model.parametrisation import Full, Parametrisation
+from .model.problem import WeftProblem, parse_problem
+from .output.results import WeftResult
+from .solving.solve import SolveReport, WeftSolver, solve
 
 
 class WeftStudy:
@@ -61,8 +61,8 @@ def animate_path(gif: Path, path: LoadPath, study_dir: Path, fps: int = 4) -> Pa
     """A GIF of a solved load path of a study written under ``study_dir``: the natural loops,
     then every point's deformed loops in order (labels in the frame titles; a point without a
     solution, its worker lost, is left out)."""
-    from .plot import animate
-    from .sampling import natural_centrelines, solution_centrelines
+    from .output.plot import animate
+    from .model.centrelines import natural_centrelines, solution_centrelines
     wnlp = build_nlp(parse_problem(path.doc, f"<{path.name}>"), path.parametrisation)
     natural = natural_centrelines(wnlp.problem)
     frames = [(f"{path.name}: natural", natural)]

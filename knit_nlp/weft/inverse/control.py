@@ -20,10 +20,10 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..params import WeftParams
-from ..results import WeftResult
-from ..sampling import solution_centrelines
-from ..solve import SolveReport
+from ..model.params import WeftParams
+from ..output.results import WeftResult
+from ..model.centrelines import solution_centrelines
+from ..solving.solve import SolveReport
 from .equilibrium import Equilibrium, Stability
 from .points import point_function, point_jacobian
 from .spec import ControlProblem

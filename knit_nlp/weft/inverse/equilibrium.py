@@ -27,10 +27,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ..nlp import WeftNLP, build_nlp
-from ..problem import WeftProblem
-from ..params import WeftParams
-from ..solve import SolveReport, WeftSolver, solve
+from ..transcription.full import WeftNLP, build_nlp
+from ..model.problem import WeftProblem
+from ..model.params import WeftParams
+from ..solving.solve import SolveReport, WeftSolver, solve
 
 try:    # with the module, not inside the first stability check: a one-time 0.15-0.5 s import,
     import scipy.sparse.linalg  # noqa: F401  (Python's, not a solve's cost; measured)

@@ -21,7 +21,7 @@ from typing import Sequence
 import casadi as ca
 import numpy as np
 
-from ..problem import WeftProblem
+from ..model.problem import WeftProblem
 from .equilibrium import Equilibrium
 from .observations import Observation
 from .points import point_function, point_jacobian

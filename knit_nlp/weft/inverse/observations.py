@@ -15,7 +15,7 @@ import numpy as np
 
 from ...errors import ProblemError
 from ...tomlio import Table, read_regular_file
-from ..problem import WeftProblem, _PointReader
+from ..model.problem import WeftProblem, _PointReader
 
 COLUMNS = ["case", "course", "wale", "point", "x", "y"]
 

@@ -15,8 +15,8 @@ import numpy as np
 
 from ...errors import ProblemError
 from ...tomlio import Table, load_toml, read_regular_file
-from ..problem import WeftProblem, _PointReader, parse_problem
-from ..quadrature import positions
+from ..model.problem import WeftProblem, _PointReader, parse_problem
+from ..model.quadrature import positions
 from .spec import strip_control_keys
 
 

@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.collections import LineCollection
 
 from ...figures import new_figure, save_figure
-from ..plot import course_lines
+from ..output.plot import course_lines
 
 
 def plot_control(path: Path, natural: np.ndarray, start: np.ndarray, achieved: np.ndarray,

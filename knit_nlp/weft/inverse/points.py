@@ -11,9 +11,9 @@ from typing import Sequence
 import casadi as ca
 import numpy as np
 
-from ..basis import n_coeffs
-from ..kinematics import loop_displacements
-from ..nlp import WeftNLP
+from ..model.basis import n_coeffs
+from ..model.kinematics import loop_displacements
+from ..transcription.full import WeftNLP
 
 
 def point_function(wnlp: WeftNLP, points: Sequence[tuple[tuple[int, int], float]]) -> ca.Function:

@@ -8,10 +8,10 @@ from typing import Any
 import numpy as np
 
 from ...jsonio import write_json
-from ..sampling import natural_centrelines, solution_centrelines
+from ..model.centrelines import natural_centrelines, solution_centrelines
 from ...errors import ProblemError
 from ...tomlio import load_toml, read_regular_file
-from ..problem import parse_problem
+from ..model.problem import parse_problem
 from .control import answer_dict, control
 from .fit import MATERIAL, fit
 from .fit import answer_dict as fit_dict

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ...tomlio import Table, load_toml
-from ..problem import WeftProblem, _PointReader, parse_problem
+from ..model.problem import WeftProblem, _PointReader, parse_problem
 
 CLAMP_KEYS = ("actuated", "bounds")
 RIGID_KEYS = ("actuated", "translation_bounds", "rotation_bounds")

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from .basis import n_coeffs
-from .nlp import WeftNLP
+from ..transcription.full import WeftNLP
 from .problem import WeftProblem
 from .quadrature import positions
 

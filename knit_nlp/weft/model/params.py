@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import shown
-from ..layout import Layout
-from ..tomlio import MAX_MAGNITUDE
+from ...errors import shown
+from ...layout import Layout
+from ...tomlio import MAX_MAGNITUDE
 from .basis import phi
 
 if TYPE_CHECKING:

@@ -12,10 +12,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..errors import ProblemError, quoted
-from ..limits import check_memory, weft_bytes
-from ..tomlio import Table, finite_number, load_toml
-from ..units import Units, read_units
+from ...errors import ProblemError, quoted
+from ...limits import check_memory, weft_bytes
+from ...tomlio import Table, finite_number, load_toml
+from ...units import Units, read_units
 from .basis import n_coeffs
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
 from .parametrisation import Adaptive, Full, Parametrisation, Reduced

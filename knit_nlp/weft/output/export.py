@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import write_text
-from ..jsonio import write_csv
+from ...atomic import write_text
+from ...jsonio import write_csv
 
 EXPORTS = ("csv", "svg")
 SVG_UNITS = ("mm", "cm", "in")     # lengths SVG itself knows; others are drawn at PX_PER_UNIT

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ..jsonio import write_csv
+from ...jsonio import write_csv
 from .results import WeftResult
 
 FIELDS = ("step", "load_factor", "grip", "points", "displacement_x", "displacement_y",

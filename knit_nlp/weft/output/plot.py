@@ -16,9 +16,9 @@ from matplotlib.axes import Axes
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
-from ..atomic import temporary_path
-from ..figures import new_figure, save_figure
-from ..units import Units
+from ...atomic import temporary_path
+from ...figures import new_figure, save_figure
+from ...units import Units
 
 if TYPE_CHECKING:
     from .results import WeftResult

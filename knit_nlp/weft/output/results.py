@@ -14,15 +14,15 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..jsonio import write_json, write_npz
-from ..outcome import Energy, Outcome
-from ..provenance import source_record
-from .basis import phi
-from .nlp import WeftNLP
-from .params import WeftParams
-from .problem import WeftProblem
-from .sampling import SAMPLES, natural_centrelines, solution_centrelines
-from .solve import SolveReport
+from ...jsonio import write_json, write_npz
+from ...outcome import Energy, Outcome
+from ...provenance import source_record
+from ..model.basis import phi
+from ..transcription.full import WeftNLP
+from ..model.params import WeftParams
+from ..model.problem import WeftProblem
+from ..model.centrelines import SAMPLES, natural_centrelines, solution_centrelines
+from ..solving.solve import SolveReport
 
 
 @dataclass(frozen=True)

@@ -43,11 +43,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .condensed import CondensedNLP, build_condensed
-from .nlp import n_parameters
-from .parametrisation import Adaptive, Full, Reduced
-from .problem import WeftProblem
-from .sampling import centrelines
+from ..transcription.condensed.nlp import CondensedNLP, build_condensed
+from ..transcription.full import n_parameters
+from ..model.parametrisation import Adaptive, Full, Reduced
+from ..model.problem import WeftProblem
+from ..model.centrelines import centrelines
 from .solve import SolveReport, WeftSolver, solve
 
 MARK = 0.25

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import n_coeffs, phi
-from .nlp import WeftNLP
-from .params import WeftParams
-from .quadrature import positions
+from ..model.basis import n_coeffs, phi
+from ..transcription.full import WeftNLP
+from ..model.params import WeftParams
+from ..model.quadrature import positions
 
 
 def perturbed_starts(wnlp: WeftNLP, amplitude: float = 0.05) -> list[tuple[str, np.ndarray]]:

@@ -19,13 +19,13 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..ipopt import ipopt_options, succeeded
-from ..progress import IterationLine
-from .derivatives import closed_form_derivatives
+from ...ipopt import ipopt_options, succeeded
+from ...progress import IterationLine
+from ..transcription.derivatives import closed_form_derivatives
 from .guesses import needs_perturbation, perturbed_starts
-from .nlp import WeftNLP
-from .params import WeftParams
-from .start import start_point
+from ..transcription.full import WeftNLP
+from ..model.params import WeftParams
+from .starts import start_point
 
 DEFAULT_START = "multilevel"    # measured: see README, "Measured performance"
 

@@ -15,11 +15,11 @@ import numpy as np
 
 from dataclasses import replace
 
-from .basis import n_coeffs
-from .nlp import WeftNLP, build_nlp, rigid_natural_points
-from .params import WeftParams
-from .quadrature import positions
-from .problem import Clamp, RigidClamp, WeftProblem, canonical_point
+from ..model.basis import n_coeffs
+from ..transcription.full import WeftNLP, build_nlp, rigid_natural_points
+from ..model.params import WeftParams
+from ..model.quadrature import positions
+from ..model.problem import Clamp, RigidClamp, WeftProblem, canonical_point
 
 STARTS = ("multilevel", "rigid", "natural")
 COARSEST = 12          # the multilevel start solves cold once a side is at most this many loops
@@ -93,8 +93,8 @@ def corner_start(cnlp, p: np.ndarray, log: list[str] | None = None) -> np.ndarra
     8 × 8, 9 + 13 against 45 iterations; 30 × 30 over 15 × 15, 8 + 15 against 103, where the
     natural start ends in another minimum (energy 114.47 against 55.29); 24 × 24 over 12 × 12,
     87.98 against 36.33; 100 × 100 over 6 × 6, 11 + 6 against 11, the same minimum."""
-    from .condensed import CondensedNLP, build_condensed
-    from .parametrisation import Reduced
+    from ..transcription.condensed.nlp import CondensedNLP, build_condensed
+    from ..model.parametrisation import Reduced
     from .solve import WeftSolver, solve
     if not isinstance(cnlp, CondensedNLP):
         return None

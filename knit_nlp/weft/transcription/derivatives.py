@@ -19,9 +19,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .basis import n_coeffs, phi
-from .nlp import WeftNLP
-from .quadrature import panel_rule
+from ..model.basis import n_coeffs, phi
+from .full import WeftNLP
+from ..model.quadrature import panel_rule
 
 
 def closed_form_derivatives(wnlp: WeftNLP) -> dict[str, ca.Function]:

@@ -24,13 +24,13 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .basis import continuity_rows, n_coeffs, phi
-from .energy import bending_energy, spring_pair_energy
-from .kinematics import loop_displacements
-from ..layout import Layout
-from .params import WeftParams, param_layout
-from .parametrisation import Full, Parametrisation, Reduced
-from .problem import WeftProblem
+from ..model.basis import continuity_rows, n_coeffs, phi
+from ..model.energy import bending_energy, spring_pair_energy
+from ..model.kinematics import loop_displacements
+from ...layout import Layout
+from ..model.params import WeftParams, param_layout
+from ..model.parametrisation import Full, Parametrisation, Reduced
+from ..model.problem import WeftProblem
 from .reduction import reduction_map
 
 SPRING_POINTS = ("B", "R", "E", "H")

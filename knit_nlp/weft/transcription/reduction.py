@@ -17,9 +17,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .basis import n_coeffs
-from .parametrisation import Reduced
-from .problem import WeftProblem
+from ..model.basis import n_coeffs
+from ..model.parametrisation import Reduced
+from ..model.problem import WeftProblem
 
 
 def hat_weights(index: int, reps: tuple[int, ...]) -> np.ndarray:

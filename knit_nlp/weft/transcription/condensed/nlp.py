@@ -39,15 +39,15 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
-from ..layout import Layout
-from .basis import bending_diagonal, n_coeffs, phi
-from .kinematics import LoopIntegrals
-from .nlp import (ClampRows, NLPSizes, eval_points, n_parameters, rigid_natural_points,
+from ....layout import Layout
+from ...model.basis import bending_diagonal, n_coeffs, phi
+from ...model.kinematics import LoopIntegrals
+from ..full import (ClampRows, NLPSizes, eval_points, n_parameters, rigid_natural_points,
                   special_points)
-from .params import WeftParams, param_layout
-from .parametrisation import Reduced
-from .problem import WeftProblem
-from .reduction import CourseMap, course_maps, n_reduced, with_clamped
+from ...model.params import WeftParams, param_layout
+from ...model.parametrisation import Reduced
+from ...model.problem import WeftProblem
+from ..reduction import CourseMap, course_maps, n_reduced, with_clamped
 
 
 class _NumericFunction(ca.Callback):
