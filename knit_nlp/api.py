@@ -1,8 +1,15 @@
-"""The front door: load any problem, solve it, compare models; both models behind one table.
+"""The front door and the model table: load any problem, solve it, compare models.
 
     import knit_nlp
     r = knit_nlp.solve("wada_fig7")          # a named problem, a path, or a loaded problem
     r.success, r.energy.total, r.clamps[0].reaction, r.to_json(), r.save("results")
+
+Weft problems go to :func:`knit_nlp.weft.api.solve` (imported below as ``solve_weft``),
+jacquard problems to :func:`knit_nlp.jacquard.api.solve`. Everything that differs between the
+two models (how a file is read, the Python options, the command-line flags and commands, the
+output names, the summary printed, how a study point is solved and summarised, which sweep keys
+exist, whether a loading path is warm-started) is one :class:`Model` entry of :data:`MODELS`;
+the command line (``cli``) and the studies (``studies``) only read the entry.
 """
 from __future__ import annotations
 
@@ -11,63 +18,113 @@ from pathlib import Path
 from typing import Any, Callable, Union
 
 from .errors import ProblemError, quoted
+from .jacquard import commands as jacquard_commands, study as jacquard_study
+from .jacquard.api import solve as solve_jacquard
 from .jacquard.problem import JacquardProblem, parse_problem as parse_jacquard
 from .jacquard.result import JacquardResult
+from .jacquard.summary import solve_summary as jacquard_summary
 from .problems import resolve
 from .tomlio import load_toml
-from .weft.api import Comparison
+from .weft import commands as weft_commands, keys as weft_keys, study as weft_study
+from .weft.api import compare as compare_weft, solve as solve_weft
 from .weft.model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .weft.model.problem import WeftProblem, parse_problem as parse_weft
+from .weft.output.comparison import Comparison
 from .weft.output.results import WeftResult
+from .weft.output.summary import compare_summary, solve_summary as weft_summary
 
 Problem = Union[WeftProblem, JacquardProblem]
 Result = Union[WeftResult, JacquardResult]
+DEFAULT_MODEL = "weft"      # a problem file without ``model``
 
 
-def _solve_weft(problem: WeftProblem, reduced: bool | Parametrisation | None = None,
-                **options: Any) -> WeftResult:
-    from .weft.api import solve
-    param = (None if reduced is None else reduced if isinstance(reduced, (Full, Reduced, Adaptive))
-             else (problem.reduction or Reduced()) if reduced else Full())
-    return solve(problem, param, **options)
+@dataclass(frozen=True)
+class Study:
+    """How a model's study points are solved and summarised (``knit_nlp.studies``).
 
+    ``prepare(doc)`` is built once per document in a worker; ``solve(prepared, changes, x0)``
+    gives (result JSON, solution vector); ``row(result JSON)`` the values a summary keeps;
+    ``warm``: points along a path start from the last one's solution; ``ship(doc, problem)``
+    the document workers get; ``check(problem, doc, key, values)`` raises ``ValueError`` for a
+    key a sweep cannot vary; ``changes(problem, [(key, values, value), ...])`` a point's
+    changes."""
 
-def _solve_jacquard(problem: JacquardProblem, solver: str | None = None) -> JacquardResult:
-    from .jacquard.api import solve
-    return solve(problem, solver)
-
-
-def _compare_weft(problem: WeftProblem) -> Comparison:
-    from .weft.api import compare
-    return compare(problem)
+    prepare: Callable[[dict], Any]
+    solve: Callable[..., tuple[dict, Any]]
+    row: Callable[[dict], dict]
+    warm: bool
+    ship: Callable[[dict, Any], dict]
+    check: Callable[..., None]
+    changes: Callable[..., dict]
 
 
 @dataclass(frozen=True)
 class Model:
-    """One model's entry points: reading a document, solving, comparing (None: not offered)."""
+    """One model's entry: reading a document, solving from Python and from the command line,
+    output names and summaries, studies, and the model's own commands."""
 
     name: str
     parse: Callable[[dict[str, Any], str | Path], Any]
     solve: Callable[..., Any]
+    options: tuple[str, ...]          # keyword options ``solve`` accepts
     compare: Callable[..., Any] | None
-    options: tuple[str, ...]        # keyword options ``solve`` accepts
+    compare_summary: Callable[..., str] | None
+    document: Callable[[dict, Path], dict]      # the document ``knit-nlp solve`` solves
+    flags: tuple                      # ``knit-nlp solve`` flags: (names, argparse keywords, group)
+    solve_options: Callable[..., dict]          # (args, problem, path) -> ``solve`` options
+    save_options: Callable[..., dict]           # args -> ``Result.save`` options
+    outputs: tuple[str, ...]          # the <kind> of output names <problem>.<kind>.<suffix>
+    summary: Callable[..., str]       # (result, paths written) -> what ``solve`` prints
+    study: Study
+    commands: tuple = ()              # (name, help, arguments, run): the model's own commands
+
+
+def _solve_weft(problem: WeftProblem, reduced: bool | Parametrisation | None = None,
+                **options: Any) -> WeftResult:
+    """``reduced``: None (the file's choice), True (its representatives, or the corners),
+    False, or a parametrisation."""
+    if reduced is None or isinstance(reduced, (Full, Reduced, Adaptive)):
+        param = reduced
+    elif isinstance(reduced, bool):
+        param = (problem.reduction or Reduced()) if reduced else Full()
+    else:
+        raise ValueError(f"reduced must be True, False, None, Full(), Reduced(...) or "
+                         f"Adaptive(...); got {quoted(reduced)}")
+    return solve_weft(problem, param, **options)
 
 
 MODELS: dict[str, Model] = {
-    "weft": Model("weft", parse_weft, _solve_weft, _compare_weft,
-                  ("reduced", "params", "continuation", "start", "warm_from_reduced",
-                   "verbose")),
-    "jacquard": Model("jacquard", parse_jacquard, _solve_jacquard, None, ("solver",)),
+    "weft": Model(
+        "weft", parse_weft, _solve_weft,
+        ("reduced", "params", "continuation", "start", "warm_from_reduced", "verbose"),
+        compare_weft, compare_summary, weft_commands.document, weft_commands.FLAGS,
+        weft_commands.solve_options, weft_commands.save_options, ("full", "reduced"),
+        weft_summary,
+        Study(weft_study.prepare_point, weft_study.solve_point, weft_study.study_row, True,
+              lambda doc, problem: doc, weft_keys.check, weft_keys.changes),
+        weft_commands.COMMANDS),
+    "jacquard": Model(
+        "jacquard", parse_jacquard, solve_jacquard, ("solver",), None, None,
+        jacquard_commands.document, jacquard_commands.FLAGS, jacquard_commands.solve_options,
+        jacquard_commands.save_options, ("jacquard",), jacquard_summary,
+        Study(jacquard_study.prepare_point, jacquard_study.solve_point,
+              jacquard_study.study_row, False, jacquard_study.shippable_doc,
+              jacquard_study.check, jacquard_study.changes)),
 }
+
+
+def model_of(doc: dict[str, Any], source: str | Path = "<document>") -> Model:
+    """The entry of the model a document names (``model``, default ``weft``)."""
+    name = doc.get("model", DEFAULT_MODEL)
+    if name not in MODELS:
+        raise ProblemError(source, "", "model", f"must be one of {', '.join(map(repr, MODELS))};"
+                           f" got {quoted(name)}")
+    return MODELS[name]
 
 
 def parse_problem(doc: dict[str, Any], source: str | Path) -> Problem:
     """A checked problem of the model the document names (``model``, default ``weft``)."""
-    model = doc.get("model", "weft")
-    if model not in MODELS:
-        raise ProblemError(source, "", "model", f"must be one of {', '.join(map(repr, MODELS))};"
-                           f" got {quoted(model)}")
-    return MODELS[model].parse(doc, source)
+    return model_of(doc, source).parse(doc, source)
 
 
 def load_problem(name_or_path: str | Path) -> Problem:
@@ -80,6 +137,9 @@ def load_problem(name_or_path: str | Path) -> Problem:
 def _problem(problem_or_name: Problem | str | Path) -> Problem:
     if isinstance(problem_or_name, (WeftProblem, JacquardProblem)):
         return problem_or_name
+    if not isinstance(problem_or_name, (str, Path)):
+        raise ValueError(f"expected a problem, a path or a shipped problem's name; got "
+                         f"{quoted(problem_or_name)}")
     return load_problem(problem_or_name)
 
 
@@ -88,8 +148,10 @@ def solve(problem_or_name: Problem | str | Path, *, reduced: bool | Parametrisat
     """Solve a problem (a loaded one, a path or a shipped name) and return its typed result.
 
     Weft: ``reduced`` None (the file's choice), True (its representatives, or the corners),
-    False, or a ``Full()``/``Reduced(...)``; options ``params``, ``continuation``, ``start``,
-    ``warm_from_reduced``. Jacquard: ``solver`` "static" (default) or "explicit".
+    False, or a ``Full()``/``Reduced(...)``/``Adaptive(...)``; options ``params``,
+    ``continuation``, ``start``, ``warm_from_reduced``, ``verbose``. Jacquard: ``solver``
+    "static" or "explicit" (default: the file's ``[solver] method``). A bad argument raises
+    ``ValueError`` naming it; a bad file, :class:`~knit_nlp.errors.ProblemError`.
     """
     problem = _problem(problem_or_name)
     model = MODELS[problem.model]

@@ -3,10 +3,7 @@ out in them; nothing is converted (docs/conventions.md, "Units", is the one desc
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from .tomlio import Table
+from .tomlio import Table
 
 DEFAULT_LENGTH = "units"
 DEFAULT_FORCE = "force units"

@@ -31,7 +31,8 @@ from knit_nlp.weft.inverse.control import Controller  # noqa: E402
 from knit_nlp.weft.inverse.fit import fit  # noqa: E402
 from knit_nlp.weft.inverse.observations import load_observations  # noqa: E402
 from knit_nlp.weft.inverse.spec import parse_control  # noqa: E402
-from knit_nlp.weft.transcription.full import build_nlp  # noqa: E402
+from knit_nlp.weft.model.parametrisation import Full
+from knit_nlp.weft.transcription.factory import transcribe  # noqa: E402
 from knit_nlp.weft.model.problem import load_problem  # noqa: E402
 from knit_nlp.weft.model.params import WeftParams  # noqa: E402
 from knit_nlp.weft.solving.solve import WeftSolver, solve  # noqa: E402
@@ -50,7 +51,7 @@ def fresh(args: list[str]) -> float:
 def forward_once(cp, u: np.ndarray) -> tuple[float, int]:
     """Build + solve the forward problem from the natural state at targets u."""
     t0 = time.perf_counter()
-    wnlp = build_nlp(cp.problem)
+    wnlp = transcribe(cp.problem, Full())
     solver = WeftSolver(wnlp)
     ctl_p = wnlp.p0.copy()
     k = 0

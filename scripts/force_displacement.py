@@ -45,9 +45,9 @@ from knit_nlp.studies import add_executor_arguments, run_with_options  # noqa: E
 from knit_nlp.units import Units  # noqa: E402
 from knit_nlp.weft.model.cases import diagonal_pull, unclamped  # noqa: E402
 from knit_nlp.weft.model.problem import WeftProblem, parse_problem  # noqa: E402
-from knit_nlp.weft.model.centrelines import natural_centrelines, solution_centrelines  # noqa: E402
-from knit_nlp.weft.study import (LoadPath, WeftStudy, animate_path, point_solution,  # noqa: E402
-                                  print_table)
+from knit_nlp.studies import LoadPath, point_solution, print_table  # noqa: E402
+from knit_nlp.weft.model.centrelines import natural_centrelines  # noqa: E402
+from knit_nlp.weft.study import WeftStudy, animate_points  # noqa: E402
 
 STUDY = "force_displacement"
 DIRECTIONS = ("course", "wale", "diagonal")
@@ -187,7 +187,7 @@ def last_lines(path: LoadPath, cache: Path) -> tuple[np.ndarray, np.ndarray | No
     """Natural and deformed centrelines (m, n, S, 2) of a path's last point (None: no result)."""
     study = WeftStudy(parse_problem(path.doc, f"<{path.name}>"))
     x = point_solution(cache.parent, path, len(path.points) - 1)
-    deformed = None if x is None else solution_centrelines(study.nlp, x)
+    deformed = None if x is None else study.nlp.centrelines(x)
     return natural_centrelines(study.problem), deformed, study
 
 
@@ -275,7 +275,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[dict[str, Any]]]:
     show_table(tables)
     if args.animate:
         for name, (lp, _) in built.items():
-            print(f"wrote {animate_path(out / f'{name}.gif', lp, out)}")
+            frames = [(f"{name}: {label}", point_solution(out, lp, k))
+                      for k, label in enumerate(lp.labels)]
+            gif = animate_points(out / f"{name}.gif", parse_problem(lp.doc, f"<{name}>"), frames)
+            print(f"wrote {gif}")
     print(f"wrote {out}/{{{','.join(tables)}}}.csv, {png}, {shapes}, {out / 'summary.json'}")
     return tables
 

@@ -26,7 +26,6 @@ from knit_nlp.weft.inverse.equilibrium import Equilibrium  # noqa: E402
 from knit_nlp.weft.inverse.overlay import Similarity  # noqa: E402
 from knit_nlp.weft.inverse.points import point_function  # noqa: E402
 from knit_nlp.weft.model.problem import load_problem  # noqa: E402
-from knit_nlp.weft.model.centrelines import solution_centrelines  # noqa: E402
 
 TRUTH = {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0}
 NOISE = 0.02
@@ -63,7 +62,7 @@ def observe(folder: Path, rng: np.random.Generator) -> list[str]:
 def photograph(folder: Path) -> list[str]:
     """Render the first case (true material) as a picture; return the exact match lines."""
     eq, x = true_solution(folder / f"{CASES[0]}.toml")
-    lines = PHOTO.to_pixels(solution_centrelines(eq.wnlp, x, 121))
+    lines = PHOTO.to_pixels(eq.wnlp.centrelines(x, 121))
     w, h = PHOTO_SIZE
     fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)
     ax = fig.add_axes((0, 0, 1, 1))

@@ -32,8 +32,9 @@ from knit_nlp.jsonio import write_csv  # noqa: E402
 from knit_nlp.studies import add_executor_arguments, run_with_options  # noqa: E402
 from knit_nlp.weft.model.cases import diagonal_pull  # noqa: E402
 from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
-from knit_nlp.weft.model.centrelines import natural_centrelines, solution_centrelines  # noqa: E402
-from knit_nlp.weft.study import LoadPath, WeftStudy, point_solution, print_table  # noqa: E402
+from knit_nlp.studies import LoadPath, point_solution, print_table  # noqa: E402
+from knit_nlp.weft.model.centrelines import natural_centrelines  # noqa: E402
+from knit_nlp.weft.study import WeftStudy  # noqa: E402
 
 STUDY = "stiffness_sweep"
 FIELDS = ("k_b_over_k_a", "R_f", "energy_total", "energy_spring", "energy_bending",
@@ -78,7 +79,7 @@ def draw_grid(path: Path, paths: list[LoadPath], rows: list[dict[str, Any]], cac
     nr, nc = len(paths), len(paths[0].points)
     fig, axes = plt.subplots(nr, nc, figsize=(3.3 * nc, 3.1 * nr + 0.6), squeeze=False)
     xs = [[point_solution(cache.parent, p, k) for k in range(nc)] for p in paths]
-    lines = [[None if x is None else solution_centrelines(study.nlp, x) for x in r] for r in xs]
+    lines = [[None if x is None else study.nlp.centrelines(x) for x in r] for r in xs]
     every = np.concatenate([nat.reshape(-1, 2)] + [ln.reshape(-1, 2) for r in lines for ln in r
                                                    if ln is not None])
     lo, hi = every.min(axis=0), every.max(axis=0)

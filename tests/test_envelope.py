@@ -26,7 +26,8 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.model.basis import phi
-from knit_nlp.weft.transcription.full import build_nlp
+from knit_nlp.weft.model.parametrisation import Full
+from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.model.problem import load_problem
 from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.output.results import WeftResult
@@ -94,7 +95,7 @@ class Envelope:
     """A problem's NLP, its minimum at the file's parameters, and V at nearby parameters."""
 
     def __init__(self, path) -> None:
-        self.wnlp = build_nlp(load_problem(path))
+        self.wnlp = transcribe(load_problem(path), Full())
         self.solver = WeftSolver(self.wnlp, tol=TOL)
         self.params = WeftParams.of(self.wnlp.problem)
         p = self.params.vector()

@@ -116,7 +116,7 @@ def _doc():
 @pytest.mark.parametrize("damage", ["empty json", "truncated json", "empty npy", "garbage npy",
                                     "json not a result"])
 def test_a_study_resumes_past_a_damaged_cache_entry(tmp_path, capsys, damage):
-    from knit_nlp.weft.study import LoadPath, point_files, run_study
+    from knit_nlp.studies.runner import LoadPath, point_files, run_study
     path = LoadPath("pull", _doc(), [{"displacements": {"2": [d, 0.0]}} for d in (0.5, 1.0, 1.5)])
     whole = run_study("s", [path], tmp_path / "a", workers=1)
     partial = run_study("s", [path], tmp_path / "b", workers=1, limit=2)

@@ -172,9 +172,7 @@ ARGV = structured_argv() | st.lists(TOKENS | ANY_TEXT, max_size=7)
 @given(argv=ARGV)
 def test_cli_arguments_exit_0_or_2_with_one_line(tmp_path, capsys, argv):
     """Solving is stubbed out (returns 0): what is tested is everything before it."""
-    with mock.patch.dict("knit_nlp.cli.MODELS", _STUBS), \
-            mock.patch("knit_nlp.cli._summary", return_value=lambda result, paths: "solved"), \
-            mock.patch("knit_nlp.weft.output.summary.compare_summary", return_value="compared"), \
+    with mock.patch.dict("knit_nlp.api.MODELS", _STUBS), \
             mock.patch("knit_nlp.cli.prepare_out", side_effect=_no_writes(tmp_path)):
         code = main(argv)
     out, err = capsys.readouterr()
@@ -196,7 +194,9 @@ def _stub(model):
     from knit_nlp.api import MODELS
     real = MODELS[model]
     return replace(real, solve=lambda problem, **options: _Solved(),
-                   compare=None if real.compare is None else lambda problem: _Solved())
+                   compare=None if real.compare is None else lambda problem: _Solved(),
+                   summary=lambda result, paths: "solved",
+                   compare_summary=lambda cmp, paths: "compared")
 
 
 _STUBS = {model: _stub(model) for model in ("weft", "jacquard")}

@@ -10,7 +10,7 @@ from knit_nlp.weft.inverse.control import Controller, control
 from knit_nlp.weft.inverse.equilibrium import Equilibrium, Stability
 from knit_nlp.weft.inverse.spec import load_control
 from knit_nlp.weft.model.problem import load_problem
-from knit_nlp.weft.solving.guesses import perturbed_starts
+from knit_nlp.weft.solving.starts import perturbed_starts
 
 FABRIC = """
 [fabric]

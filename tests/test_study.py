@@ -4,7 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from knit_nlp.weft.study import LoadPath, WeftStudy, run_study
+from knit_nlp.studies import LoadPath, run_study
+from knit_nlp.weft.study import WeftStudy
 from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.api import solve as solve_problem
 

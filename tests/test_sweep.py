@@ -11,8 +11,9 @@ import pytest
 import knit_nlp
 from knit_nlp.api import parse_problem
 from knit_nlp.cli import main
-from knit_nlp.studies.points import set_key
-from knit_nlp.studies.sweep import parse_axis, weft_changes
+from knit_nlp.jacquard.study import set_key
+from knit_nlp.studies.sweep import parse_axis
+from knit_nlp.weft.keys import changes
 from knit_nlp.tomlio import load_toml
 
 from conftest import PROBLEMS
@@ -83,12 +84,13 @@ def test_displacement_keys_are_from_the_natural_position():
     pr = knit_nlp.load_problem("wada_fig7")
     c = pr.clamps[1]
     x0, y0 = pr.natural_position(c.loop, c.s)
-    by_d = weft_changes(pr, [(parse_axis("--vary", "clamp[2].displacement.x=1:1:1"), 1.0)])
-    by_p = weft_changes(pr, [(parse_axis("--vary", f"clamp[2].position.x={x0 + 1}:0:1"), x0 + 1)])
+    by_d = changes(pr, [("clamp[2].displacement.x", (1.0,), 1.0)])
+    by_p = changes(pr, [("clamp[2].position.x", (x0 + 1,), x0 + 1)])
     assert by_d == by_p == {"targets": {"2": [x0 + 1, 13.9]}}
     axis = parse_axis("--path", "clamp[2].displacement=0,0:2,1:3")
     assert axis.values == ([0.0, 0.0], [1.0, 0.5], [2.0, 1.0])
-    assert weft_changes(pr, [(axis, axis.values[1])])["targets"]["2"] == [x0 + 1.0, y0 + 0.5]
+    assert changes(pr, [(axis.key, axis.values, axis.values[1])])["targets"]["2"] == [x0 + 1.0,
+                                                                                     y0 + 0.5]
 
 
 @pytest.mark.parametrize("args, where", [

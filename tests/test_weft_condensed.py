@@ -1,5 +1,6 @@
 """The condensed reduced model: its hand-assembled derivatives, and agreement with the lifted
-reduced model and (every loop representative) the full model."""
+reduced model (a reference copy, tests/reference.py) and (every loop representative) the full
+model."""
 import casadi as ca
 import numpy as np
 import pytest
@@ -7,10 +8,12 @@ import pytest
 from knit_nlp.weft.model.cases import diagonal_pull
 from knit_nlp.weft.transcription.condensed.nlp import build_condensed
 from knit_nlp.weft.model.kinematics import LoopIntegrals, loop_displacements
-from knit_nlp.weft.transcription.full import build_nlp
-from knit_nlp.weft.model.parametrisation import Reduced
+from knit_nlp.weft.model.parametrisation import Full, Reduced
+from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.model.problem import load_problem, parse_problem
 from knit_nlp.weft.solving.solve import WeftSolver, solve
+
+from reference import lifted_reduced_solve
 
 # every kind of term: point clamps (one fixing x only), an angle clamp, a rigid clamp, a load
 # with force and moment
@@ -83,7 +86,7 @@ def test_gradient_equals_central_differences(mixed):
     w, lam = _point(c), np.random.default_rng(2).normal(size=c.g.size)
 
     def lagrangian(v):
-        return 0.7 * c._f(v, c.p0) + lam @ c._constraints(v, c.p0)
+        return 0.7 * c.objective(v, c.p0) + lam @ c.constraints(v, c.p0)
 
     g = c.gradient(w, c.p0, 0.7, lam)
     h = 1e-6
@@ -96,7 +99,7 @@ def test_jacobian_and_hessian_equal_central_differences(mixed):
     w, lam = _point(c, 3), np.random.default_rng(4).normal(size=c.g.size)
     h = 1e-6
     E = np.eye(w.size)
-    fd_jac = np.array([(c._constraints(w + h * e, c.p0) - c._constraints(w - h * e, c.p0)) / (2 * h)
+    fd_jac = np.array([(c.constraints(w + h * e, c.p0) - c.constraints(w - h * e, c.p0)) / (2 * h)
                        for e in E]).T
     np.testing.assert_allclose(c.jacobian(w, c.p0), fd_jac, atol=1e-6 * np.abs(fd_jac).max())
     assert not np.any(c.jacobian(w, c.p0)[~c.jac_mask])
@@ -110,24 +113,25 @@ def test_jacobian_and_hessian_equal_central_differences(mixed):
 
 def test_condensed_and_lifted_reduced_models_reach_the_same_minimum(write_problem):
     pr = load_problem(write_problem(MIXED))
-    cond, lifted = build_condensed(pr, pr.reduction), build_nlp(pr, pr.reduction)
+    cond = transcribe(pr, pr.reduction)
     # the same start for both (the condensed default would solve the corner form first)
     rc = solve(cond, WeftSolver(cond), start="natural")
-    rl = solve(lifted, WeftSolver(lifted), start="natural")
+    rl = lifted_reduced_solve(pr, pr.reduction)
     assert rc.success and rl.success
     assert rc.objective == pytest.approx(rl.objective, rel=1e-9)
-    np.testing.assert_allclose(cond.coefficients(rc.x), lifted.coefficients(rl.x), atol=1e-6)
-    np.testing.assert_allclose(cond.starts(rc.x), lifted.starts(rl.x), atol=1e-6)
-    # same multipliers: the clamps' reactions agree
+    np.testing.assert_allclose(cond.coefficients(rc.x), rl.coefficients, atol=1e-6)
+    np.testing.assert_allclose(cond.starts(rc.x), rl.starts, atol=1e-6)
+    # same multipliers: the clamps' reactions agree (the rows share their names and order)
+    assert list(cond.g.blocks) == [k for k in rl.full.g.blocks if k.startswith(("clamp", "rigid"))]
     for name in cond.g.blocks:
-        np.testing.assert_allclose(rc.lam_g[cond.g.slice(name)], rl.lam_g[lifted.g.slice(name)],
+        np.testing.assert_allclose(rc.lam_g[cond.g.slice(name)], rl.lam_g[rl.full.g.slice(name)],
                                    rtol=1e-5, atol=1e-7)
 
 
 def test_every_loop_representative_condensed_equals_the_full_model(write_problem):
     pr = load_problem(write_problem(MIXED))
     every = Reduced(tuple(range(1, 5)), tuple(range(1, 6)))
-    cond, full = build_condensed(pr, every), build_nlp(pr)
+    cond, full = transcribe(pr, every), transcribe(pr, Full())
     rc, rf = solve(cond, WeftSolver(cond)), solve(full, WeftSolver(full))
     assert rc.success and rf.success
     assert rc.objective == pytest.approx(rf.objective, rel=1e-9)

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.model.basis import phi
-from knit_nlp.weft.transcription.full import build_nlp
+from knit_nlp.weft.model.parametrisation import Full
+from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.model.problem import load_problem
 from knit_nlp.weft.api import solve as solve_problem
 from knit_nlp.weft.solving.solve import WeftSolver
@@ -161,7 +162,7 @@ def test_compressed_straight_yarn_buckles_into_the_first_euler_mode(write_proble
 def test_solver_is_reused_across_parameters(write_problem):
     """The same nlpsol object, re-solved with moved targets, matches a fresh build."""
     pr = load_problem(_diagonal(write_problem))
-    w = build_nlp(pr)
+    w = transcribe(pr, Full())
     solver = WeftSolver(w)
     p = w.p0.copy()
     t = w.p.get(p, "targets").copy()
@@ -244,7 +245,7 @@ def test_continuation_starts_from_parameters_that_hold_the_natural_state(write_p
     constraint and is the minimum: IPOPT stays at it with zero energy and zero reactions."""
     from knit_nlp.weft.model.params import WeftParams
     from knit_nlp.weft.output.results import WeftResult
-    w = build_nlp(load_problem(write_problem(NATURAL_PARAMETERS)))
+    w = transcribe(load_problem(write_problem(NATURAL_PARAMETERS)), Full())
     pr, natural = w.problem, WeftParams.natural(w.problem)
     p_nat = natural.vector()
     natural_angles = [float(phi(c.s, pr.L, pr.t)[0] @ pr.natural.coeffs) for c in pr.clamps]

@@ -3,13 +3,14 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from knit_nlp.weft.transcription.derivatives import closed_form_derivatives
-from knit_nlp.weft.transcription.full import build_nlp
-from knit_nlp.weft.model.problem import load_problem, parse_problem
-from knit_nlp.weft.solving import starts as start
+from knit_nlp.weft.model.parametrisation import Full
 from knit_nlp.weft.model.params import WeftParams
+from knit_nlp.weft.model.problem import load_problem, parse_problem
+from knit_nlp.weft.solving import solve as solving, starts as start
 from knit_nlp.weft.solving.solve import WeftSolver, solve
 from knit_nlp.weft.solving.starts import rigid_start
+from knit_nlp.weft.transcription.derivatives import closed_form_derivatives
+from knit_nlp.weft.transcription.factory import transcribe
 
 from knit_nlp.weft.model.cases import course_pull, diagonal_pull
 
@@ -51,7 +52,7 @@ moment = 0.05
 def all_terms(tmp_path_factory):
     path = tmp_path_factory.mktemp("p") / "all.toml"
     path.write_text(ALL_TERMS)
-    return build_nlp(load_problem(path))
+    return transcribe(load_problem(path))
 
 
 def _random_point(wnlp, seed=0):
@@ -63,7 +64,7 @@ def _random_point(wnlp, seed=0):
 
 def test_closed_form_derivatives_equal_casadi_ad(all_terms):
     wnlp = all_terms
-    ad = WeftSolver(wnlp, derivatives="casadi").solver
+    ad = WeftSolver(transcribe(wnlp.problem, Full(), derivatives="casadi")).solver
     ours = closed_form_derivatives(wnlp)
     x, lam = _random_point(wnlp)
     g_ad, J_ad = ad.get_function("nlp_jac_g")(x, wnlp.p0)
@@ -103,9 +104,11 @@ def test_closed_form_derivatives_match_finite_differences(all_terms):
 
 
 def test_closed_form_and_ad_solves_take_the_same_path():
-    wnlp = build_nlp(load_problem(ROOT / "problems" / "diagonal_pull.toml"))
-    a = WeftSolver(wnlp, derivatives="casadi").once(wnlp.p0, wnlp.x0)
-    b = WeftSolver(wnlp, derivatives="closed_form").once(wnlp.p0, wnlp.x0)
+    pr = load_problem(ROOT / "problems" / "diagonal_pull.toml")
+    wnlp = transcribe(pr, Full(), derivatives="casadi")
+    assert "hess_lag" not in wnlp.nlpsol_options          # CasADi's AD, the reference
+    a = WeftSolver(wnlp).once(wnlp.p0, wnlp.x0)
+    b = WeftSolver(transcribe(pr, Full())).once(wnlp.p0, wnlp.x0)
     assert a.success and b.success and a.iterations == b.iterations
     assert abs(a.objective - b.objective) < 1e-10 * a.objective
     assert np.max(np.abs(a.x - b.x)) < 1e-8
@@ -134,7 +137,7 @@ def test_rigid_start_is_consistent_and_exact_for_a_rigid_motion(all_terms):
         assert np.max(np.abs(res[gl.slice(f"clamp{q}_pos")])) < 1e-8
     assert np.max(np.abs(res[gl.slice("rigid0")])) < 1e-8
     # it halves (at least) the clamp violation of the natural start on the diagonal pull
-    diag = build_nlp(parse_problem(diagonal_pull(10), "d"))
+    diag = transcribe(parse_problem(diagonal_pull(10), "d"))
     gd = ca.Function("g", [diag.nlp["x"], diag.nlp["p"]], [diag.nlp["g"]])
     v_nat = np.max(np.abs(np.asarray(gd(diag.x0, diag.p0))))
     v_rig = np.max(np.abs(np.asarray(gd(rigid_start(diag, diag.p0), diag.p0))))
@@ -144,7 +147,7 @@ def test_rigid_start_is_consistent_and_exact_for_a_rigid_motion(all_terms):
 @pytest.mark.parametrize("n", [10, 20])
 @pytest.mark.parametrize("doc", [diagonal_pull, course_pull], ids=["diagonal", "course"])
 def test_rigid_and_natural_starts_reach_the_same_minimum(n, doc):
-    wnlp = build_nlp(parse_problem(doc(n), "p"))
+    wnlp = transcribe(parse_problem(doc(n), "p"))
     solver = WeftSolver(wnlp)
     nat = solve(wnlp, solver, start="natural")
     rig = solve(wnlp, solver, start="rigid")
@@ -160,8 +163,8 @@ def test_multilevel_and_natural_starts_reach_the_same_minimum(n, doc, monkeypatc
     """Two levels at each size (10 -> 5, 20 -> 10 -> 5), prolonged whatever the probe says;
     the start violates the constraints at most a fifth as much as the natural one."""
     monkeypatch.setattr(start, "COARSEST", 5)
-    monkeypatch.setattr(start, "EASY_ITERATIONS", 0)
-    wnlp = build_nlp(parse_problem(doc(n), "p"))
+    monkeypatch.setattr(solving, "EASY_ITERATIONS", 0)
+    wnlp = transcribe(parse_problem(doc(n), "p"))
     solver = WeftSolver(wnlp)
     nat = solve(wnlp, solver, start="natural")
     ml = solve(wnlp, solver, start="multilevel")
@@ -171,7 +174,7 @@ def test_multilevel_and_natural_starts_reach_the_same_minimum(n, doc, monkeypatc
     assert abs(nat.objective - ml.objective) < 1e-9 * nat.objective
     assert np.max(np.abs(wnlp.coefficients(nat.x) - wnlp.coefficients(ml.x))) < 1e-6
     assert np.max(np.abs(wnlp.starts(nat.x) - wnlp.starts(ml.x))) < 1e-6
-    x0 = start.start_point(wnlp, wnlp.p0, "multilevel")
+    x0 = solving.start_point(wnlp, wnlp.p0, "multilevel")
     assert solver.violation(x0, wnlp.p0) < 0.2 * solver.violation(wnlp.x0, wnlp.p0)
 
 
@@ -179,9 +182,9 @@ def test_probe_keeps_the_natural_start_for_the_course_pull_only():
     """20 x 20: the 10 x 10 probe takes 5 iterations on the course pull (natural start kept, no
     more coarse solves) and more than EASY_ITERATIONS on the diagonal pull (prolonged)."""
     for doc, prolonged in ((course_pull, False), (diagonal_pull, True)):
-        wnlp = build_nlp(parse_problem(doc(20), "p"))
+        wnlp = transcribe(parse_problem(doc(20), "p"))
         log = []
-        x0 = start.start_point(wnlp, wnlp.p0, "multilevel", log)
+        x0 = solving.start_point(wnlp, wnlp.p0, "multilevel", log)
         assert len(log) == 1 and log[0].startswith("multilevel 10x10: Solve_Succeeded")
         assert (x0 is not wnlp.x0) == prolonged
 
@@ -189,13 +192,13 @@ def test_probe_keeps_the_natural_start_for_the_course_pull_only():
 def test_prolonged_coarse_natural_state_is_the_fine_natural_state():
     """Unpulled (targets at their natural positions) the coarse problem's solution is the
     natural state, and its prolongation is the fine natural state with every constraint held."""
-    wnlp = build_nlp(parse_problem(diagonal_pull(9), "p"))
+    wnlp = transcribe(parse_problem(diagonal_pull(9), "p"))
     p = WeftParams.natural(wnlp.problem)
     cp = start.coarse_problem(wnlp.problem, p, 5, 5)
     assert [c.loop for c in cp.clamps] == [(1, 1), (1, 5)]
     for c in cp.clamps:            # at their natural positions on the coarse fabric
         assert np.allclose(c.target, cp.natural_position(c.loop, c.s), atol=1e-12)
-    coarse = build_nlp(cp)
+    coarse = transcribe(cp)
     x = start.prolong(coarse, coarse.x0, wnlp)
     assert np.allclose(wnlp.starts(x), wnlp.problem.natural_starts(), atol=1e-8)
     assert WeftSolver(wnlp).violation(x, p.vector()) < 1e-8
@@ -222,8 +225,8 @@ def test_prolonged_rigid_turn_is_the_same_rigid_turn():
         coeffs[..., -1] += phi
         return wnlp.lift(coeffs, pr.natural_starts() @ R.T)
 
-    fine = build_nlp(parse_problem(diagonal_pull(9), "p"))
-    coarse = build_nlp(parse_problem(diagonal_pull(5), "p"))
+    fine = transcribe(parse_problem(diagonal_pull(9), "p"))
+    coarse = transcribe(parse_problem(diagonal_pull(5), "p"))
     x = start.prolong(coarse, turned(coarse, 0.4), fine)
     want = turned(fine, 0.4)
     assert np.max(np.abs(fine.coefficients(x) - fine.coefficients(want))) < 1e-12

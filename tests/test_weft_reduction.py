@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.model.basis import continuity_rows
-from knit_nlp.weft.transcription.full import n_parameters
 from knit_nlp.weft.model.parametrisation import Full, Reduced
 from knit_nlp.weft.model.problem import load_problem
-from knit_nlp.weft.transcription.reduction import reduction_map
+from knit_nlp.weft.transcription.rows import n_parameters
 
 from conftest import PROBLEMS, solve_text
+from reference import dense_reduction_map
 
 PULL = """
 [fabric]
@@ -41,7 +41,7 @@ def test_parameter_counts_as_the_paper_counts():
 
 def test_map_is_linear_exact_and_continuous_by_construction(write_problem):
     pr = load_problem(_pull(write_problem, courses=[1, 3, 4], wales=[1, 2, 5]))
-    T = reduction_map(pr, pr.reduction or Reduced())
+    T = dense_reduction_map(pr, pr.reduction or Reduced())
     assert T.shape == (4 * 5 * 8, 3 * 3 * 6 + 2 * 3)
     rng = np.random.default_rng(3)
     z1, z2 = rng.normal(size=T.shape[1]), rng.normal(size=T.shape[1])
@@ -58,7 +58,7 @@ def test_map_is_linear_exact_and_continuous_by_construction(write_problem):
 def test_corner_form_is_the_papers_bilinear_interpolation(write_problem):
     """Eq. (22): â_ij = (1−λ)(1−μ)â11 + (1−λ)μ â1n + λ(1−μ)âm1 + λμ âmn; eq. (23) for a_i1."""
     pr = load_problem(_pull(write_problem))
-    T = reduction_map(pr, pr.reduction or Reduced())
+    T = dense_reduction_map(pr, pr.reduction or Reduced())
     z = np.random.default_rng(5).normal(size=T.shape[1])
     a = (T @ z).reshape(4, 5, 8)
     h = z[:24].reshape(2, 2, 6)

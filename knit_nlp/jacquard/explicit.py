@@ -10,6 +10,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..outcome import OUT_OF_TIME, out_of_time
 from .problem import JacquardProblem
 from .result import JacquardResult
 from .springs import (Network, build_network, residual_force, spring_energy, spring_forces,
@@ -126,13 +127,13 @@ def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
     if history is not None:
         history.append(spring_energy(x, net.springs))
     t1 = time.perf_counter()
-    converged, steps, move, out_of_time = False, 0, np.inf, False
+    converged, steps, move, timed_out = False, 0, np.inf, False
     deadline = t0 + opts.max_time
     # a diverging run overflows before its positions turn NaN; the status reports it
     with np.errstate(over="ignore", invalid="ignore"):
         for steps in range(1, max_steps + 1):
             if steps % CLOCK_EVERY == 0 and time.perf_counter() > deadline:
-                out_of_time, steps = True, steps - 1
+                timed_out, steps = True, steps - 1
                 break
             x_new, v_new = midpoint_step(x, v, dt, accel)
             enforce_order(x_new, v_new, net, groups, mobile)
@@ -154,11 +155,13 @@ def solve_explicit(problem: JacquardProblem, network: Network | None = None, *,
         enforce_order(x, v, net, groups, mobile, sweeps=100)
         limit_springs(x, v, net, mobile, sweeps=2000)
     t2 = time.perf_counter()
-    status = (f"converged: residual force < {force_tol:.3g}" if converged and force_tol else
-              f"converged: largest move {move:.3g} mm < {tol:.3g} mm" if converged else
-              "diverged (non-finite positions)" if not np.isfinite(move) else
-              f"max_time {opts.max_time:g} s exceeded after {steps} steps" if out_of_time else
-              f"step limit {max_steps} reached; largest move {move:.3g} mm")
-    return JacquardResult(problem, net, "explicit", x, converged, status, steps=steps,
+    status, message = (
+        ("Converged", f"converged: residual force < {force_tol:.3g}") if converged and force_tol
+        else ("Converged", f"converged: largest move {move:.3g} mm < {tol:.3g} mm") if converged
+        else ("Diverged", "diverged (non-finite positions)") if not np.isfinite(move)
+        else (OUT_OF_TIME, out_of_time(opts.max_time)) if timed_out
+        else ("Maximum_Steps_Exceeded",
+              f"step limit {max_steps} reached; largest move {move:.3g} mm"))
+    return JacquardResult(problem, net, "explicit", x, converged, status, message, steps=steps,
                           timings={"build_s": t1 - t0, "solve_s": t2 - t1},
                           energy_history=None if history is None else np.array(history))

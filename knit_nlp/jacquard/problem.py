@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import ProblemError, quoted
 from ..limits import check_memory, jacquard_bytes
+from ..outcome import SolverOptions as BaseSolverOptions
 from ..tomlio import Table, load_toml, read_regular_file
 
 SYMBOLS = {"#": "thick", "+": "thin", ".": "net"}
@@ -47,17 +48,17 @@ class JacquardSystem:
 
 
 @dataclass(frozen=True)
-class SolverOptions:
-    """``[solver]``: which method and its stopping rules."""
+class SolverOptions(BaseSolverOptions):
+    """``[solver]``: the shared ``tol`` (IPOPT), ``max_iter`` (IPOPT iterations) and
+    ``max_time`` (seconds), and which method with its own stopping rules."""
 
+    tol: float = 1e-10
+    max_iter: int = 500
     method: str = "static"
-    tol: float = 1e-10              # IPOPT tol
-    max_iter: int = 500             # IPOPT iterations
     hessian: str = "exact"          # IPOPT hessian_approximation: exact | limited-memory
     move_tol: float = 1e-10         # explicit: stop when max move in a step < move_tol * w
     max_steps: int = 200_000        # explicit step limit
     regularization: float = 1e-8    # static: eps * max(k) * 1/2 |x - x_natural|^2 (0 = off)
-    max_time: float = 3600.0        # wall-clock budget of the solve, seconds
 
 
 @dataclass(frozen=True)

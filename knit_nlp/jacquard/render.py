@@ -18,7 +18,7 @@ from __future__ import annotations
 import io
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import matplotlib
 import numpy as np
@@ -28,13 +28,20 @@ from matplotlib.path import Path as MplPath
 from ..atomic import write_text
 from ..figures import new_figure, save_figure
 from .problem import JacquardProblem, JacquardSystem
-from .springs import zigzag_direction
+from .springs import Network, zigzag_direction
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from .result import JacquardResult
+
+class Solved(Protocol):
+    """What the picture reads of a solution (``JacquardResult`` has it)."""
+
+    problem: JacquardProblem
+    network: Network
+    positions: np.ndarray
+    solver: str
 
 # Local stitch points (u in units of w to the right, v in units of the loop's height).
 PILLAR = np.array([[0.06, 0.0], [-0.22, 0.30], [-0.20, 0.95], [0.20, 0.95], [0.22, 0.30],
@@ -213,7 +220,7 @@ def draw_design(ax: "Axes", sys: JacquardSystem, title: str) -> None:
         spine.set_color("#777777")
 
 
-def figure(result: "JacquardResult") -> tuple["Figure", dict[str, "Axes"]]:
+def figure(result: Solved) -> tuple["Figure", dict[str, "Axes"]]:
     """The picture: design grids | natural fabric | simulated fabric (axes by those names)."""
     p = result.problem
     t = _Tiling(p, result.network.natural)
@@ -251,7 +258,7 @@ def compact_svg(text: str) -> str:
     return re.sub(r' d="([^"]*)"', shorten, text)
 
 
-def render(result: "JacquardResult", path: Path, svg: bool = False) -> list[Path]:
+def render(result: Solved, path: Path, svg: bool = False) -> list[Path]:
     """Write the picture to ``path`` (PNG) and, if asked, the SVG beside it."""
     fig, _ = figure(result)
     written = [save_figure(fig, path)]

@@ -1,5 +1,6 @@
-"""What a jacquard solve returns, the derived quantities, and the result JSON and files
-(``to_json`` is the JSON's only producer; ``save`` writes what ``knit-nlp solve`` writes)."""
+"""What a jacquard solve returns (the results contract of :mod:`knit_nlp.outcome`), the derived
+quantities, and the result JSON and files (``to_json`` is the JSON's only producer; ``save``
+writes what ``knit-nlp solve`` writes, drawn by ``render``)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -9,9 +10,10 @@ from typing import Any
 import numpy as np
 
 from ..jsonio import write_json
+from ..outcome import Energy, Outcome, describe
 from ..provenance import source_record
-from ..outcome import Energy, Outcome
 from .problem import JacquardProblem
+from .render import render
 from .springs import (Network, edge_particles, edge_reaction, residual_force, spring_energy,
                       spring_geometry)
 
@@ -21,20 +23,29 @@ ZERO_MODE_TREATMENT = ("each floating component of the spring graph has its cent
 
 @dataclass(repr=False)
 class JacquardResult(Outcome):
-    """Final particle positions and how they were obtained (SciPy-like: ``success``,
-    ``status``/``message``, ``nit``, ``x`` the positions (M*N, 2), row j*M + i)."""
+    """Final particle positions and how they were obtained: the contract (``success``,
+    ``status``: IPOPT's return status or the explicit solver's code, ``message``, ``nit``,
+    ``energy``, ``to_json``, ``save``) and SciPy's ``x``, the positions (M*N, 2), row j*M + i.
+    ``model`` is ``"jacquard"``, as in the JSON and the file names."""
 
     problem: JacquardProblem
     network: Network
     solver: str                      # "static" or "explicit"
     positions: np.ndarray            # (M*N, 2), row j*M + i
     success: bool
-    status: str                      # IPOPT's status text, or the explicit stopping reason
+    status: str                      # IPOPT's status, or Converged | Diverged | ... (explicit)
+    message: str = ""                # one sentence (default: the status described)
     steps: int | None = None         # explicit: steps taken
     iterations: int | None = None    # static: IPOPT iterations
     timings: dict[str, float] = field(default_factory=dict)
     energy_history: np.ndarray | None = None   # explicit, if recorded: kinetic + spring energy
     constraints: dict[str, int] | None = None  # static: generation rounds, limits/orders in NLP
+
+    model = "jacquard"
+
+    def __post_init__(self) -> None:
+        if not self.message:
+            self.message = describe(self.status, self.problem.solver.max_time)
 
     @property
     def residual_force(self) -> float:
@@ -105,15 +116,17 @@ class JacquardResult(Outcome):
                 "max_abs_angle_deg": np.abs(angle).max(axis=0)}
 
     def to_json(self) -> dict[str, Any]:
-        """The result JSON (docs/jacquard.md, "Result JSON")."""
+        """The result JSON (docs/jacquard.md, "Result JSON"); ``energy`` is the Energy object
+        (a plain number before the results contract was shared: readers take both,
+        ``Energy.from_json``)."""
         p, net = self.problem, self.network
         return {
             "problem": p.name, "model": "jacquard", "solver": self.solver,
-            "success": self.success, "status": self.status,
+            "success": self.success, "status": self.status, "message": self.message,
             "residual_force": self.residual_force,
             "steps": self.steps, "iterations": self.iterations, "constraints": self.constraints,
             "timings": self.timings,
-            "energy": self.energy.total,
+            "energy": self.energy.to_json(),
             "max_stretch": self.max_stretch(), "lambda_max": p.lambda_max,
             "min_order_gap": self.min_order_gap(),
             "zero_modes": {"count": net.zero_modes, "floating_components": len(net.floating),
@@ -129,7 +142,6 @@ class JacquardResult(Outcome):
 
     def save(self, out_dir: Path | str, svg: bool = False) -> list[Path]:
         """``DIR/<problem>.jacquard.json`` and ``.png`` (and ``.svg`` on request)."""
-        from .render import render
         out = Path(out_dir)
         js = write_json(out / f"{self.problem.name}.jacquard.json", self.to_json())
         pictures = render(self, out / f"{self.problem.name}.jacquard.png", svg=svg)

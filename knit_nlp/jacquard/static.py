@@ -42,6 +42,7 @@ import casadi as ca
 import numpy as np
 
 from ..ipopt import ipopt_options, succeeded
+from ..outcome import OUT_OF_TIME, describe
 from .problem import JacquardProblem
 from .result import JacquardResult
 from .springs import Network, SpringSet, build_network, spring_geometry
@@ -277,7 +278,7 @@ def solve_static(problem: JacquardProblem, network: Network | None = None, *,
     for rounds in range(1, MAX_ROUNDS + 1):
         tb = time.perf_counter()
         if tb >= deadline:
-            status, success = f"max_time {problem.solver.max_time:g} s exceeded", False
+            status, success = OUT_OF_TIME, False
             break
         ipopt["ipopt"]["max_wall_time"] = min(ipopt["ipopt"]["max_wall_time"], deadline - tb)
         nlp, custom, bounds = build_nlp(problem, net, s, inc, work)
@@ -297,8 +298,11 @@ def solve_static(problem: JacquardProblem, network: Network | None = None, *,
         work = WorkingSet(np.union1d(work.limits, new.limits),
                           np.union1d(work.orders, new.orders))
     else:
-        status, success = f"constraints still violated after {MAX_ROUNDS} rounds", False
-    return JacquardResult(problem, net, "static", x.reshape(-1, 2), success, status,
+        status, success = "Constraints_Still_Violated", False
+    message = (f"constraints still violated after {MAX_ROUNDS} rounds"
+               if status == "Constraints_Still_Violated"
+               else describe(status, problem.solver.max_time))
+    return JacquardResult(problem, net, "static", x.reshape(-1, 2), success, status, message,
                           iterations=iterations, timings=timings,
                           constraints={"rounds": rounds, "length_limits": int(work.limits.size),
                                        "order": int(work.orders.size)})

@@ -13,7 +13,7 @@ def solve_summary(r: JacquardResult, paths: list[Path]) -> str:
     count = f"{r.steps} steps" if r.solver == "explicit" else f"{r.iterations} IPOPT iterations"
     return "\n".join([
         f"{p.name}: jacquard {p.wales} x {p.courses}, {r.network.springs.n} springs, "
-        f"solver {r.solver}: {'converged' if r.success else 'NOT converged'} ({r.status})",
+        f"solver {r.solver}: {'converged' if r.success else 'NOT converged'} ({r.message})",
         f"  {count}, {sum(r.timings.values()):.3g} s; residual force {r.residual_force:.3g}; "
         f"zero-energy modes {r.network.zero_modes}",
         f"  max |dx| {abs(r.displacement()[:, 0]).max() / p.w:.4g} w; wale skew "

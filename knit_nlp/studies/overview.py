@@ -1,5 +1,6 @@
 """What ``knit-nlp sweep`` writes besides ``summary.json``: one CSV row per point and one
-overview picture (energy, and for weft the largest clamp force, against the first key)."""
+overview picture (energy, and where the rows carry it the largest clamp force, against the
+first key)."""
 from __future__ import annotations
 
 import itertools
@@ -50,10 +51,9 @@ def write_table(path: Path, rows: list[dict[str, Any]]) -> Path:
 
 
 def largest_force(row: dict[str, Any]) -> float:
-    """The largest clamp reaction or rigid-clamp force magnitude of a weft row (NaN: none)."""
-    forces = [c["reaction"] for c in row.get("clamps", [])] + \
-             [r["force"] for r in row.get("rigid_clamps", [])]
-    return float(max(np.linalg.norm(f) for f in forces)) if forces else np.nan
+    """The largest clamp reaction or rigid-clamp force magnitude of a row (NaN: none)."""
+    value = row.get("largest_force")
+    return np.nan if value is None else float(value)
 
 
 def _abscissa(values: list[Any]) -> np.ndarray:
@@ -63,12 +63,12 @@ def _abscissa(values: list[Any]) -> np.ndarray:
 
 
 def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], title: str) -> Path:
-    """Energy (and, for weft, the largest clamp force) against the first key, one line per
-    combination of the other keys; failed points as crosses on the axis."""
+    """Energy (and, where the rows carry it, the largest clamp force) against the first key,
+    one line per combination of the other keys; failed points as crosses on the axis."""
     rows = summary["points"]
-    weft = any("clamps" in r for r in rows)
-    fig = new_figure(figsize=(11 if weft else 6, 4.3))
-    axes = fig.subplots(1, 2 if weft else 1, squeeze=False)
+    forces = any(r.get("largest_force") is not None for r in rows)
+    fig = new_figure(figsize=(11 if forces else 6, 4.3))
+    axes = fig.subplots(1, 2 if forces else 1, squeeze=False)
     x_key, others = keys[0], keys[1:]
     group = lambda r: tuple(str(r["label"][k]) for k in others)  # noqa: E731
     for name, members in itertools.groupby(sorted(rows, key=group), key=group):
@@ -77,8 +77,8 @@ def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], titl
         ok = np.array([bool(r["success"]) for r in members])
         label = ", ".join(f"{k} = {v}" for k, v in zip(others, name)) or None
         ys = [[r["energy"]["total"] if "energy" in r else np.nan for r in members]]
-        if weft:
-            ys.append([largest_force(r) if "clamps" in r else np.nan for r in members])
+        if forces:
+            ys.append([largest_force(r) for r in members])
         for ax, y in zip(axes[0], ys):
             order = np.argsort(x, kind="stable")
             y = np.array(y, dtype=float)
@@ -87,7 +87,7 @@ def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], titl
     is_pair = isinstance(rows[0]["label"][x_key], list)
     xlabel = f"{x_key} (distance from the first value)" if is_pair else x_key
     axes[0, 0].set(xlabel=xlabel, ylabel="stored energy", title="energy")
-    if weft:
+    if forces:
         axes[0, 1].set(xlabel=xlabel, ylabel="|force|", title="largest clamp force on the fabric")
     for ax in axes[0]:
         ax.grid(alpha=0.3)

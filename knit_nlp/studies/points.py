@@ -1,11 +1,13 @@
 """What a worker runs: one point of a study, rebuilt from plain data (worker side).
 
 A task is a :class:`PointTask`: the problem as its TOML document (a dict; jacquard designs
-inlined), the weft parametrisation, the point's changes, the warm start (the previous point's
-solution vector, or None) and the per-point timeout. Nothing else is shipped: no CasADi
-object, no file name a worker would have to read. The worker parses the document, builds the
-NLP (memoised per process, so a worker that solves several points of one path builds once) and
-returns a :class:`PointOutcome`: the result JSON and the solution vector, or a reason.
+inlined), the point's changes, the warm start (the previous point's solution vector, or None)
+and the per-point timeout. Nothing else is shipped: no CasADi object, no file name a worker
+would have to read. The worker asks the document's model (``knit_nlp.api.MODELS``, its
+``study`` entry) to prepare the document (memoised per process, so a worker that solves several
+points of one path builds once: for weft, the transcription the document's own
+``[reduction]`` names) and to solve the point, and returns a :class:`PointOutcome`: the result
+JSON and the solution vector, or a reason.
 
 A watchdog thread ends the worker *process* (``os._exit``) when a point outlives its timeout:
 CasADi releases the GIL while IPOPT runs, so the thread fires even inside a solve, and ending
@@ -27,10 +29,10 @@ from typing import Any
 
 import numpy as np
 
-from ..weft.model.parametrisation import Full, Parametrisation
+from ..api import model_of
 
 TIMEOUT_EXIT = 86          # the watchdog's exit code (seen in Dask's worker logs)
-_STUDIES: "OrderedDict[str, Any]" = OrderedDict()   # per-process memo of built weft NLPs
+_PREPARED: "OrderedDict[str, Any]" = OrderedDict()   # per-process memo of prepared documents
 _MEMO_SIZE = 4
 
 
@@ -41,13 +43,13 @@ def this_process() -> tuple[str, int]:
 
 @dataclass(frozen=True)
 class PointTask:
-    """One point to solve. ``changes``: weft, keyword arguments of ``WeftParams.with_``
-    (JSON-able, numbered from 1); jacquard, dotted document keys -> values."""
+    """One point to solve. ``changes``: what the model's ``study.solve`` takes (weft, keyword
+    arguments of ``WeftParams.with_``, JSON-able, numbered from 1; jacquard, dotted document
+    keys -> values)."""
 
     doc: dict[str, Any]
     changes: dict[str, Any]
     x0: np.ndarray | None = None
-    parametrisation: Parametrisation = Full()
     timeout: float | None = None
     submitter: tuple[str, int] = ("", 0)
     attempt: int = 0          # differs on a rerun: Dask keys tasks by their arguments and would
@@ -64,54 +66,15 @@ class PointOutcome:
     reason: str = ""
 
 
-def _doc_key(doc: dict[str, Any], parametrisation: Parametrisation) -> str:
-    blob = json.dumps([doc, repr(parametrisation)], sort_keys=True, default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()
-
-
-def weft_study(doc: dict[str, Any], parametrisation: Parametrisation):
-    """The process's built :class:`~knit_nlp.weft.study.WeftStudy` of ``doc`` (memoised)."""
-    from ..weft.model.problem import parse_problem
-    from ..weft.study import WeftStudy
-
-    key = _doc_key(doc, parametrisation)
-    if key not in _STUDIES:
-        _STUDIES[key] = WeftStudy(parse_problem(doc, f"<study {doc.get('name', '')}>"),
-                                  parametrisation)
-        while len(_STUDIES) > _MEMO_SIZE:
-            _STUDIES.popitem(last=False)
-    _STUDIES.move_to_end(key)
-    return _STUDIES[key]
-
-
-def set_key(doc: dict[str, Any], key: str, value: Any) -> dict[str, Any]:
-    """A copy of ``doc`` with the dotted table key ``key`` (e.g. ``fall_plate.stiffness.thick``)
-    set to ``value``; missing tables are created."""
-    out = json.loads(json.dumps(doc))
-    *tables, last = key.split(".")
-    node = out
-    for name in tables:
-        node = node.setdefault(name, {})
-    node[last] = value
-    return out
-
-
-def _solve_weft(task: PointTask) -> PointOutcome:
-    study = weft_study(task.doc, task.parametrisation)
-    params = study.params.with_(**task.changes)
-    rep = study.solve(params, x0=task.x0)
-    return PointOutcome(study.result(rep, params).to_json(), rep.x)
-
-
-def _solve_jacquard(task: PointTask) -> PointOutcome:
-    from ..jacquard.api import solve
-    from ..jacquard.problem import parse_problem
-
-    doc = task.doc
-    for key, value in task.changes.items():
-        doc = set_key(doc, key, value)
-    result = solve(parse_problem(doc, f"<study {doc.get('name', '')}>"))
-    return PointOutcome(result.to_json(), np.asarray(result.positions).ravel())
+def _prepared(doc: dict[str, Any]) -> Any:
+    """The process's prepared document (the model's ``study.prepare``, memoised)."""
+    key = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
+    if key not in _PREPARED:
+        _PREPARED[key] = model_of(doc).study.prepare(doc)
+        while len(_PREPARED) > _MEMO_SIZE:
+            _PREPARED.popitem(last=False)
+    _PREPARED.move_to_end(key)
+    return _PREPARED[key]
 
 
 def solve_point(task: PointTask) -> PointOutcome:
@@ -123,9 +86,8 @@ def solve_point(task: PointTask) -> PointOutcome:
         watchdog.daemon = True
         watchdog.start()
     try:
-        if task.doc.get("model", "weft") == "jacquard":
-            return _solve_jacquard(task)
-        return _solve_weft(task)
+        result, x = model_of(task.doc).study.solve(_prepared(task.doc), task.changes, task.x0)
+        return PointOutcome(result, x)
     except Exception as err:  # noqa: BLE001 - any solver error is this point's failure
         last = traceback.format_exception_only(type(err), err)[-1].strip()
         return PointOutcome(None, None, " ".join(last.split()))

@@ -29,10 +29,10 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from ..api import model_of
 from ..atomic import atomic_file
-from ..jsonio import write_json
-from ..weft.model.parametrisation import Full, Parametrisation
 from ..errors import ArgumentError
+from ..jsonio import write_json
 from .executors import capacity, local_pool, open_executor
 from .points import PointOutcome, PointTask, solve_point, this_process
 
@@ -43,25 +43,26 @@ SOLO_BACKOFF_S = 1.0       # wait before the k-th solo attempt: k times this (wo
 
 @dataclass
 class LoadPath:
-    """Points solved in order, each warm-started from the last, on one problem.
+    """Points solved in order on one problem, each warm-started from the last where the model
+    warm-starts (its ``study.warm``; jacquard points are independent solves).
 
-    ``doc`` is the problem as a TOML-like dict (plain data, shipped to workers); each point is a
-    dict of :meth:`WeftParams.with_` keyword arguments (JSON-able; clamps, loads and rigid clamps
-    numbered from 1), or for a jacquard document, dotted document keys -> values (independent
-    solves: no warm start).
+    ``doc`` is the problem as a TOML-like dict (plain data, shipped to workers; it says how the
+    problem is solved, e.g. a weft ``[reduction]``); each point is what the model's
+    ``study.solve`` takes: for weft a dict of :meth:`WeftParams.with_` keyword arguments
+    (JSON-able; clamps, loads and rigid clamps numbered from 1), for jacquard dotted document
+    keys -> values.
     """
 
     name: str
     doc: dict[str, Any]
     points: list[dict[str, Any]]
-    parametrisation: Parametrisation = Full()
     labels: list[Any] = field(default_factory=list)
 
 
 def _key(path: LoadPath, index: int) -> str:
-    """A hash of everything that determines a point: problem, model and the path up to it."""
-    blob = json.dumps([path.doc, repr(path.parametrisation), path.points[:index + 1]],
-                      sort_keys=True, default=str)
+    """A hash of everything that determines a point: the problem (its model and
+    parametrisation included) and the path up to it."""
+    blob = json.dumps([path.doc, path.points[:index + 1]], sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -102,17 +103,7 @@ def _row(path: LoadPath, index: int, result: dict[str, Any] | None,
     if result is None:
         return {**row, "success": False, "status": status, "reason": reason}
     row.update(success=result["success"], status=result["status"])
-    if "clamps" in result:                                  # weft
-        row["energy"] = result["energy"]
-        row.update(iterations=result["iterations"],
-                   clamps=[{"loop": c["loop"], "point": c["point"], "position": c["position"],
-                            "reaction": c["reaction"]} for c in result["clamps"]],
-                   rigid_clamps=[{"force": r["force"], "moment": r["moment"]}
-                                 for r in result["rigid_clamps"]])
-    else:                                                   # jacquard: all spring energy
-        row.update(energy={"total": result["energy"], "spring": result["energy"]},
-                   iterations=result.get("iterations") or result.get("steps"),
-                   residual_force=result["residual_force"])
+    row.update(model_of(path.doc).study.row(result))
     return row
 
 
@@ -162,7 +153,7 @@ class _PathState:
 
     @property
     def warm(self) -> bool:
-        return self.path.doc.get("model", "weft") != "jacquard"
+        return model_of(self.path.doc).study.warm
 
 
 def _worker_lost(err: BaseException) -> bool:
@@ -227,8 +218,8 @@ class _Run:
 
     def _submit(self, st: _PathState, alone: bool) -> None:
         self.submitted += 1
-        task = PointTask(st.path.doc, st.path.points[st.next], st.x, st.path.parametrisation,
-                         self.timeout, this_process(), self.submitted)
+        task = PointTask(st.path.doc, st.path.points[st.next], st.x, self.timeout,
+                         this_process(), self.submitted)
         try:
             fut = self.executor.submit(solve_point, task)
         except BrokenExecutor:          # a local pool that lost a process: replace it

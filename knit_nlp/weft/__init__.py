@@ -1,24 +1,30 @@
-"""The weft-knit loop model of Wada et al. (docs/weft_model.md).
+"""The weft-knit loop model of Wada et al. (docs/weft_model.md), as a pipeline of subpackages:
 
-Reading order follows the model: ``basis`` and ``quadrature`` (eqs. 1, 14-16) -> ``natural``
-(the unloaded loop) -> ``crossings`` (eqs. 2-5) -> ``problem`` (a checked problem description)
--> ``energy`` and ``kinematics`` (eqs. 6-12) -> ``params`` (what a solve may change) and
-``parametrisation`` (``Full`` / ``Reduced`` / ``Adaptive``, the map of eqs. 22-27 in
-``reduction``) -> ``nlp`` (eq. 13 with continuity 18-19 and clamps) and ``condensed`` (the
-reduced model as solved) -> ``guesses``, ``solve`` (IPOPT) and ``adaptive`` -> ``results``
-(typed, and the result JSON) -> ``sampling``, ``plot`` -> ``api`` (the Python entry points),
-``study`` (many solves of one build) and ``summary`` (what the CLI prints).
+- ``model``: the basis and quadrature (eqs. 1, 14-16), the natural loop, crossings (eqs. 2-5),
+  energies (eqs. 6-12), a checked problem, its parameters and parametrisations;
+- ``transcription``: the NLP of eq. 13, full or condensed reduced (eqs. 22-27), through one
+  factory (``transcribe``) and one written protocol (``WeftNLP``);
+- ``solving``: IPOPT, continuation, starts and the adaptive strategy;
+- ``output``: the typed result, its JSON, pictures, loading paths, exports, summaries;
+- ``api`` and ``study``: solving and comparing from Python, many solves of one build;
+  ``inverse``: control, identification and overlays through the equilibrium.
 """
 from __future__ import annotations
 
-from .api import Comparison, compare, solve
-from .transcription.full import WeftNLP, build_nlp
-from .model.params import WeftParams
+from .api import compare, solve
 from .model.parametrisation import Adaptive, Full, Parametrisation, Reduced
-from .model.problem import Clamp, Load, RigidClamp, SolverOptions, WeftProblem, load_problem, parse_problem
-from .output.results import ClampReaction, LoadResult, RigidClampReaction, WeftResult
+from .model.params import WeftParams
+from .model.problem import (Clamp, Load, RigidClamp, SolverOptions, WeftProblem, load_problem,
+                            parse_problem)
+from .output.comparison import Comparison
+from .output.reactions import ClampReaction, LoadResult, RigidClampReaction
+from .output.results import WeftResult
+from .study import WeftStudy
+from .transcription.factory import transcribe
+from .transcription.full import build_nlp
+from .transcription.protocol import WeftNLP
 
 __all__ = ["WeftProblem", "Clamp", "Load", "RigidClamp", "SolverOptions", "WeftParams", "Full",
            "Reduced", "Adaptive", "Parametrisation", "WeftNLP", "WeftResult", "ClampReaction",
-           "RigidClampReaction", "LoadResult", "Comparison", "load_problem", "parse_problem",
-           "build_nlp", "solve", "compare"]
+           "RigidClampReaction", "LoadResult", "Comparison", "WeftStudy", "load_problem",
+           "parse_problem", "transcribe", "build_nlp", "solve", "compare"]

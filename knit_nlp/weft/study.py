@@ -1,35 +1,44 @@
-"""Studies: one NLP built once and re-solved for many clamp targets or material values.
+"""Many solves of one weft problem, and what a study worker runs for one weft point.
 
-- :class:`WeftStudy` builds a weft problem's NLP once; ``study.params`` is the problem's
-  :class:`~knit_nlp.weft.params.WeftParams`, whose ``with_`` names changes (clamp targets or
-  displacements, rigid-clamp motions, material values, loads; numbered from 1);
-  :meth:`WeftStudy.solve` re-solves, warm-started from a given point.
-- :func:`~knit_nlp.studies.runner.run_study` (re-exported here) runs named loading paths on a
-  local process pool or a Dask cluster: see :mod:`knit_nlp.studies`.
+- :class:`WeftStudy`: a transcription (``transcribe``) and its IPOPT instance built once;
+  ``study.params`` is the problem's :class:`~knit_nlp.weft.model.params.WeftParams`, whose
+  ``with_`` names changes (clamp targets or displacements, rigid-clamp motions, material values,
+  loads; numbered from 1); :meth:`WeftStudy.solve` re-solves, warm-started from a given point.
+- :class:`AdaptiveStudy`: the adaptive-representatives strategy (``solving.adaptive``), which
+  refines its grid afresh at every point (a grid fitted to one load is not another's).
+- :func:`study` picks one for a parametrisation: the one place ``Adaptive`` is told apart.
+- :func:`prepare_point`, :func:`solve_point` and :func:`study_row`: a study point from plain
+  data (a problem document, parameter changes, a warm start) and its summary row, for
+  ``knit_nlp.studies``; :func:`animate_points`: a GIF of a study's solved points.
 """
 from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any, Sequence
 
 import numpy as np
 
-from .transcription.full import build_nlp
+from .model.centrelines import natural_centrelines
+from .model.parametrisation import Adaptive, Parametrisation
 from .model.params import WeftParams
-from .model.parametrisation import Full, Parametrisation
 from .model.problem import WeftProblem, parse_problem
+from .output.plot import animate
 from .output.results import WeftResult
-from .solving.solve import SolveReport, WeftSolver, solve
+from .solving.adaptive import solve_adaptive
+from .solving.solve import DEFAULT_START, SolveReport, WeftSolver, solve
+from .transcription.factory import transcribe
 
 
 class WeftStudy:
     """A weft problem's NLP, built once and re-solved for many parameter values."""
 
-    def __init__(self, problem: WeftProblem, parametrisation: Parametrisation = Full()) -> None:
+    def __init__(self, problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
+                 verbose: bool = False) -> None:
         t0 = time.perf_counter()
         self.problem = problem
-        self.nlp = build_nlp(problem, parametrisation)
-        self.solver = WeftSolver(self.nlp)
+        self.nlp = transcribe(problem, parametrisation)
+        self.solver = WeftSolver(self.nlp, verbose=verbose)
         self.build_s = time.perf_counter() - t0
         self.builds = 1
 
@@ -38,37 +47,104 @@ class WeftStudy:
         """The problem's own parameter values; change them with ``with_(...)``."""
         return self.nlp.params
 
-    def solve(self, params: WeftParams, x0: np.ndarray | None = None) -> SolveReport:
-        """Solve at ``params`` from ``x0`` (the natural state if None); falls back to
-        continuation from the natural parameters when the direct solve fails."""
-        return solve(self.nlp, self.solver, params=params, x0=x0)
+    def solve(self, params: WeftParams, x0: np.ndarray | None = None,
+              continuation: int | None = None, start: str = DEFAULT_START) -> SolveReport:
+        """Solve at ``params`` from ``x0`` (else from ``start``); falls back to continuation
+        from the natural parameters when the direct solve fails."""
+        return solve(self.nlp, self.solver, params=params, x0=x0, continuation=continuation,
+                     start=start)
 
     def result(self, rep: SolveReport, params: WeftParams) -> WeftResult:
         """The typed result of a solution at ``params``."""
         return WeftResult(self.nlp, rep, params, self.build_s,
                           self.solver.violation(rep.x, params.vector()))
 
+    def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
+            continuation: int | None = None, start_from: WeftResult | None = None) -> WeftResult:
+        """Solve at ``params`` (default: the problem's own) from ``x0``, or from another solved
+        model's loops lifted into this one (``start_from``), and return the typed result."""
+        params = params or self.params
+        if start_from is not None:
+            x0 = self.nlp.lift(start_from.coefficients, start_from.starts)
+        rep = self.solve(params, x0, continuation)
+        if self.solver.progress is not None:
+            self.solver.progress.done()
+        return self.result(rep, params)
 
-# the study runner is shared by both models; its names stay importable from here
-from ..studies.runner import (LoadPath, Progress, point_files, point_solution,  # noqa: E402
-                              print_table, run_study)
 
-__all__ = ["WeftStudy", "LoadPath", "Progress", "animate_path", "point_files", "point_solution",
-           "print_table", "run_study"]
+class AdaptiveStudy:
+    """Adaptive representatives (``solving.adaptive``) at any parameters; the result carries
+    every step's grid under ``adaptive``."""
+
+    def __init__(self, problem: WeftProblem, config: Adaptive) -> None:
+        self.problem, self.config = problem, config
+
+    @property
+    def params(self) -> WeftParams:
+        return WeftParams.of(self.problem)
+
+    def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
+            continuation: int | None = None, start_from: WeftResult | None = None) -> WeftResult:
+        """Refine from the corners at ``params``; ``x0`` (a vector of another grid) is not
+        used, and a ``start_from`` is refused: the refinement starts from the corner form."""
+        if start_from is not None:
+            raise ValueError("start does not apply to adaptive representatives: they start "
+                             "from the corner form")
+        run = solve_adaptive(self.problem, self.config, continuation=continuation,
+                             params=params)
+        p = params or run.cnlp.params
+        return WeftResult(run.cnlp, run.report, p, run.build_s,
+                          run.solver.violation(run.report.x, p.vector()),
+                          {"adaptive": {"steps": [st.as_dict() for st in run.steps],
+                                        "estimate": run.steps[-1].estimate}})
 
 
-def animate_path(gif: Path, path: LoadPath, study_dir: Path, fps: int = 4) -> Path:
-    """A GIF of a solved load path of a study written under ``study_dir``: the natural loops,
-    then every point's deformed loops in order (labels in the frame titles; a point without a
-    solution, its worker lost, is left out)."""
-    from .output.plot import animate
-    from .model.centrelines import natural_centrelines, solution_centrelines
-    wnlp = build_nlp(parse_problem(path.doc, f"<{path.name}>"), path.parametrisation)
-    natural = natural_centrelines(wnlp.problem)
-    frames = [(f"{path.name}: natural", natural)]
-    for k in range(len(path.points)):
-        label = path.labels[k] if k < len(path.labels) else k
-        x = point_solution(study_dir, path, k)
-        if x is not None:
-            frames.append((f"{path.name}: {label}", solution_centrelines(wnlp, x)))
-    return animate(gif, natural, frames, wnlp.problem.units, fps)
+def study(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
+          verbose: bool = False) -> WeftStudy | AdaptiveStudy:
+    """How ``problem`` is solved in ``parametrisation`` (None: the file's own): a fixed
+    transcription built once, or the adaptive strategy."""
+    param = problem.parametrisation if parametrisation is None else parametrisation
+    if isinstance(param, Adaptive):
+        return AdaptiveStudy(problem, param)
+    return WeftStudy(problem, param, verbose=verbose)
+
+
+def prepare_point(doc: dict[str, Any]) -> WeftStudy | AdaptiveStudy:
+    """What a study worker builds once per document: the document's problem in its own
+    parametrisation (``knit_nlp.studies`` keeps it for the points that follow)."""
+    return study(parse_problem(doc, f"<study {doc.get('name', '')}>"))
+
+
+def solve_point(built: WeftStudy | AdaptiveStudy, changes: dict[str, Any],
+                x0: np.ndarray | None) -> tuple[dict[str, Any], np.ndarray]:
+    """One study point: the built problem at the parameters ``changes`` names
+    (``WeftParams.with_`` keyword arguments), warm-started from ``x0``; the result JSON and
+    the solution vector."""
+    result = built.run(built.params.with_(**changes), x0=x0)
+    return result.to_json(), result.x
+
+
+def study_row(result: dict[str, Any]) -> dict[str, Any]:
+    """The values a study summary keeps of a weft result JSON: energy, iterations, each
+    clamp's and rigid clamp's force, the largest of them."""
+    forces = [c["reaction"] for c in result["clamps"]] + [r["force"] for r in
+                                                          result["rigid_clamps"]]
+    return {"energy": result["energy"], "iterations": result["iterations"],
+            "clamps": [{"loop": c["loop"], "point": c["point"], "position": c["position"],
+                        "reaction": c["reaction"]} for c in result["clamps"]],
+            "rigid_clamps": [{"force": r["force"], "moment": r["moment"]}
+                             for r in result["rigid_clamps"]],
+            "largest_force": float(max(np.linalg.norm(f) for f in forces)) if forces else None}
+
+
+def animate_points(gif: Path, problem: WeftProblem,
+                   frames: Sequence[tuple[str, np.ndarray | None]], fps: int = 4) -> Path:
+    """A GIF of solution vectors of ``problem`` (a study's points, e.g. a loading path through
+    ``knit_nlp.studies.point_solution``): the natural loops, then each point's deformed loops
+    in order, titled by their labels (a point without a solution, its worker lost, is left
+    out). The vectors are those of the problem's own transcription, as study workers solve."""
+    nlp = transcribe(problem)
+    natural = natural_centrelines(problem)
+    shown = [(f"{problem.name}: natural", natural)] + [(label, nlp.centrelines(x))
+                                                       for label, x in frames if x is not None]
+    return animate(gif, natural, shown, problem.units, fps)

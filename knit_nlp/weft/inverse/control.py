@@ -1,7 +1,7 @@
 """Deformation control (spec/inverse_problems.md, section 1): move the actuated clamps so that
 material points reach goals and openings stay open, with the fabric in stable equilibrium.
 
-Formulation (chosen by measurement, see the README): an outer trust-region Gauss–Newton (SQP)
+Formulation (chosen by measurement, docs/inverse.md): an outer trust-region Gauss–Newton (SQP)
 iteration over the few actuated unknowns u. At each outer step the equilibrium x(u) is the
 forward NLP's solution (the same built IPOPT instance, warm-started from the implicit-function
 prediction x + (dx/du)·d), and dx/du comes from one factorization of the forward KKT matrix
@@ -16,15 +16,21 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
+from ...jsonio import write_json
+from ...outcome import Energy, Outcome
+from ..model.centrelines import natural_centrelines
 from ..model.params import WeftParams
+from ..model.problem import WeftProblem
 from ..output.results import WeftResult
-from ..model.centrelines import solution_centrelines
 from ..solving.solve import SolveReport
 from .equilibrium import Equilibrium, Stability
+from .plot import plot_control
 from .points import point_function, point_jacobian
 from .spec import ControlProblem
 
@@ -59,9 +65,12 @@ class State:
         return float(self.r @ self.r + rho * np.sum(np.maximum(0.0, -self.gap)))
 
 
-@dataclass
-class ControlAnswer:
-    """What the control command found, with everything needed for the JSON and the picture."""
+@dataclass(repr=False)
+class ControlResult(Outcome):
+    """What the control command found, as a result (the contract of :mod:`knit_nlp.outcome`:
+    ``status`` is the optimiser's status or the reason it failed, ``nit`` its outer
+    iterations, ``energy`` the equilibrium's at the answer) with everything its JSON
+    (``to_json``, the contract's ``<problem>.control.json``) and picture (``save``) need."""
 
     ctl: "Controller"
     success: bool
@@ -75,6 +84,51 @@ class ControlAnswer:
     forward_distance: float
     forward_x: np.ndarray
     timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def problem(self) -> WeftProblem:
+        return self.ctl.cp.problem
+
+    @property
+    def equilibrium(self) -> WeftResult:
+        """The forward model's result at the answer (its clamps, loops, energy)."""
+        eq, rep = self.ctl.eq, self.state.report
+        return WeftResult(eq.wnlp, rep, WeftParams.from_vector(self.problem, self.p), eq.build_s,
+                          eq.solver.violation(rep.x, self.p))
+
+    @property
+    def energy(self) -> Energy:
+        return self.equilibrium.energy
+
+    def to_json(self) -> dict[str, Any]:
+        """The contract's ``<problem>.control.json`` (plus ``message`` and ``energy``)."""
+        return control_json(self)
+
+    def save(self, out_dir: Path | str) -> list[Path]:
+        """``DIR/<problem>.control.json`` and the picture ``.control.png`` (start and achieved
+        loops, goals, the actuated clamps' travel)."""
+        out, name, result = Path(out_dir), self.problem.name, self.to_json()
+        js = write_json(out / f"{name}.control.json", result)
+        wnlp = self.ctl.eq.wnlp
+        goals = np.array([g["goal"] for g in result["goals"]]).reshape(-1, 2)
+        reached = np.array([g["achieved"] for g in result["goals"]]).reshape(-1, 2)
+        travel = [(self.start.u[k:k + 2], self.state.u[k:k + 2]) for k in _clamp_offsets(self.ctl.cp)]
+        png = plot_control(out / f"{name}.control.png", natural_centrelines(self.problem),
+                           wnlp.centrelines(self.start.x), wnlp.centrelines(self.state.x),
+                           goals, reached, travel,
+                           f"{name}: {result['status']}, objective {result['objective']:.3g}, "
+                           f"{'stable' if result['stable'] else 'NOT STABLE'}")
+        return [js, png]
+
+
+def _clamp_offsets(cp: ControlProblem) -> list[int]:
+    """Offsets in u of each actuated point clamp's target (rigid clamps are not drawn)."""
+    out, k = [], 0
+    for a in cp.actuated:
+        if a.kind == "clamp":
+            out.append(k)
+        k += a.size
+    return out
 
 
 class Controller:
@@ -171,7 +225,7 @@ class Controller:
         """The forward solve at unknowns u (the built IPOPT instance; warm start x0)."""
         return self.eq.solve(self.params(u), x0=x0)
 
-    def run(self, u_start: np.ndarray | None = None) -> ControlAnswer:
+    def run(self, u_start: np.ndarray | None = None) -> ControlResult:
         t0 = time.perf_counter()
         u = self.u0.copy() if u_start is None else np.asarray(u_start, dtype=float)
         rep = self.equilibrium(u)
@@ -210,13 +264,13 @@ class Controller:
             status = "Converged_Opening_Infeasible"
         return self._finish(start, s, ok, status, it, t0)
 
-    def _finish(self, start: State, s: State, ok: bool, status: str, it: int, t0: float) -> ControlAnswer:
+    def _finish(self, start: State, s: State, ok: bool, status: str, it: int, t0: float) -> ControlResult:
         t1 = time.perf_counter()
         p = self.params(s.u)
         stab = self.eq.stability(s.x, s.lam, p)
         t2 = time.perf_counter()
         fwd = self.eq.solve(p)
-        lines = [solution_centrelines(self.eq.wnlp, v, 21) for v in (s.x, fwd.x)]
+        lines = [self.eq.wnlp.centrelines(v, 21) for v in (s.x, fwd.x)]
         dist = float(np.linalg.norm(lines[0] - lines[1], axis=-1).max())
         fwd_ok = bool(fwd.success and dist <= self.opts.forward_tol)
         t3 = time.perf_counter()
@@ -227,18 +281,18 @@ class Controller:
         success = ok and stab.stable and fwd_ok
         timings = {"build_s": self.eq.build_s, "optimise_s": t1 - t0, "stability_s": t2 - t1,
                    "forward_check_s": t3 - t2, "total_s": self.eq.build_s + t3 - t0}
-        return ControlAnswer(self, success, status, s, start, p, it, stab, fwd_ok,
+        return ControlResult(self, success, status, s, start, p, it, stab, fwd_ok,
                              dist, fwd.x, timings)
 
 
 def control(cp: ControlProblem, u_start: np.ndarray | None = None,
-            options: ControlOptions | None = None) -> ControlAnswer:
+            options: ControlOptions | None = None) -> ControlResult:
     """Solve a control problem (Python API behind ``knit-nlp control``)."""
     return Controller(cp, options).run(u_start)
 
 
-def answer_dict(ans: ControlAnswer) -> dict:
-    """The contract's ``<problem>.control.json``."""
+def control_json(ans: ControlResult) -> dict[str, Any]:
+    """The contract's ``<problem>.control.json`` (plus ``message`` and ``energy``)."""
     ctl = ans.ctl
     cp, ctl_u, eq = ctl.cp, ans.state.u, ctl.eq
     actuated, k = [], 0
@@ -257,8 +311,9 @@ def answer_dict(ans: ControlAnswer) -> dict:
     openings = [{"points": [{"loop": list(lp), "point": lab} for lp, lab, _ in o.points],
                  "at_least": o.at_least, "achieved": o.at_least + float(gp)}
                 for o, gp in zip(cp.openings, ans.state.gap)]
-    r, rep = ans.state.r, ans.state.report
+    r, equilibrium = ans.state.r, ans.equilibrium
     return {"problem": cp.problem.name, "success": ans.success, "status": ans.status,
+            "message": ans.message, "energy": equilibrium.energy.to_json(),
             "objective": float(r @ r), "iterations": ans.iterations, "timings": ans.timings,
             "forward_solves": eq.forward_solves,
             "actuated": actuated, "goals": goals, "openings": openings,
@@ -267,5 +322,4 @@ def answer_dict(ans: ControlAnswer) -> dict:
             "stability_method": ans.stability.method,
             "forward_check": {"success": ans.forward_success, "max_distance": ans.forward_distance},
             "travel_weight": cp.travel_weight,
-            "equilibrium": WeftResult(eq.wnlp, rep, WeftParams.from_vector(cp.problem, ans.p), eq.build_s,
-                                      eq.solver.violation(rep.x, ans.p)).to_json()}
+            "equilibrium": equilibrium.to_json()}

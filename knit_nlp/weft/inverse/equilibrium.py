@@ -27,10 +27,12 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ..transcription.full import WeftNLP, build_nlp
 from ..model.problem import WeftProblem
 from ..model.params import WeftParams
+from ..model.parametrisation import Full
 from ..solving.solve import SolveReport, WeftSolver, solve
+from ..transcription.factory import transcribe
+from ..transcription.full import FullNLP
 
 try:    # with the module, not inside the first stability check: a one-time 0.15-0.5 s import,
     import scipy.sparse.linalg  # noqa: F401  (Python's, not a solve's cost; measured)
@@ -61,7 +63,7 @@ class Equilibrium:
     def __init__(self, problem: WeftProblem) -> None:
         t0 = time.perf_counter()
         self.problem = problem
-        self.wnlp: WeftNLP = build_nlp(problem)
+        self.wnlp: FullNLP = transcribe(problem, Full())
         self.solver = WeftSolver(self.wnlp)
         nlp = self.wnlp.nlp
         x, p, g = nlp["x"], nlp["p"], nlp["g"]

@@ -16,17 +16,21 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Sequence
+from pathlib import Path
+from typing import Any, Sequence
 
 import casadi as ca
 import numpy as np
 
+from ...jsonio import write_json
+from ...outcome import Energy, Outcome
+from ..model.params import MATERIAL
 from ..model.problem import WeftProblem
 from .equilibrium import Equilibrium
 from .observations import Observation
+from .plot import plot_fit
 from .points import point_function, point_jacobian
 
-MATERIAL = ("k_a", "k_b", "R_f")
 CONVERGED = "Converged"
 
 
@@ -48,8 +52,13 @@ class _Case:
     lam: np.ndarray | None = None
 
 
-@dataclass
-class FitAnswer:
+@dataclass(repr=False)
+class FitResult(Outcome):
+    """The fitted material values as a result (the contract of :mod:`knit_nlp.outcome`:
+    ``nit`` the Levenberg–Marquardt iterations, ``energy`` the load cases' stored energies
+    summed at the fitted values), its JSON (``to_json``, the contract's ``fit.json`` plus
+    ``warnings``) and files (``save``: ``fit.json``, ``fit.png``)."""
+
     success: bool
     status: str
     iterations: int
@@ -63,6 +72,25 @@ class FitAnswer:
     solutions: dict[str, np.ndarray]   # per case, the decision vector
     cases: list[_Case] = field(repr=False, default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+    energy: Energy = Energy(float("nan"), float("nan"))
+    files: dict[str, str] = field(default_factory=dict)   # case -> its problem file (JSON)
+
+    def _name(self) -> str:
+        return "fit"
+
+    def to_json(self) -> dict[str, Any]:
+        return fit_json(self)
+
+    def save(self, out_dir: Path | str) -> list[Path]:
+        """``DIR/fit.json`` and ``DIR/fit.png`` (per case: fitted loops, observed and fitted
+        points)."""
+        out, result = Path(out_dir), self.to_json()
+        js = write_json(out / "fit.json", result)
+        panels = [(c.name, c.eq.wnlp.centrelines(c.x), c.observed, self.fitted[c.name])
+                  for c in self.cases if c.x is not None]
+        title = (f"fit: {result['status']}, rms residual {result['rms_residual']:.3g}"
+                 if result["rms_residual"] is not None else "fit")
+        return [js, plot_fit(out / "fit.png", panels, title)]
 
 
 class Fitter:
@@ -122,7 +150,7 @@ class Fitter:
             rows.append(JP)                                          # = (P, 2) row-major ravel
         return np.vstack(rows), dxs
 
-    def run(self) -> FitAnswer:
+    def run(self) -> FitResult:
         t0 = time.perf_counter()
         v = self.initial.copy()
         if not self.solve_cases(v):
@@ -152,13 +180,21 @@ class Fitter:
                 break
         return self._answer(status == CONVERGED, status, it, v, t0)
 
-    def _answer(self, ok: bool, status: str, it: int, v: np.ndarray, t0: float) -> FitAnswer:
+    def _answer(self, ok: bool, status: str, it: int, v: np.ndarray, t0: float) -> FitResult:
         std, warnings = self._std_errors(v) if ok else ([None] * len(v), [])
         fitted = {c.name: self.positions(c) for c in self.cases if c.x is not None}
-        return FitAnswer(ok, status, it, self.names, v, self.initial, std, warnings,
+        return FitResult(ok, status, it, self.names, v, self.initial, std, warnings,
                          {c.name: fitted[c.name] - c.observed for c in self.cases if c.name in fitted},
                          fitted, {c.name: c.x for c in self.cases}, self.cases,
-                         {"total_s": time.perf_counter() - t0 + sum(c.eq.build_s for c in self.cases)})
+                         {"total_s": time.perf_counter() - t0 + sum(c.eq.build_s for c in self.cases)},
+                         self._energy(v))
+
+    def _energy(self, v: np.ndarray) -> Energy:
+        """The cases' stored energies summed at values v (NaN where a case has no solution)."""
+        terms = np.array([c.eq.wnlp.energy(c.x, self._params(c, v)) if c.x is not None
+                          else (np.nan,) * 3 for c in self.cases]).sum(axis=0)
+        spring, bending, work = (float(t) for t in terms)
+        return Energy(spring + bending, spring, bending, work)
 
     def _std_errors(self, v: np.ndarray) -> tuple[list[float | None], list[str]]:
         """σ²(JᵀJ)⁻¹ over the determined values; the others None, with a warning each."""
@@ -190,20 +226,23 @@ class Fitter:
 
 
 def fit(problems: Sequence[WeftProblem], observations: Sequence[Observation],
-        params: Sequence[str] = MATERIAL, options: FitOptions | None = None) -> FitAnswer:
+        params: Sequence[str] = MATERIAL, options: FitOptions | None = None) -> FitResult:
     """Fit material values (Python API behind ``knit-nlp fit``)."""
     return Fitter(problems, observations, params, options).run()
 
 
-def answer_dict(ans: FitAnswer) -> dict:
-    """The contract's ``fit.json`` (plus ``warnings``)."""
+def fit_json(ans: FitResult) -> dict[str, Any]:
+    """The contract's ``fit.json`` (plus ``message``, ``energy``, ``warnings`` and, when known,
+    ``cases_files``)."""
     res = {k: np.linalg.norm(r, axis=1) for k, r in ans.residuals.items()}
     allres = np.concatenate(list(res.values())) if res else np.zeros(0)
-    return {"success": ans.success, "status": ans.status, "iterations": ans.iterations,
+    return {"success": ans.success, "status": ans.status, "message": ans.message,
+            "energy": ans.energy.to_json(), "iterations": ans.iterations,
             "n_observations": int(allres.size),
             "parameters": {n: {"value": float(v), "std_error": s, "initial": float(i)}
                            for n, v, s, i in zip(ans.names, ans.values, ans.std_errors, ans.initial)},
             "rms_residual": float(np.sqrt(np.mean(allres ** 2))) if allres.size else None,
             "cases": [{"case": k, "rms_residual": float(np.sqrt(np.mean(d ** 2))),
                        "max_residual": float(d.max())} for k, d in res.items()],
-            "warnings": ans.warnings, "timings": ans.timings}
+            "warnings": ans.warnings, "timings": ans.timings,
+            **({"cases_files": ans.files} if ans.files else {})}

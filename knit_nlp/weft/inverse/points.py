@@ -13,13 +13,12 @@ import numpy as np
 
 from ..model.basis import n_coeffs
 from ..model.kinematics import loop_displacements
-from ..transcription.full import WeftNLP
+from ..transcription.full import FullNLP
 
 
-def point_function(wnlp: WeftNLP, points: Sequence[tuple[tuple[int, int], float]]) -> ca.Function:
-    """Function x -> positions (2 × P) of material points ((course, wale), s), full model."""
-    if wnlp.coeff_map is not None:
-        raise ValueError("inverse problems use the full model")
+def point_function(wnlp: FullNLP, points: Sequence[tuple[tuple[int, int], float]]) -> ca.Function:
+    """Function x -> positions (2 × P) of material points ((course, wale), s) of the full
+    model (the inverse problems' forward model)."""
     pr = wnlp.problem
     x = ca.MX.sym("x", wnlp.n_variables)
     A = ca.reshape(x[wnlp.x.slice("coeffs")], n_coeffs(pr.t), pr.n_loops)

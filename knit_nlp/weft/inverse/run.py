@@ -5,42 +5,32 @@ import io
 from pathlib import Path
 from typing import Any
 
+import matplotlib.image as mpimg
 import numpy as np
 
-from ...jsonio import write_json
-from ..model.centrelines import natural_centrelines, solution_centrelines
 from ...errors import ProblemError
+from ...jsonio import write_json
+from ...problems import resolve
 from ...tomlio import load_toml, read_regular_file
+from ..model.params import MATERIAL
 from ..model.problem import parse_problem
-from .control import answer_dict, control
-from .fit import MATERIAL, fit
-from .fit import answer_dict as fit_dict
+from .control import control
+from .fit import fit
 from .observations import load_observations
 from .overlay import load_result, overlay, parse_match, point_reader
-from .plot import plot_control, plot_fit, plot_on_image
+from .plot import plot_on_image
 from .spec import parse_control, strip_control_keys
 
+MAX_IMAGE_BYTES = 64 * 2 ** 20     # a photograph for overlay (docs/limits.md)
 
-MAX_IMAGE_BYTES = 64 * 2 ** 20     # a photograph for overlay (README, "Limits and hardening")
 
 def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
     """``knit-nlp control``: write ``<problem>.control.json`` and ``.png``; exit 0 only for a
     converged, stable, forward-checked answer."""
-    cp = parse_control(path, doc)
-    ans = control(cp)
-    result = answer_dict(ans)
-    name = cp.problem.name
-    js = write_json(out / f"{name}.control.json", result)
-    wnlp = ans.ctl.eq.wnlp
-    goals = np.array([g["goal"] for g in result["goals"]]).reshape(-1, 2)
-    reached = np.array([g["achieved"] for g in result["goals"]]).reshape(-1, 2)
-    travel = [(ans.start.u[k:k + 2], ans.state.u[k:k + 2]) for k in _clamp_offsets(cp)]
-    png = plot_control(out / f"{name}.control.png", natural_centrelines(cp.problem),
-                       solution_centrelines(wnlp, ans.start.x), solution_centrelines(wnlp, ans.state.x),
-                       goals, reached, travel,
-                       f"{name}: {result['status']}, objective {result['objective']:.3g}, "
-                       f"{'stable' if result['stable'] else 'NOT STABLE'}")
-    print(f"{name}: {result['status']} in {result['iterations']} outer iterations, "
+    ans = control(parse_control(path, doc))
+    js, png = ans.save(out)
+    result = ans.to_json()
+    print(f"{ans.problem.name}: {result['status']} in {result['iterations']} outer iterations, "
           f"{result['forward_solves']} forward solves, {result['timings']['total_s']:.2f} s")
     for a in result["actuated"]:
         print(f"  actuated {a}")
@@ -53,17 +43,7 @@ def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
           f"{result['min_reduced_hessian_eigenvalue']:.3g}); forward check: "
           f"{result['forward_check']['success']} (max distance {result['forward_check']['max_distance']:.2e})")
     print(f"  wrote {js}, {png}")
-    return 0 if result["success"] else 1
-
-
-def _clamp_offsets(cp) -> list[int]:
-    """Offsets in u of each actuated point clamp's target (rigid clamps are not drawn)."""
-    out, k = [], 0
-    for a in cp.actuated:
-        if a.kind == "clamp":
-            out.append(k)
-        k += a.size
-    return out
+    return 0 if ans.success else 1
 
 
 def fit_files(paths: list[Path], observations: Path, params: list[str], out: Path) -> int:
@@ -81,13 +61,9 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     if missing:
         raise ProblemError(observations, "", "case", f"no observations of case {missing[0]!r}")
     ans = fit(list(problems.values()), obs, params)
-    result = fit_dict(ans)
-    result["cases_files"] = {name: str(path) for name, path in zip(problems, paths)}
-    js = write_json(out / "fit.json", result)
-    panels = [(c.name, solution_centrelines(c.eq.wnlp, c.x), c.observed, ans.fitted[c.name])
-              for c in ans.cases if c.x is not None]
-    png = plot_fit(out / "fit.png", panels, f"fit: {result['status']}, rms residual "
-                   f"{result['rms_residual']:.3g}" if result["rms_residual"] is not None else "fit")
+    ans.files = {name: str(path) for name, path in zip(problems, paths)}
+    js, png = ans.save(out)
+    result = ans.to_json()
     print(f"fit: {result['status']} in {result['iterations']} iterations, "
           f"{result['n_observations']} observed points, rms residual {result['rms_residual']:.4g}")
     for name, v in result["parameters"].items():
@@ -96,13 +72,12 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     for w in result["warnings"]:
         print(f"  warning: {w}")
     print(f"  wrote {js}, {png}")
-    return 0 if result["success"] else 1
+    return 0 if ans.success else 1
 
 
 def overlay_file(result_path: Path, image: Path, matches: list[str], observations: Path | None,
                  problem: Path | None, out: Path) -> int:
     """``knit-nlp overlay``: write ``<result stem>.overlay.png`` (and ``.overlay.json``)."""
-    import matplotlib.image as mpimg
 
     shape = load_result(result_path)
     problem = problem or _problem_of(shape.result, result_path)
@@ -139,7 +114,6 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
 def _problem_of(result: dict, result_path: Path) -> Path:
     """The problem file a result came from, to resolve point labels: its recorded ``source``,
     else a file named after the problem beside the result or among the named problems."""
-    from ...problems import resolve
     name = str(result.get("problem", ""))
     source = result.get("source")
     recorded = Path(source["file"]) if isinstance(source, dict) and isinstance(source.get("file"), str) else None

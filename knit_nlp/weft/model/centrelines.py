@@ -4,7 +4,6 @@ from __future__ import annotations
 import numpy as np
 
 from .basis import n_coeffs
-from ..transcription.full import WeftNLP
 from .problem import WeftProblem
 from .quadrature import positions
 
@@ -24,9 +23,3 @@ def natural_centrelines(pr: WeftProblem, samples: int = SAMPLES) -> np.ndarray:
     """Sampled centrelines (m, n, samples, 2) of the natural configuration."""
     coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, n_coeffs(pr.t)))
     return centrelines(coeffs, pr.natural_starts(), pr.L, pr.t, samples)[0]
-
-
-def solution_centrelines(nlp: WeftNLP, x: np.ndarray, samples: int = SAMPLES) -> np.ndarray:
-    """Sampled centrelines (m, n, samples, 2) of a solution vector of an NLP."""
-    pr = nlp.problem
-    return centrelines(nlp.coefficients(x), nlp.starts(x), pr.L, pr.t, samples)[0]

@@ -1,9 +1,10 @@
 """How the loops' coefficients are parametrised: every loop free (:class:`Full`), or
 interpolated from representative loops (:class:`Reduced`, eqs. 22-27; the map is in
-``reduction``).
+``transcription.reduction``).
 
-Both are plain values: ``build_nlp(problem, Reduced((1, 5, 10), (1, 10)))``. :class:`Adaptive`
-chooses the representatives itself (``adaptive.solve_adaptive``).
+Both are plain values: ``transcribe(problem, Reduced((1, 5, 10), (1, 10)))``. :class:`Adaptive`
+is a solve strategy that chooses the representatives itself (``solving.adaptive``); it never
+reaches the transcription factory.
 """
 from __future__ import annotations
 
@@ -50,17 +51,13 @@ class Reduced:
 
 @dataclass(frozen=True)
 class Adaptive:
-    """Representatives chosen by refinement from the corners (``adaptive``, README "Full versus
-    reduced"): refine until the estimated RMS centreline error is at most ``tolerance``
-    (length units; None: 0.1·L) or the next grid would exceed ``max_parameters`` (None: 30 %
-    of the full model's count)."""
+    """Representatives chosen by refinement from the corners (``solving.adaptive``): refine
+    until the estimated RMS centreline error is at most ``tolerance`` (length units; None:
+    0.1·L) or the next grid would exceed ``max_parameters`` (None: 30 % of the full model's
+    count)."""
 
     tolerance: float | None = None
     max_parameters: int | None = None
-    name = "reduced"
-
-    def resolve(self, courses: int, wales: int) -> "Adaptive":
-        return self
 
 
 Parametrisation = Union[Full, Reduced, Adaptive]

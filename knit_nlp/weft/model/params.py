@@ -10,7 +10,7 @@ Clamps, loads and rigid clamps are numbered from 1, as in problem files and resu
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -18,14 +18,12 @@ from ...errors import shown
 from ...layout import Layout
 from ...tomlio import MAX_MAGNITUDE
 from .basis import phi
-
-if TYPE_CHECKING:
-    from .problem import WeftProblem
+from .problem import WeftProblem
 
 MATERIAL = ("k_a", "k_b", "R_f")
 
 
-def param_layout(pr: "WeftProblem") -> Layout:
+def param_layout(pr: WeftProblem) -> Layout:
     """Blocks of the NLP's parameter vector: targets (2 × clamps), angles (one per clamp that
     holds an angle), k_a, k_b, R_f, forces (2 × loads), moments, rigid (tx, ty, φ per rigid clamp)."""
     pl = Layout()
@@ -71,7 +69,7 @@ class WeftParams:
     (rigid clamps, 3) translation x, y and rotation.
     """
 
-    problem: "WeftProblem" = field(repr=False, compare=False)
+    problem: WeftProblem = field(repr=False, compare=False)
     targets: np.ndarray
     angles: np.ndarray
     k_a: float
@@ -82,7 +80,7 @@ class WeftParams:
     rigid: np.ndarray
 
     @classmethod
-    def of(cls, pr: "WeftProblem") -> "WeftParams":
+    def of(cls, pr: WeftProblem) -> "WeftParams":
         """The problem file's own values."""
         return cls(pr, np.array([c.target for c in pr.clamps]).reshape(-1, 2),
                    np.array([np.nan if c.angle is None else c.angle for c in pr.clamps]),
@@ -92,7 +90,7 @@ class WeftParams:
                    np.array([[*r.translation, r.rotation] for r in pr.rigid_clamps]).reshape(-1, 3))
 
     @classmethod
-    def natural(cls, pr: "WeftProblem") -> "WeftParams":
+    def natural(cls, pr: WeftProblem) -> "WeftParams":
         """Values that leave the natural configuration in equilibrium: targets at the natural
         positions, held angles at the natural angles, no loads, rigid clamps unmoved; the
         stiffnesses are the problem's."""
@@ -164,7 +162,7 @@ class WeftParams:
         return p
 
     @classmethod
-    def from_vector(cls, pr: "WeftProblem", p: np.ndarray) -> "WeftParams":
+    def from_vector(cls, pr: WeftProblem, p: np.ndarray) -> "WeftParams":
         """The typed form of an NLP parameter vector."""
         pl = param_layout(pr)
         angles = np.full(len(pr.clamps), np.nan)

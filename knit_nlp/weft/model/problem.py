@@ -15,6 +15,7 @@ import numpy as np
 from ...errors import ProblemError, quoted
 from ...limits import check_memory, weft_bytes
 from ...tomlio import Table, finite_number, load_toml
+from ...outcome import SolverOptions as BaseSolverOptions
 from ...units import Units, read_units
 from .basis import n_coeffs
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
@@ -82,14 +83,12 @@ class Load:
 
 
 @dataclass(frozen=True)
-class SolverOptions:
-    """IPOPT tolerance and iteration limit; continuation steps (None: only when needed);
-    ``max_time``: wall-clock budget in seconds of one solve (all its IPOPT calls together)."""
+class SolverOptions(BaseSolverOptions):
+    """``[solver]``: the shared ``tol``, ``max_iter`` (IPOPT) and ``max_time`` (wall-clock budget
+    in seconds of one solve, all its IPOPT calls together), and ``continuation``: steps to the
+    targets (None: only when the direct solve fails)."""
 
-    tol: float = 1e-8
-    max_iter: int = 3000
     continuation: int | None = None
-    max_time: float = 3600.0
 
 
 @dataclass(frozen=True)
@@ -464,4 +463,4 @@ def _read_solver(tab: Table) -> SolverOptions:
     steps = tab.integer("continuation", d.continuation, minimum=1, maximum=MAX_CONTINUATION)
     max_time = tab.number("max_time", d.max_time, positive=True)
     tab.finish()
-    return SolverOptions(tol, max_iter, steps, max_time)
+    return SolverOptions(tol=tol, max_iter=max_iter, max_time=max_time, continuation=steps)

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .basis import phi
+
 
 @dataclass(frozen=True)
 class PanelRule:
@@ -71,7 +73,6 @@ def positions(coeffs: np.ndarray, s: np.ndarray | list[float], L: float, t: int,
     ``coeffs`` is one loop (2t+2,) or many (N, 2t+2); the result is (len(s), 2) or (N, len(s), 2).
     A numpy reference with fine panels, used for natural geometry, sampling and checks.
     """
-    from .basis import phi
 
     s = np.atleast_1d(np.asarray(s, dtype=float))
     many = np.ndim(coeffs) == 2

@@ -8,18 +8,20 @@ from __future__ import annotations
 
 from collections import defaultdict
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from ...jsonio import write_csv
-from .results import WeftResult
+from ..model.problem import WeftProblem
+from .plot import plot_force_displacement
+from .reactions import SolvedFabric
 
 FIELDS = ("step", "load_factor", "grip", "points", "displacement_x", "displacement_y",
           "force_x", "force_y", "distance", "force_along_pull", "energy_total")
 
 
-def _grips(r: WeftResult) -> dict[str, tuple[int, np.ndarray, np.ndarray]]:
+def _grips(r: SolvedFabric) -> dict[str, tuple[int, np.ndarray, np.ndarray]]:
     """grip name -> (points, displacement, force on the fabric) at one result."""
     members: dict[str, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
     for c in r.clamps:
@@ -32,11 +34,10 @@ def _grips(r: WeftResult) -> dict[str, tuple[int, np.ndarray, np.ndarray]]:
     return out
 
 
-def path_rows(result: WeftResult) -> list[dict[str, Any]]:
-    """One row per grip per step (step 0: the natural state); ``distance`` and
-    ``force_along_pull`` are along the grip's final displacement (blank for a grip that holds
-    still)."""
-    steps = result.loading_path()
+def path_rows(steps: Sequence[tuple[float, SolvedFabric]]) -> list[dict[str, Any]]:
+    """One row per grip per step of a loading path ((load factor, solution) per step; step 0,
+    the natural state, is added); ``distance`` and ``force_along_pull`` are along the grip's
+    final displacement (blank for a grip that holds still)."""
     if not steps:
         return []
     final = _grips(steps[-1][1])
@@ -60,14 +61,14 @@ def _row(step: int, tau: float, name: str, k: int, moved: np.ndarray, force: np.
             "energy_total": energy}
 
 
-def write_path(stem: Path, result: WeftResult) -> list[Path]:
-    """``<stem>.path.csv`` and its force-displacement picture ``<stem>.path.png``; nothing after
-    a direct solve."""
-    rows = path_rows(result)
+def write_path(stem: Path, problem: WeftProblem,
+               steps: Sequence[tuple[float, SolvedFabric]]) -> list[Path]:
+    """``<stem>.path.csv`` and its force-displacement picture ``<stem>.path.png``; nothing for
+    an empty path (a direct solve)."""
+    rows = path_rows(steps)
     if not rows:
         return []
     csv = write_csv(stem.with_name(stem.name + ".path.csv"), rows, FIELDS)
-    from .plot import plot_force_displacement
     png = plot_force_displacement(stem.with_name(stem.name + ".path.png"), rows,
-                                  result.problem.units, result.problem.name)
+                                  problem.units, problem.name)
     return [csv, png]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from matplotlib.animation import PillowWriter
@@ -19,9 +19,7 @@ from matplotlib.figure import Figure
 from ...atomic import temporary_path
 from ...figures import new_figure, save_figure
 from ...units import Units
-
-if TYPE_CHECKING:
-    from .results import WeftResult
+from .reactions import SolvedFabric
 
 DPI = 110
 COLOURINGS = ("course", "displacement")
@@ -54,7 +52,7 @@ def round_reference(value: float) -> float:
     return float(min((1, 2, 5, 10), key=lambda d: abs(d * 10 ** exp - value)) * 10 ** exp)
 
 
-def _arrows(result: "WeftResult") -> list[tuple[np.ndarray, np.ndarray, str]]:
+def _arrows(result: SolvedFabric) -> list[tuple[np.ndarray, np.ndarray, str]]:
     """(point, force, kind) of every reaction and load, before the negligible ones are dropped."""
     out = [(c.position, c.reaction, "reaction") for c in result.clamps]
     out += [(p, f, "reaction") for rc in result.rigid_clamps
@@ -63,7 +61,7 @@ def _arrows(result: "WeftResult") -> list[tuple[np.ndarray, np.ndarray, str]]:
     return out
 
 
-def drawn_arrows(result: "WeftResult") -> list[tuple[np.ndarray, np.ndarray, str]]:
+def drawn_arrows(result: SolvedFabric) -> list[tuple[np.ndarray, np.ndarray, str]]:
     """The arrows a picture draws: those above max(NEGLIGIBLE × largest, the solver's tol)."""
     arrows = _arrows(result)
     if not arrows:
@@ -73,7 +71,7 @@ def drawn_arrows(result: "WeftResult") -> list[tuple[np.ndarray, np.ndarray, str
     return [a for a in arrows if np.hypot(*a[1]) > floor]
 
 
-def _grip_bars(result: "WeftResult") -> tuple[list[np.ndarray], np.ndarray]:
+def _grip_bars(result: SolvedFabric) -> tuple[list[np.ndarray], np.ndarray]:
     """Bars (polylines through the held points) of shorthand clamp groups and rigid clamps, and
     the positions of the remaining single point clamps."""
     groups: dict[str, list[np.ndarray]] = defaultdict(list)
@@ -84,7 +82,7 @@ def _grip_bars(result: "WeftResult") -> tuple[list[np.ndarray], np.ndarray]:
     return bars, np.array(singles).reshape(-1, 2)
 
 
-def solution_figure(result: "WeftResult", natural: np.ndarray, deformed: np.ndarray,
+def solution_figure(result: SolvedFabric, natural: np.ndarray, deformed: np.ndarray,
                     colour: str = "course") -> tuple[Figure, Axes]:
     """The solution picture (not saved): natural loops grey, deformed loops coloured by course
     or by displacement magnitude, grips, targets and force arrows."""
@@ -125,7 +123,7 @@ def solution_figure(result: "WeftResult", natural: np.ndarray, deformed: np.ndar
     return fig, ax
 
 
-def _draw_grips(ax: Axes, result: "WeftResult") -> None:
+def _draw_grips(ax: Axes, result: SolvedFabric) -> None:
     bars, singles = _grip_bars(result)
     for k, bar in enumerate(bars):
         ax.plot(bar[:, 0], bar[:, 1], "-", color=GRIP, lw=4, alpha=0.6, solid_capstyle="butt",
@@ -148,7 +146,7 @@ def _draw_grips(ax: Axes, result: "WeftResult") -> None:
             ax.plot(tg[:, 0], tg[:, 1], marker, color=GRIP, ms=12, mew=2, zorder=5, label=label)
 
 
-def _draw_forces(ax: Axes, result: "WeftResult", size: float) -> None:
+def _draw_forces(ax: Axes, result: SolvedFabric, size: float) -> None:
     arrows = drawn_arrows(result)
     if not arrows:
         return
@@ -169,7 +167,7 @@ def _draw_forces(ax: Axes, result: "WeftResult", size: float) -> None:
                  labelpos="E", coordinates="figure", color="0.2", fontproperties={"size": 8})
 
 
-def plot_solution(path: Path, result: "WeftResult", natural: np.ndarray,
+def plot_solution(path: Path, result: SolvedFabric, natural: np.ndarray,
                   deformed: np.ndarray, colour: str = "course") -> Path:
     """PNG of :func:`solution_figure`."""
     fig, _ = solution_figure(result, natural, deformed, colour)
@@ -209,7 +207,7 @@ def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndar
 def plot_force_displacement(path: Path, rows: Sequence[dict[str, Any]], units: Units,
                             name: str) -> Path:
     """Force along the pull against distance for every grip that moves (rows of
-    :func:`knit_nlp.weft.path.path_rows`)."""
+    :func:`knit_nlp.weft.output.path.path_rows`)."""
     fig = new_figure(figsize=(6.5, 4.5), dpi=DPI, layout="constrained")
     ax = fig.subplots()
     grips = dict.fromkeys(r["grip"] for r in rows if r["distance"] != "")

@@ -1,9 +1,7 @@
-"""A solved weft model as a typed result: energies, clamp reactions, loops, and the contract's
-result JSON (``to_json``, its only producer) and files (``save``).
-
-Sign convention (eqs. 13, 18-19 with clamp rows g = P − target): CasADi's multipliers make
-∇f + Jᵀλ = 0, so the force a clamp applies to the fabric, which balances the elastic force
-−∂U/∂P, is −λ. Clamps, loads and rigid clamps are numbered from 1 in ``number``.
+"""A solved weft model as a typed result (the contract of :mod:`knit_nlp.outcome`): energies,
+clamp reactions (``reactions``), loops, the result JSON (``to_json``, its only producer) and the
+files ``knit-nlp solve`` writes (``save``: the writing and drawing are the output modules'
+``plot``, ``path`` and ``export``).
 """
 from __future__ import annotations
 
@@ -15,101 +13,28 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...jsonio import write_json, write_npz
-from ...outcome import Energy, Outcome
+from ...outcome import Energy, Outcome, describe
 from ...provenance import source_record
 from ..model.basis import phi
-from ..transcription.full import WeftNLP
+from ..model.centrelines import SAMPLES, natural_centrelines
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
-from ..model.centrelines import SAMPLES, natural_centrelines, solution_centrelines
 from ..solving.solve import SolveReport
-
-
-@dataclass(frozen=True)
-class ClampReaction:
-    """One clamp after the solve: where its point ended, its target and the clamp's force
-    (and moment, for an angle clamp) on the fabric."""
-
-    number: int
-    loop: tuple[int, int]
-    point: str | float
-    position: np.ndarray
-    target: np.ndarray
-    fix: tuple[str, ...]
-    reaction: np.ndarray
-    angle: float | None = None
-    reaction_moment: float | None = None
-    group: str | None = None         # the file's table when a shorthand made this clamp
-
-    def to_json(self) -> dict[str, Any]:
-        out = {"loop": list(self.loop), "point": self.point, "position": self.position.tolist(),
-               "reaction": self.reaction.tolist(), "target": self.target.tolist(),
-               "fix": list(self.fix)}
-        if self.angle is not None:
-            out.update(angle=self.angle, reaction_moment=self.reaction_moment)
-        if self.group:
-            out["group"] = self.group
-        return out
-
-
-@dataclass(frozen=True)
-class RigidClampReaction:
-    """One rigid clamp: its points' positions and reactions, its motion, the total force and
-    the moment of the reactions about the moved centre."""
-
-    number: int
-    points: tuple[tuple[tuple[int, int], str | float], ...]
-    positions: np.ndarray            # (k, 2)
-    reactions: np.ndarray            # (k, 2)
-    translation: np.ndarray
-    rotation: float
-    centre: np.ndarray
-
-    @property
-    def force(self) -> np.ndarray:
-        return self.reactions.sum(axis=0)
-
-    @property
-    def moment(self) -> float:
-        arm = self.positions - (self.centre + self.translation)
-        return float(np.sum(arm[:, 0] * self.reactions[:, 1] - arm[:, 1] * self.reactions[:, 0]))
-
-    def to_json(self) -> dict[str, Any]:
-        return {"points": [{"loop": list(lp), "point": label, "position": pos.tolist(),
-                            "reaction": f.tolist()}
-                           for (lp, label), pos, f in zip(self.points, self.positions,
-                                                           self.reactions)],
-                "translation": self.translation.tolist(), "rotation": self.rotation,
-                "centre": self.centre.tolist(), "force": self.force.tolist(),
-                "moment": self.moment}
-
-
-@dataclass(frozen=True)
-class LoadResult:
-    """One point load and where its point ended."""
-
-    number: int
-    loop: tuple[int, int]
-    point: str | float
-    force: np.ndarray
-    moment: float
-    position: np.ndarray
-    group: str | None = None
-
-    def to_json(self) -> dict[str, Any]:
-        out = {"loop": list(self.loop), "point": self.point, "force": self.force.tolist(),
-               "moment": self.moment, "position": self.position.tolist()}
-        if self.group:
-            out["group"] = self.group
-        return out
+from ..transcription.protocol import WeftNLP
+from .export import write_centreline_csv, write_centreline_svg
+from .path import write_path
+from .plot import animate as animate_frames, plot_solution
+from .reactions import ClampReaction, LoadResult, RigidClampReaction
 
 
 @dataclass(repr=False)
 class WeftResult(Outcome):
     """A solved weft model (full or reduced) at parameters ``params``.
 
-    SciPy-like: ``success``, ``status`` (IPOPT's text; also ``message``), ``nit``, ``x`` (the
-    NLP's solution vector), ``fun`` (the minimised ``total − load_work``).
+    The contract (``success``, ``status``: IPOPT's return status, ``message``, ``nit``,
+    ``energy``, ``to_json``, ``save``), and SciPy's ``x`` (the NLP's solution vector) and ``fun``
+    (the minimised ``total − load_work``). ``model`` is the solved model's name, ``"full"`` or
+    ``"reduced"``, as in the JSON and the file names; ``problem.model`` is ``"weft"``.
     """
 
     nlp: WeftNLP
@@ -136,6 +61,10 @@ class WeftResult(Outcome):
         return self.report.status
 
     @property
+    def message(self) -> str:
+        return describe(self.status, self.problem.solver.max_time)
+
+    @property
     def iterations(self) -> int:
         return self.report.iterations
 
@@ -149,7 +78,7 @@ class WeftResult(Outcome):
 
     @cached_property
     def energy(self) -> Energy:
-        spring, bending, work = (float(v) for v in self.nlp.energy(self.x, self.params.vector()))
+        spring, bending, work = self.nlp.energy(self.x, self.params.vector())
         return Energy(spring + bending, spring, bending, work)
 
     @property
@@ -226,7 +155,7 @@ class WeftResult(Outcome):
 
     def centrelines(self, samples: int = SAMPLES) -> np.ndarray:
         """Sampled deformed centrelines (m, n, samples, 2)."""
-        return solution_centrelines(self.nlp, self.x, samples)
+        return self.nlp.centrelines(self.x, samples)
 
     def natural_centrelines(self, samples: int = SAMPLES) -> np.ndarray:
         """Sampled natural centrelines (m, n, samples, 2)."""
@@ -238,22 +167,15 @@ class WeftResult(Outcome):
 
     def representatives(self) -> dict[str, Any] | None:
         """The reduced model's representative courses and wales (None for the full model), with
-        ``asked`` where the clamped ones were added (``condensed.build_condensed``)."""
-        red = getattr(self.nlp, "reduction", None)
-        if red is None:
-            return None
-        out: dict[str, Any] = {"courses": list(red.courses), "wales": list(red.wales)}
-        asked = getattr(self.nlp, "extended_from", None)
-        if asked is not None:
-            out["asked"] = {"courses": list(asked.courses), "wales": list(asked.wales)}
-        return out
+        ``asked`` where the clamped ones were added (``transcription.condensed``)."""
+        return self.nlp.representatives()
 
     def to_json(self) -> dict[str, Any]:
-        """The contract's result JSON (README, "Result JSON") with its documented extensions."""
+        """The result JSON (docs/weft_files.md, "Result JSON")."""
         rep = self.report
         result = {
             "problem": self.problem.name, "model": self.model,
-            "success": self.success, "status": self.status,
+            "success": self.success, "status": self.status, "message": self.message,
             "units": self.problem.units.to_json(),
             "energy": self.energy.to_json(),
             "n_parameters": self.nlp.n_parameters, "n_variables": self.nlp.n_variables,
@@ -283,9 +205,6 @@ class WeftResult(Outcome):
         continuation also ``.path.csv`` and ``.path.png`` (force against displacement) and, with
         ``animate``, ``.gif``. ``colour``: "course" or "displacement"; ``export``: any of "csv"
         (``.csv``, rows course, wale, s, x, y) and "svg" (``.svg``)."""
-        from .export import write_centreline_csv, write_centreline_svg
-        from .path import write_path
-        from .plot import animate as animate_frames, plot_solution
         stem = Path(out_dir) / f"{self.problem.name}.{self.model}"
 
         def out(suffix: str) -> Path:
@@ -300,7 +219,7 @@ class WeftResult(Outcome):
             paths.append(write_centreline_csv(out(".csv"), deformed, s))
         if "svg" in export:
             paths.append(write_centreline_svg(out(".svg"), deformed, self.problem.units.length))
-        paths += write_path(stem, self)
+        paths += write_path(stem, self.problem, self.loading_path())
         steps = self.loading_path()
         if animate and steps:
             frames = [(f"{self.problem.name}: load factor 0", natural)] + [

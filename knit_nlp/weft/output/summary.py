@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..api import Comparison
+from .comparison import Comparison
 from .results import WeftResult
 
 

@@ -1,7 +1,7 @@
 """Adaptive representatives for the reduction (the paper's open question: which loops).
 
 Start from the corner form; after each solve of the condensed reduced model
-(``condensed.CondensedNLP``) on the tensor grid G:
+(``transcribe(problem, Reduced(...))``) on the tensor grid G:
 
 1. **Hierarchical indicator.** For each axis (courses, wales) whose representatives are not yet
    every index, the *candidate* grid bisects every interval of that axis (``bisect``) and is
@@ -43,11 +43,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..transcription.condensed.nlp import CondensedNLP, build_condensed
-from ..transcription.full import n_parameters
-from ..model.parametrisation import Adaptive, Full, Reduced
-from ..model.problem import WeftProblem
 from ..model.centrelines import centrelines
+from ..model.parametrisation import Adaptive, Full, Reduced
+from ..model.params import WeftParams
+from ..model.problem import WeftProblem
+from ..transcription.factory import transcribe
+from ..transcription.protocol import WeftNLP
+from ..transcription.rows import n_parameters
 from .solve import SolveReport, WeftSolver, solve
 
 MARK = 0.25
@@ -78,7 +80,7 @@ class AdaptiveStep:
 class AdaptiveRun:
     """The final model and report, and every step taken."""
 
-    cnlp: CondensedNLP
+    cnlp: WeftNLP
     solver: WeftSolver
     report: SolveReport
     steps: list[AdaptiveStep] = field(default_factory=list)
@@ -90,7 +92,7 @@ class GridSolve:
     """The condensed model on one grid, solved: its loops, centrelines and energy."""
 
     red: Reduced
-    cnlp: CondensedNLP
+    cnlp: WeftNLP
     solver: WeftSolver
     report: SolveReport
     coeffs: np.ndarray
@@ -98,24 +100,28 @@ class GridSolve:
     lines: np.ndarray
     energy: float
     build_s: float
+    params: WeftParams
 
 
 def solve_grid(pr: WeftProblem, red: Reduced, start: GridSolve | None = None,
-               samples: int = 21, continuation: int | None = None) -> GridSolve:
-    """Build and solve the condensed model on ``red``, from ``start``'s loops lifted (its grid
-    must be contained in ``red`` for the lift to be exact) or the model's default start.
-    ``build_condensed`` may add the clamped courses and wales (dependent clamps); the result's
-    ``red`` is the grid solved."""
+               samples: int = 21, continuation: int | None = None,
+               params: WeftParams | None = None) -> GridSolve:
+    """Build and solve the condensed model on ``red`` at ``params`` (default: ``start``'s, else
+    the problem's own), from ``start``'s loops lifted (its grid must be contained in ``red`` for
+    the lift to be exact) or the model's default start. The factory may add the clamped courses
+    and wales (dependent clamps); the result's ``red`` is the grid solved."""
     t0 = time.perf_counter()
-    cnlp = build_condensed(pr, red)
+    cnlp = transcribe(pr, red)
     solver = WeftSolver(cnlp)
     build_s = time.perf_counter() - t0
+    params = params or (start.params if start is not None else cnlp.params)
     x0 = None if start is None else cnlp.lift(start.coeffs, start.starts)
-    rep = solve(cnlp, solver, x0=x0, continuation=continuation)
+    rep = solve(cnlp, solver, params=params, x0=x0, continuation=continuation)
     coeffs, starts = cnlp.coefficients(rep.x), cnlp.starts(rep.x)
-    spring, bend, _ = cnlp.energy(rep.x, cnlp.p0)
-    return GridSolve(cnlp.reduction, cnlp, solver, rep, coeffs, starts,
-                     centrelines(coeffs, starts, pr.L, pr.t, samples)[0], spring + bend, build_s)
+    spring, bend, _ = cnlp.energy(rep.x, params.vector())
+    return GridSolve(cnlp.parametrisation, cnlp, solver, rep, coeffs, starts,
+                     centrelines(coeffs, starts, pr.L, pr.t, samples)[0], spring + bend, build_s,
+                     params)
 
 
 def bisect(reps: tuple[int, ...], marked: set[int] | None = None) -> tuple[int, ...]:
@@ -207,12 +213,14 @@ def _next_grid(pr: WeftProblem, grid: GridSolve, ind: Indicator,
 
 
 def solve_adaptive(pr: WeftProblem, cfg: Adaptive = Adaptive(), samples: int = 21,
-                   continuation: int | None = None) -> AdaptiveRun:
-    """Refine the representatives from the corners (module docstring); return the last grid's
-    solve."""
+                   continuation: int | None = None,
+                   params: WeftParams | None = None) -> AdaptiveRun:
+    """Refine the representatives from the corners (module docstring) at ``params`` (default:
+    the problem's own); return the last grid's solve."""
     tol = cfg.tolerance if cfg.tolerance is not None else 0.1 * pr.L
     budget = cfg.max_parameters or n_parameters(pr, Full()) * 3 // 10
-    grid = solve_grid(pr, Reduced().resolve(pr.courses, pr.wales), None, samples, continuation)
+    grid = solve_grid(pr, Reduced().resolve(pr.courses, pr.wales), None, samples, continuation,
+                      params)
     run = None
     while True:
         rep = grid.report

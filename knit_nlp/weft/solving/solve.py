@@ -1,4 +1,4 @@
-"""Solving the weft NLP with IPOPT: direct, by continuation, and from perturbed starts.
+"""Solving a weft NLP with IPOPT: direct, by continuation, from perturbed and multilevel starts.
 
 - Direct: one IPOPT solve from the natural configuration (or a given start).
 - Continuation: clamp targets, clamp angles and loads are stepped from their natural values to
@@ -9,6 +9,9 @@
   loses rank). The solve then starts from each of a few smooth perturbations of the natural
   shape (θ ∝ cos, sin of πS/ℓ and 2πS/ℓ along each course of length ℓ) and keeps the successful
   solution of lowest energy, which is the lowest buckling mode.
+- Multilevel starts (the default start, ``start_point``): the same pull solved on coarser
+  fabrics first for the full model (``multilevel_start``), the corner grid first for a finer
+  reduced grid (``corner_start``); these solve, so they live here with the solver.
 The NLP is built once; every solve reuses the same ``casadi.nlpsol`` object.
 """
 from __future__ import annotations
@@ -20,16 +23,21 @@ import casadi as ca
 import numpy as np
 
 from ...ipopt import ipopt_options, succeeded
+from ...outcome import OUT_OF_TIME
 from ...progress import IterationLine
-from ..transcription.derivatives import closed_form_derivatives
-from .guesses import needs_perturbation, perturbed_starts
-from ..transcription.full import WeftNLP
+from ..model.parametrisation import Full, Reduced
 from ..model.params import WeftParams
-from .starts import start_point
+from ..transcription.factory import transcribe
+from ..transcription.protocol import WeftNLP
+from .starts import (STARTS, coarse_chain, needs_perturbation, perturbed_starts, prolong,
+                     rigid_start)
 
-DEFAULT_START = "multilevel"    # measured: see README, "Measured performance"
-
-OUT_OF_TIME = "Maximum_WallTime_Exceeded"      # IPOPT's own name, also used between solves
+DEFAULT_START = "multilevel"    # measured: docs/measurements.md
+# a cold solve of the coarsest fabric in at most this many iterations marks a pull the natural
+# start handles well (measured: course pulls take 5 iterations at every size from 8 x 8 to
+# 100 x 100, where the coarse solves cost more than they save; diagonal pulls 9 on 8 x 8 and
+# 13-39 on larger fabrics)
+EASY_ITERATIONS = 6
 
 
 @dataclass
@@ -61,8 +69,7 @@ class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
-                 print_level: int = 0, verbose: bool = False, derivatives: str = "closed_form",
-                 ipopt: dict | None = None) -> None:
+                 print_level: int = 0, verbose: bool = False, ipopt: dict | None = None) -> None:
         opts = wnlp.problem.solver
         self.wnlp = wnlp
         t0 = time.perf_counter()
@@ -75,8 +82,7 @@ class WeftSolver:
         self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints) if verbose else None
         if self.progress is not None:
             options["iteration_callback"] = self.progress
-        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp,
-                                {**options, **derivative_options(wnlp, derivatives)})
+        self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, options)
         self.setup_s = time.perf_counter() - t0
         self.start_clock()
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
@@ -92,7 +98,7 @@ class WeftSolver:
         if t0 >= self.deadline:
             return SolveReport(False, OUT_OF_TIME, x0, np.zeros(self.wnlp.n_constraints),
                                np.nan, 0, 0.0)
-        sol = self.solver(x0=x0, p=p, lbg=0.0, ubg=0.0)
+        sol = self.solver(x0=x0, p=p, lbg=self.wnlp.lbg, ubg=self.wnlp.ubg)
         stats = self.solver.stats()
         status = str(stats["return_status"])
         return SolveReport(succeeded(status), status, np.asarray(sol["x"]).ravel(),
@@ -101,9 +107,8 @@ class WeftSolver:
                            stats={k: float(v) for k, v in stats.items() if k.startswith("t_wall")})
 
     def violation(self, x: np.ndarray, p: np.ndarray) -> float:
-        """Largest absolute constraint residual |g| at x."""
-        g = np.asarray(self._g(x, p)).ravel()
-        return float(np.max(np.abs(g))) if g.size else 0.0
+        """Largest constraint violation at x: how far g(x, p) lies outside [lbg, ubg]."""
+        return self.wnlp.violation(np.asarray(self._g(x, p)).ravel())
 
     def continuation(self, p: np.ndarray, x0: np.ndarray, steps: int,
                      max_halvings: int = 6) -> SolveReport:
@@ -134,23 +139,13 @@ class WeftSolver:
         return total
 
 
-def derivative_options(wnlp: WeftNLP, derivatives: str) -> dict:
-    """nlpsol options for the derivatives: ``closed_form`` (derivatives.py; full model only,
-    measured faster, see README) or ``casadi`` (CasADi's AD of the NLP expressions)."""
-    if derivatives not in ("closed_form", "casadi"):
-        raise ValueError(f"unknown derivatives {derivatives!r}")
-    if derivatives == "casadi" or wnlp.model != "full":
-        return {}
-    return closed_form_derivatives(wnlp)
-
-
 def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, params: WeftParams | None = None,
           x0: np.ndarray | None = None, continuation: int | None = None,
           start: str = DEFAULT_START) -> SolveReport:
     """Solve robustly at ``params`` (the problem's own by default): direct, then continuation;
     from perturbed starts where degenerate. Without x0 the solve starts from ``start``
-    (start.py: ``multilevel``, ``rigid`` or ``natural``); a multilevel start's coarse solves
-    count into ``solve_s`` and ``attempts``."""
+    (:func:`start_point`: ``multilevel``, ``rigid`` or ``natural``); a multilevel start's
+    coarse solves count into ``solve_s`` and ``attempts``."""
     solver = solver or WeftSolver(wnlp)
     solver.start_clock()
     p = (params or wnlp.params).vector()
@@ -204,3 +199,68 @@ def _best_of_perturbed(wnlp: WeftNLP, solver: WeftSolver, p: np.ndarray,
             best = rep
     final = best or tried[-1]
     return _combined(final, [r for r in tried if r is not final], attempts)
+
+
+def start_point(wnlp: WeftNLP, p: np.ndarray, start: str,
+                log: list[str] | None = None) -> np.ndarray:
+    """The decision vector a solve starts from: ``natural``, ``rigid`` (``starts.rigid_start``)
+    or ``multilevel``: the coarser problem of the transcription's kind first
+    (:data:`MULTILEVEL`: coarser fabrics for the full model, the corner grid for a finer reduced
+    grid), the natural state where there is none."""
+    if start not in STARTS:
+        raise ValueError(f"start must be one of {', '.join(STARTS)}; got {start!r}")
+    if start == "natural":
+        return wnlp.x0
+    if start == "rigid":
+        return rigid_start(wnlp, p)
+    x = MULTILEVEL[wnlp.model](wnlp, p, log)
+    return wnlp.x0 if x is None else x
+
+
+def corner_start(cnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
+                 ) -> np.ndarray | None:
+    """For the condensed reduced model over a grid finer than the corners: solve the corner form
+    (``transcribe(problem, Reduced())``, the coarsest grid, contained in every grid) at the same
+    parameters from its natural state and lift its loops into this grid. None for the corner
+    form itself or a failed corner solve. Measured
+    (diagonal pulls, corner then grid against the grid from its natural state): 16 × 16 over
+    8 × 8, 9 + 13 against 45 iterations; 30 × 30 over 15 × 15, 8 + 15 against 103, where the
+    natural start ends in another minimum (energy 114.47 against 55.29); 24 × 24 over 12 × 12,
+    87.98 against 36.33; 100 × 100 over 6 × 6, 11 + 6 against 11, the same minimum."""
+    pr = cnlp.problem
+    corner = transcribe(pr, Reduced())
+    if corner.parametrisation == cnlp.parametrisation:
+        return None
+    rep = solve(corner, WeftSolver(corner), params=WeftParams.from_vector(pr, p),
+                start="natural")
+    if log is not None:
+        log.append(f"corner start: {rep.status} ({rep.iterations} it, {rep.solve_s:.2f} s)")
+    if not rep.success:
+        return None
+    return cnlp.lift(corner.coefficients(rep.x), corner.starts(rep.x))
+
+
+def multilevel_start(wnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
+                     ) -> np.ndarray | None:
+    """Solve the pull on the coarsest fabric of :func:`coarse_chain` from its natural state; if
+    that took more than EASY_ITERATIONS (the pull is hard for a cold start), prolong the
+    solution level by level (each level solved from the prolonged start) up to this fabric.
+    None (start natural) where no coarser problem is defined, the probe was easy or a coarse
+    solve failed. Every coarse solve is appended to ``log``, coarsest first."""
+    chain = coarse_chain(wnlp.problem, WeftParams.from_vector(wnlp.problem, p))
+    x, prev = None, None
+    for level, cp in enumerate(reversed(chain)):
+        nlp = transcribe(cp, Full())
+        x0 = None if prev is None else prolong(prev, x, nlp)
+        rep = solve(nlp, WeftSolver(nlp), x0=x0, start="natural")
+        if log is not None:
+            log.append(f"multilevel {cp.courses}x{cp.wales}: {rep.status} ({rep.iterations} it, "
+                       f"{rep.solve_s:.2f} s)")
+        if not rep.success or (level == 0 and rep.iterations <= EASY_ITERATIONS):
+            return None
+        x, prev = rep.x, nlp
+    return None if prev is None else prolong(prev, x, wnlp)
+
+
+# the coarser problem a multilevel start solves first, by the transcription's ``model``
+MULTILEVEL = {"full": multilevel_start, "reduced": corner_start}

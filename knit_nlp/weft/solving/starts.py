@@ -1,33 +1,37 @@
-"""Starting points for the full weft NLP.
+"""Starting points of a weft NLP that need no solve (those that solve are in ``solve``).
 
-The natural configuration violates a moved clamp by the whole pull (182 units on the 100 × 100
+- ``rigid_start``: the natural configuration violates a moved clamp by the whole pull (182
+  units on the 100 × 100 diagonal pull) and IPOPT's filter line search then takes 1/128 of its
+  first steps. violates a moved clamp by the whole pull (182 units on the 100 × 100
 diagonal pull) and IPOPT's filter line search then takes 1/128 of its first steps.
-``rigid_start`` removes the rigid part of that violation: it turns and moves the natural fabric
-by the rigid motion that best fits the clamp targets (2-D Kabsch over the fully clamped
-points). Every loop's angle gains the turn (θ → θ + φ, the constant basis coefficient of
-eq. 15), loop starts are turned and moved with it, and the lifted spring vectors and points are
-recomputed from those (``WeftNLP.lift``), so chaining (eq. 1), continuity (18)-(19) and all
-lifted constraints hold exactly; only the clamps (and angle clamps) keep a residual.
+  ``rigid_start`` removes the rigid part of that violation: it turns and moves the natural fabric
+  by the rigid motion that best fits the clamp targets (2-D Kabsch over the fully clamped
+  points). Every loop's angle gains the turn (θ → θ + φ, the constant basis coefficient of
+  eq. 15), loop starts are turned and moved with it, and the transcription lifts those loops
+  (``WeftNLP.lift``; exact in both models: a common turn keeps continuity and lies in every
+  reduced space), so chaining (eq. 1), continuity (18)-(19) and all lifted constraints hold
+  exactly; only the clamps (and angle clamps) keep a residual.
+- coarse problems and their prolongation, for the multilevel start of the full model;
+- perturbations of a straight natural yarn: where the natural yarn is straight, a compressive
+  clamp leaves IPOPT at a point where the end position does not depend, to first order, on the
+  shape (the Jacobian loses rank); the solve then starts from a few smooth perturbations and
+  keeps the lowest-energy solution (``solve``).
 """
 from __future__ import annotations
 
-import numpy as np
-
 from dataclasses import replace
 
-from ..model.basis import n_coeffs
-from ..transcription.full import WeftNLP, build_nlp, rigid_natural_points
+import numpy as np
+
+from ..model.basis import n_coeffs, phi
 from ..model.params import WeftParams
-from ..model.quadrature import positions
 from ..model.problem import Clamp, RigidClamp, WeftProblem, canonical_point
+from ..model.quadrature import positions
+from ..transcription.protocol import WeftNLP
+from ..transcription.rows import rigid_natural_points, rigid_targets
 
 STARTS = ("multilevel", "rigid", "natural")
 COARSEST = 12          # the multilevel start solves cold once a side is at most this many loops
-# a cold solve of the coarsest fabric in at most this many iterations marks a pull the natural
-# start handles well (measured: course pulls take 5 iterations at every size from 8 x 8 to
-# 100 x 100, where the coarse solves cost more than they save; diagonal pulls 9 on 8 x 8 and
-# 13-39 on larger fabrics)
-EASY_ITERATIONS = 6
 
 
 def clamp_pairs(wnlp: WeftNLP, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -40,11 +44,9 @@ def clamp_pairs(wnlp: WeftNLP, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if all(c.fix):
             nat.append(pr.natural_position(c.loop, c.s))
             tgt.append(target)
-    for rc, P0, (tx, ty, rot) in zip(pr.rigid_clamps, rigid_natural_points(pr), params.rigid):
-        R = _rotation(rot)
-        for X in P0:
-            nat.append(X)
-            tgt.append(rc.centre + R @ (X - rc.centre) + np.array([tx, ty]))
+    for rc, P0, motion in zip(pr.rigid_clamps, rigid_natural_points(pr), params.rigid):
+        nat += list(P0)
+        tgt += list(np.asarray(rigid_targets(rc, P0, *motion)).T)
     return np.reshape(nat, (-1, 2)), np.reshape(tgt, (-1, 2))
 
 
@@ -55,60 +57,18 @@ def best_rigid_motion(nat: np.ndarray, tgt: np.ndarray) -> tuple[float, np.ndarr
         return 0.0, np.zeros(2)
     cn, ct = nat.mean(axis=0), tgt.mean(axis=0)
     u, v = nat - cn, tgt - ct
-    phi = float(np.arctan2(np.sum(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]), np.sum(u * v))) \
+    turn = float(np.arctan2(np.sum(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]), np.sum(u * v))) \
         if len(nat) > 1 else 0.0
-    return phi, ct - _rotation(phi) @ cn
+    return turn, ct - _rotation(turn) @ cn
 
 
 def rigid_start(wnlp: WeftNLP, p: np.ndarray) -> np.ndarray:
     """The natural fabric turned by φ and moved by b, the best rigid fit to the clamp targets."""
     pr = wnlp.problem
-    phi, b = best_rigid_motion(*clamp_pairs(wnlp, p))
+    turn, b = best_rigid_motion(*clamp_pairs(wnlp, p))
     coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, n_coeffs(pr.t))).copy()
-    coeffs[..., -1] += phi
-    return wnlp.lift(coeffs, pr.natural_starts() @ _rotation(phi).T + b)
-
-
-def start_point(wnlp: WeftNLP, p: np.ndarray, start: str,
-                log: list[str] | None = None) -> np.ndarray:
-    """The decision vector a solve starts from: ``natural``, ``rigid`` (full model only) or
-    ``multilevel``: coarser fabrics first for the full model (:func:`multilevel_start`), the
-    corner form first for a finer reduced grid (:func:`corner_start`)."""
-    if start not in STARTS:
-        raise ValueError(f"unknown start {start!r}; use one of {', '.join(STARTS)}")
-    if start == "natural" or (wnlp.model != "full" and start == "rigid"):
-        return wnlp.x0
-    if start == "rigid":
-        return rigid_start(wnlp, p)
-    x = multilevel_start(wnlp, p, log) if wnlp.model == "full" else corner_start(wnlp, p, log)
-    return wnlp.x0 if x is None else x
-
-
-def corner_start(cnlp, p: np.ndarray, log: list[str] | None = None) -> np.ndarray | None:
-    """For the condensed reduced model over a grid finer than the corners: solve the corner form
-    (``build_condensed(problem, Reduced())``, the coarsest grid, contained in every grid) at
-    the same parameters from its natural state and lift its loops into this grid. None for the
-    corner form itself, the lifted reduced model, or a failed corner solve. Measured
-    (diagonal pulls, corner then grid against the grid from its natural state): 16 × 16 over
-    8 × 8, 9 + 13 against 45 iterations; 30 × 30 over 15 × 15, 8 + 15 against 103, where the
-    natural start ends in another minimum (energy 114.47 against 55.29); 24 × 24 over 12 × 12,
-    87.98 against 36.33; 100 × 100 over 6 × 6, 11 + 6 against 11, the same minimum."""
-    from ..transcription.condensed.nlp import CondensedNLP, build_condensed
-    from ..model.parametrisation import Reduced
-    from .solve import WeftSolver, solve
-    if not isinstance(cnlp, CondensedNLP):
-        return None
-    pr = cnlp.problem
-    corner = build_condensed(pr, Reduced())
-    if corner.reduction == cnlp.reduction:
-        return None
-    rep = solve(corner, WeftSolver(corner), params=WeftParams.from_vector(pr, p),
-                start="natural")
-    if log is not None:
-        log.append(f"corner start: {rep.status} ({rep.iterations} it, {rep.solve_s:.2f} s)")
-    if not rep.success:
-        return None
-    return cnlp.lift(corner.coefficients(rep.x), corner.starts(rep.x))
+    coeffs[..., -1] += turn
+    return wnlp.lift(coeffs, pr.natural_starts() @ _rotation(turn).T + b)
 
 
 def coarse_size(m: int) -> int:
@@ -213,31 +173,41 @@ def coarse_chain(pr: WeftProblem, params: WeftParams) -> list[WeftProblem]:
         pr, params = cp, WeftParams.of(cp)
 
 
-def multilevel_start(wnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
-                     ) -> np.ndarray | None:
-    """Solve the pull on the coarsest fabric of :func:`coarse_chain` from its natural state; if
-    that took more than EASY_ITERATIONS (the pull is hard for a cold start), prolong the
-    solution level by level (each level solved from the prolonged start) up to this fabric.
-    None (start natural) where no coarser problem is defined, the probe was easy or a coarse
-    solve failed. Every coarse solve is appended to ``log``, coarsest first."""
-    from .solve import WeftSolver, solve
-    if wnlp.model != "full":
-        return None
-    chain = coarse_chain(wnlp.problem, WeftParams.from_vector(wnlp.problem, p))
-    x, prev = None, None
-    for level, cp in enumerate(reversed(chain)):
-        nlp = build_nlp(cp)
-        x0 = None if prev is None else prolong(prev, x, nlp)
-        rep = solve(nlp, WeftSolver(nlp), x0=x0, start="natural")
-        if log is not None:
-            log.append(f"multilevel {cp.courses}x{cp.wales}: {rep.status} ({rep.iterations} it, "
-                       f"{rep.solve_s:.2f} s)")
-        if not rep.success or (level == 0 and rep.iterations <= EASY_ITERATIONS):
-            return None
-        x, prev = rep.x, nlp
-    return None if prev is None else prolong(prev, x, wnlp)
-
-
 def _rotation(phi: float) -> np.ndarray:
     c, s = np.cos(phi), np.sin(phi)
     return np.array([[c, -s], [s, c]])
+
+
+def perturbed_starts(wnlp: WeftNLP, amplitude: float = 0.05) -> list[tuple[str, np.ndarray]]:
+    """Smooth low-mode perturbations of the natural shape, as decision vectors.
+
+    Along each course (global arc length S in [0, ℓ], ℓ = n·L) θ gets + ε·f(πS/ℓ) with f one of
+    cos, sin and their second harmonics; each loop's share is fitted to the basis by least
+    squares and the loop starts are re-chained so the start is consistent.
+    """
+    pr = wnlp.problem
+    m, n, L, t = pr.courses, pr.wales, pr.L, pr.t
+    ell = n * L
+    s = np.linspace(0.0, L, 8 * n_coeffs(t))
+    basis = phi(s, L, t)
+    out = []
+    for name, f in (("cos1", lambda u: np.cos(u)), ("sin1", lambda u: np.sin(u)),
+                    ("cos2", lambda u: np.cos(2 * u)), ("sin2", lambda u: np.sin(2 * u))):
+        coeffs = np.broadcast_to(pr.natural.coeffs, (m, n, n_coeffs(t))).copy()
+        for j in range(n):
+            fit, *_ = np.linalg.lstsq(basis, amplitude * f(np.pi * (j * L + s) / ell), rcond=None)
+            coeffs[:, j] += fit
+        starts = pr.natural_starts().copy()
+        ends = positions(coeffs.reshape(-1, n_coeffs(t)), [L], L, t).reshape(m, n, 2)
+        for j in range(1, n):
+            starts[:, j] = starts[:, j - 1] + ends[:, j - 1]
+        out.append((name, wnlp.lift(coeffs, starts)))
+    return out
+
+
+def needs_perturbation(wnlp: WeftNLP, p: np.ndarray) -> bool:
+    """A straight natural yarn with any clamp moved off its natural position (or any load) is
+    degenerate at parameters p."""
+    if not wnlp.problem.natural.is_straight:
+        return False
+    return not np.allclose(WeftParams.natural(wnlp.problem).vector(), p)

@@ -12,7 +12,7 @@ and the objective is quadratic (eqs. 6-12). Hence
   products φ_i φ_j (i ≤ j) at the nodes.
 
 G_x and G_D are constant sparse matrices read off CasADi's own (affine) constraint expression,
-so the assembly follows nlp.py's constraints without restating them.
+so the assembly follows ``full``'s constraints without restating them.
 """
 from __future__ import annotations
 
@@ -20,14 +20,12 @@ import casadi as ca
 import numpy as np
 
 from ..model.basis import n_coeffs, phi
-from .full import WeftNLP
 from ..model.quadrature import panel_rule
+from .full import FullNLP
 
 
-def closed_form_derivatives(wnlp: WeftNLP) -> dict[str, ca.Function]:
-    """``jac_g`` and ``hess_lag`` Functions for ``casadi.nlpsol`` (full model only)."""
-    if wnlp.coeff_map is not None or wnlp.displacements is None:
-        raise ValueError("closed-form derivatives are for the full model")
+def closed_form_derivatives(wnlp: FullNLP) -> dict[str, ca.Function]:
+    """``jac_g`` and ``hess_lag`` Functions for ``casadi.nlpsol``."""
     pr, nlp = wnlp.problem, wnlp.nlp
     x, p = nlp["x"], nlp["p"]
     N, nc = pr.n_loops, n_coeffs(pr.t)
@@ -76,7 +74,7 @@ def rule_matrices(rule, L: float, t: int) -> tuple[np.ndarray, np.ndarray]:
     return phi(rule.nodes, L, t), rule.cumulative
 
 
-def _affine_parts(wnlp: WeftNLP) -> tuple[ca.DM, ca.DM]:
+def _affine_parts(wnlp: FullNLP) -> tuple[ca.DM, ca.DM]:
     """G_x = ∂g/∂x and G_D = ∂g/∂vec(D) (constant: g is affine in x and D)."""
     nlp, D = wnlp.nlp, wnlp.displacements
     Dsym = ca.MX.sym("D", D.shape[0], D.shape[1])

@@ -1,4 +1,5 @@
-"""The interpolation reduction of eqs. (22)-(27) as a linear map from reduced to full parameters.
+"""The interpolation reduction of eqs. (22)-(27) as a linear map from reduced to full parameters,
+held course by course (``course_maps``: the condensed model never forms it densely).
 
 Representative courses i_1 = 1 < … < i_p = m and wales j_1 = 1 < … < j_q = n (the paper's corner
 form is p = q = 2). Reduced parameters z, in this order: the sub-loop parameters â (2t each) of
@@ -17,7 +18,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..model.basis import n_coeffs
 from ..model.parametrisation import Reduced
 from ..model.problem import WeftProblem
 
@@ -84,17 +84,6 @@ def course_maps(pr: WeftProblem, reduced: Reduced) -> list[CourseMap]:
     return [course_map(i, red, pr.wales, pr.t, pr.L, V) for i in range(1, pr.courses + 1)]
 
 
-def reduction_map(pr: WeftProblem, reduced: Reduced) -> np.ndarray:
-    """T with vec(coeffs) = T·z, coeffs (2t+2 × N) column-major by loop k = (i−1)·n + (j−1)."""
-    red = reduced.resolve(pr.courses, pr.wales)
-    n, nc = pr.wales, n_coeffs(pr.t)
-    T = np.zeros((nc * pr.n_loops, n_reduced(red, pr.t)))
-    for i, cm in enumerate(course_maps(pr, red)):
-        rows = slice(i * n * nc, (i + 1) * n * nc)
-        T[rows, cm.cols] = cm.T.reshape(n * nc, -1)
-    return T
-
-
 def clamped_loops(pr: WeftProblem) -> list[tuple[int, int]]:
     """The 1-based (course, wale) of every clamped loop: point clamps and rigid-clamp points."""
     return [c.loop for c in pr.clamps] + [loop for rc in pr.rigid_clamps
@@ -108,7 +97,7 @@ def with_clamped(red: Reduced, pr: WeftProblem) -> Reduced:
     Where several do (the course pull holds both ends of every course), their constraint rows
     are linear combinations of each other at the natural state (every loop alike; measured on
     the 20 × 20 course pull with an even 6 × 6 grid: rank 27 of 41) and IPOPT, without LICQ,
-    wanders for thousands of iterations (``condensed.build_condensed`` checks the rank)."""
+    wanders for thousands of iterations (``condensed.nlp.build_condensed`` checks the rank)."""
     loops = clamped_loops(pr)
     return replace(red, courses=tuple(sorted(set(red.courses) | {i for i, _ in loops})),
                    wales=tuple(sorted(set(red.wales) | {j for _, j in loops})))

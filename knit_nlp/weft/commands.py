@@ -1,0 +1,119 @@
+"""The weft model's part of the command line: its ``knit-nlp solve`` flags and how they become
+solve and save options, and its own commands (``control``, ``fit``, ``overlay``).
+
+Everything here is data or a function the model table (``knit_nlp.api.MODELS``) points to; the
+command line (``knit_nlp.cli``) reads it from there. A new weft command is one ``Command`` in
+:data:`COMMANDS` and one function that runs it.
+"""
+from __future__ import annotations
+
+import sys
+from argparse import ArgumentTypeError, Namespace
+from pathlib import Path
+from typing import Any
+
+from ..errors import ProblemError, quoted
+from ..problems import resolve
+from ..tomlio import load_toml
+from .inverse import run
+from .inverse.spec import has_control_keys, strip_control_keys
+from .model.problem import MAX_CONTINUATION, WeftProblem
+from .output.export import EXPORTS
+from .output.plot import COLOURINGS
+
+
+def _steps(text: str) -> int:
+    """``--continuation``: a whole number of steps in 1..MAX_CONTINUATION (argparse type)."""
+    try:
+        steps = int(text)
+    except ValueError:
+        raise ArgumentTypeError(f"expected a whole number of steps, got {quoted(text)}") from None
+    if not 1 <= steps <= MAX_CONTINUATION:
+        raise ArgumentTypeError(f"must be in 1..{MAX_CONTINUATION}, got {steps}")
+    return steps
+
+
+# (names, argparse keywords, group): flags of one group exclude each other
+FLAGS = (
+    (("--reduced",), {"action": "store_true", "help": "solve the reduced model"}, "model"),
+    (("--full",), {"action": "store_true", "help": "solve the full model"}, "model"),
+    (("--continuation",), {"type": _steps, "default": None, "metavar": "STEPS",
+                           "help": "always reach the clamp targets in this many warm-started "
+                                   f"steps (1..{MAX_CONTINUATION})"}, None),
+    (("--warm-from-reduced",), {"action": "store_true",
+                                "help": "start the full model from the lifted reduced solution"},
+     None),
+    (("--verbose",), {"action": "store_true",
+                      "help": "show IPOPT's iterations on one updating line (stderr)"}, None),
+    (("--colour",), {"choices": COLOURINGS, "default": None,
+                     "help": "colour the deformed loops by course (default) or by displacement "
+                             "magnitude"}, None),
+    (("--animate",), {"action": "store_true",
+                      "help": "with a continuation, also write a GIF of the loading path"}, None),
+    (("--export",), {"nargs": "+", "choices": EXPORTS, "default": [],
+                     "help": "also write the deformed centrelines as CSV and/or SVG"}, None),
+)
+
+
+def document(doc: dict[str, Any], path: Path) -> dict[str, Any]:
+    """The document ``knit-nlp solve`` solves: a control file (docs/inverse.md) at its start
+    targets, its control keys ignored with a note."""
+    if not has_control_keys(doc):
+        return doc
+    print(f"knit-nlp: {path}: control keys (actuated, bounds, goal, opening, control) ignored; "
+          "solving at the start targets (see 'knit-nlp control')", file=sys.stderr)
+    return strip_control_keys(doc)
+
+
+def solve_options(args: Namespace, problem: WeftProblem, path: Path) -> dict[str, Any]:
+    """``knit_nlp.solve`` options from the flags; a combination that cannot work is a
+    ProblemError (exit 2)."""
+    if args.warm_from_reduced and (args.reduced or (not args.full and problem.reduction)):
+        raise ProblemError(path, "", "", "--warm-from-reduced starts the full model: add --full")
+    if args.animate and not (args.continuation or problem.solver.continuation):
+        raise ProblemError(path, "", "", "--animate draws a loading path: add --continuation N")
+    opts: dict[str, Any] = {"continuation": args.continuation,
+                            "warm_from_reduced": args.warm_from_reduced, "verbose": args.verbose}
+    if args.reduced or args.full:
+        opts["reduced"] = bool(args.reduced)
+    return opts
+
+
+def save_options(args: Namespace) -> dict[str, Any]:
+    """``WeftResult.save`` options from the flags."""
+    return {"colour": args.colour or "course", "export": args.export, "animate": args.animate}
+
+
+def run_control(args: Namespace) -> int:
+    path = resolve(args.problem)
+    return run.control_file(path, load_toml(path), Path(args.out))
+
+
+def run_fit(args: Namespace) -> int:
+    return run.fit_files([resolve(p) for p in args.problems], Path(args.observations),
+                         args.params, Path(args.out))
+
+
+def run_overlay(args: Namespace) -> int:
+    return run.overlay_file(Path(args.result), Path(args.image), args.match,
+                            Path(args.observations) if args.observations else None,
+                            resolve(args.problem) if args.problem else None, Path(args.out))
+
+
+OUT = (("--out",), {"default": "results", "help": "output folder (default: results)"})
+# (name, help, arguments (names, argparse keywords), run)
+COMMANDS = (
+    ("control", "weft: move actuated clamps so points reach goals",
+     ((("problem",), {}), OUT), run_control),
+    ("fit", "weft: fit material values to observed points",
+     ((("problems",), {"nargs": "+", "metavar": "PROBLEM"}),
+      (("--observations",), {"required": True, "metavar": "FILE.csv"}),
+      (("--params",), {"nargs": "+", "default": ["k_a", "k_b", "R_f"]}), OUT), run_fit),
+    ("overlay", "weft: draw a result over a photograph",
+     ((("result",), {"metavar": "RESULT.json"}), (("image",), {"metavar": "IMAGE"}),
+      (("--match",), {"action": "append", "default": [], "metavar": "C,W,POINT=PX,PY"}),
+      (("--observations",), {"default": None, "metavar": "FILE.csv"}),
+      (("--problem",), {"default": None, "help": "the result's problem file (to resolve point "
+                                                 "labels; default: found by the result's name)"}),
+      OUT), run_overlay),
+)
