@@ -1,7 +1,7 @@
 """Size limits: problems whose estimated peak memory exceeds a documented limit are refused
-before anything is built (README, "Limits").
+before anything is built (docs/limits.md).
 
-The estimates are linear fits to measured peak memory (README "Measured performance" and
+The estimates are linear fits to measured peak memory (docs/measurements.md and
 docs/jacquard.md, one process each on the 2-core, 24 GiB development machine):
 
 - weft, t = 3, 8 quadrature nodes: 5 × 5 109 MB, 50 × 50 259 MB, 100 × 100 758 MB, i.e. about
@@ -37,4 +37,4 @@ def check_memory(table: Table, key: str, estimate: float, what: str) -> None:
     """Refuse, naming ``key`` of ``table``, a problem estimated above the memory limit."""
     if estimate > MEMORY_LIMIT_BYTES:
         raise table.error(key, f"{what} needs an estimated {estimate / 2 ** 30:.3g} GiB; the "
-                          f"limit is {MEMORY_LIMIT_BYTES / 2 ** 30:g} GiB (README, \"Limits\")")
+                          f"limit is {MEMORY_LIMIT_BYTES / 2 ** 30:g} GiB (docs/limits.md)")

@@ -1,6 +1,6 @@
 """Which problem file a result came from, and the refusal to overwrite another problem's result.
 
-A result JSON records ``"source": {"file": ..., "sha256": ...}`` (README, "Result JSON"). A
+A result JSON records ``"source": {"file": ..., "sha256": ...}`` (docs/weft_files.md, docs/jacquard.md). A
 run whose outputs would replace a result recorded from a *different* problem (another file whose
 content also differs) stops with a ProblemError unless forced; re-running the same file, or an
 edited version of the same file, overwrites as before.

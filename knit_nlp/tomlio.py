@@ -1,4 +1,4 @@
-"""Reading TOML problem files with typed, key-checked access (README, "Weft problem files").
+"""Reading TOML problem files with typed, key-checked access (docs/weft_files.md, docs/jacquard.md).
 
 Every read goes through :class:`Table`, which knows the file and table it reads from, checks each
 value's type, and rejects keys nobody asked for. Nothing in a problem file is ever executed.
@@ -17,7 +17,7 @@ from .errors import ProblemError, quoted
 
 _MISSING = object()
 
-MAX_PROBLEM_BYTES = 1 << 20      # a problem file is at most 1 MiB (README, "Limits")
+MAX_PROBLEM_BYTES = 1 << 20      # a problem file is at most 1 MiB (docs/limits.md)
 MAX_MAGNITUDE = 1e9              # every number in a problem file has |value| <= 1e9
 MAX_INTEGER = 10 ** 9            # and every integer, unless its key says less
 

@@ -12,7 +12,7 @@ error; its iterations and times include the indicator's solves of the bisected c
 at most its parameters.
 
     python scripts/bench_large.py                 # 30 x 30 diagonal pull (a few minutes)
-    python scripts/bench_large.py --pulls course  # the course pull (slow: see the README)
+    python scripts/bench_large.py --pulls course  # the course pull (slow: docs/measurements.md)
     python scripts/bench_large.py --sizes 50 100 --grids 2 6 --pulls diagonal --skip-adaptive
     python scripts/bench_large.py --nested --skip-adaptive --grids  # what tensor grids can reach
 

@@ -1,7 +1,7 @@
 """Benchmark: build and solve diagonal pulls of growing size; fit how time grows with loops.
 
 Each size runs in its own process so its peak memory (max RSS) is its own. The pull is the
-paper's eq. 28 map (``knit_nlp.weft.cases.diagonal_pull``), as in problems/diagonal_pull.toml.
+paper's eq. 28 map (``knit_nlp.weft.model.cases.diagonal_pull``), as in problems/diagonal_pull.toml.
 
     python scripts/bench_weft.py [--sizes 5 10 20 50 100] [--reduced]
 """
@@ -40,7 +40,7 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[5, 10, 20, 50],
                     help="N x N sizes (default 5 10 20 50: about 15 s)")
     ap.add_argument("--full-sizes", action="store_true",
-                    help=f"the README's sizes {FULL_SIZES} (about a minute and a half)")
+                    help=f"the sizes of docs/measurements.md {FULL_SIZES} (about a minute and a half)")
     ap.add_argument("--reduced", action="store_true", help="solve the reduced (corner) model")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()

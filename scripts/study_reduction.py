@@ -7,7 +7,7 @@ centreline error against parameter count and against time.
 
     python scripts/study_reduction.py [--sizes 10] [--full-sizes] [--out results/study_reduction]
 
-The default (10 x 10) takes well under a minute; ``--full-sizes`` adds 30 x 30, the README's
+The default (10 x 10) takes well under a minute; ``--full-sizes`` adds 30 x 30, docs/measurements.md's
 table (many minutes: the reduced course pulls at 30 x 30 take hundreds of iterations).
 """
 from __future__ import annotations
@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[10],
                     help="fabric sizes N (N x N; default 10, under a minute)")
     ap.add_argument("--full-sizes", action="store_true",
-                    help=f"the README's sizes {FULL_SIZES} (many minutes)")
+                    help=f"the sizes of docs/measurements.md {FULL_SIZES} (many minutes)")
     ap.add_argument("--out", type=Path, default=Path("results/study_reduction"))
     args = ap.parse_args(argv)
     if args.full_sizes:

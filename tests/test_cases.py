@@ -1,4 +1,4 @@
-"""The shared load cases (knit_nlp.weft.cases) are the shipped problems' cases: one definition of
+"""The shared load cases (knit_nlp.weft.model.cases) are the shipped problems' cases: one definition of
 each pull, checked against the files (which round the targets)."""
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ minus load work) at parameters p. CasADi's multipliers make ∇ₓ(U − W) + �
 envelope theorem gives dV/dp = ∂(U − W)/∂p + λᵀ ∂g/∂p at the minimum.
 
 - Point clamp, rows g = P − target: ∂g/∂target = −I, so dV/dtarget = −λ, which is the clamp's
-  reported ``reaction`` (the force the clamp applies to the fabric = −multiplier; README).
+  reported ``reaction`` (the force the clamp applies to the fabric = −multiplier; docs/weft_files.md).
   Physically: moving the clamp by δ, the clamp does work reaction·δ on the fabric.
 - Angle clamp, row g = θ(s) − angle: dV/dangle = −λ = ``reaction_moment``.
 - Point load, W = F·(P − P0) + M·(θ(s) − θ0(s)) with g independent of F, M:

@@ -150,7 +150,7 @@ def test_sizes_beyond_the_memory_limit_are_refused_with_the_estimate(tmp_path, c
 
 
 def test_the_memory_estimate_matches_the_measured_figures():
-    """The estimates reproduce the figures they were fitted to (README, "Limits")."""
+    """The estimates reproduce the figures they were fitted to (docs/limits.md)."""
     from knit_nlp.limits import jacquard_bytes, weft_bytes
     assert weft_bytes(100, 100, 3, 8) == pytest.approx(758e6, rel=0.02)
     assert weft_bytes(50, 50, 3, 8) == pytest.approx(259e6, rel=0.1)

@@ -141,7 +141,7 @@ def test_every_loop_representative_condensed_equals_the_full_model(write_problem
 
 def test_shooting_segments_reach_the_single_shooting_minimum_in_fewer_iterations():
     # measured on the 20 x 20 diagonal pull (corner form): 8 iterations in segments of 12
-    # loops, 22 with each course one segment; 50 x 50: 9 against 47 (README)
+    # loops, 22 with each course one segment; 50 x 50: 9 against 47 (docs/measurements.md)
     pr = parse_problem(diagonal_pull(20), "<diagonal pull 20 x 20>")
     seg, one = build_condensed(pr, segment=12), build_condensed(pr, segment=20)
     assert (seg.n_seg, one.n_seg) == (2, 1)
@@ -156,7 +156,7 @@ def test_shooting_segments_reach_the_single_shooting_minimum_in_fewer_iterations
 
 def test_a_finer_reduced_grid_starts_from_the_corner_form():
     # measured on the 16 x 16 diagonal pull over an even 8 x 8 grid: corner 9 + grid 13
-    # iterations against 45 from the natural state, to the same minimum (README)
+    # iterations against 45 from the natural state, to the same minimum (docs/measurements.md)
     pr = parse_problem(diagonal_pull(16), "<diagonal pull 16 x 16>")
     grid = build_condensed(pr, Reduced((1, 3, 5, 7, 10, 12, 14, 16), (1, 3, 5, 7, 10, 12, 14, 16)))
     warm = solve(grid, WeftSolver(grid, max_iter=200))

@@ -1,7 +1,7 @@
 """Parse and validate a ``model = "jacquard"`` problem file into plain dataclasses.
 
 Everything a user can get wrong is checked here, before any numerics, and reported as a
-:class:`~knit_nlp.errors.ProblemError` naming file, table and key (README, "Command line").
+:class:`~knit_nlp.errors.ProblemError` naming file, table and key.
 The model and the key reference are in docs/jacquard.md.
 """
 from __future__ import annotations
@@ -137,7 +137,7 @@ def parse_design(text: str, table: Table, key: str) -> np.ndarray:
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 LUMINANCE = np.array([0.299, 0.587, 0.114])
-MAX_DESIGN_BYTES = 8 * 2 ** 20      # design files and images (README, "Limits")
+MAX_DESIGN_BYTES = 8 * 2 ** 20      # design files and images (docs/limits.md)
 
 
 def png_size(data: bytes) -> tuple[int, int] | None:

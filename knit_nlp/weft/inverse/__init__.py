@@ -1,4 +1,4 @@
-"""Inverse problems through the weft equilibrium (spec/inverse_problems.md).
+"""Inverse problems through the weft equilibrium (docs/inverse.md).
 
 ``spec`` reads the control keys of a problem file (actuated clamps, bounds, goals, openings);
 ``points`` evaluates material points of a solution symbolically; ``equilibrium`` holds the

@@ -1,4 +1,4 @@
-"""Deformation control (spec/inverse_problems.md, section 1): move the actuated clamps so that
+"""Deformation control (docs/inverse.md, "Deformation control"): move the actuated clamps so that
 material points reach goals and openings stay open, with the fabric in stable equilibrium.
 
 Formulation (chosen by measurement, docs/inverse.md): an outer trust-region Gauss–Newton (SQP)

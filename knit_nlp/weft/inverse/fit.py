@@ -1,4 +1,4 @@
-"""Identification of material values from observed points (spec/inverse_problems.md, section 2).
+"""Identification of material values from observed points (docs/inverse.md, "Identification").
 
 Every load case is a forward problem in equilibrium with the same material values θ (any of
 k_a, k_b, R_f; eqs. 6-12). The residual stacks model minus observed positions over all cases;

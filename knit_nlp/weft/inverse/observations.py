@@ -1,4 +1,4 @@
-"""Observed positions of material points (spec/inverse_problems.md, section 2).
+"""Observed positions of material points (docs/inverse.md, "Identification").
 
 CSV with a header, columns exactly ``case,course,wale,point,x,y``; lines starting with ``#``
 before or after the header are comments (extension: how the data were made). Every bad row is
@@ -29,7 +29,7 @@ class Observation:
     xy: np.ndarray
 
 
-MAX_TABLE_BYTES = 8 * 2 ** 20    # an observations CSV (README, "Limits and hardening")
+MAX_TABLE_BYTES = 8 * 2 ** 20    # an observations CSV (docs/limits.md)
 
 
 def read_rows(path: Path) -> list[tuple[int, dict[str, str]]]:

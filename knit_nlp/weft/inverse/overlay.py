@@ -1,4 +1,4 @@
-"""A solved result over a photograph (spec/inverse_problems.md, section 3; the paper's Fig. 8).
+"""A solved result over a photograph (docs/inverse.md, "Overlay"; the paper's Fig. 8).
 
 The picture's y axis points down, the model's up, so the similarity (scale, rotation, shift) is
 fitted between model points z = x + iy and pixels w = px − i·py: w ≈ a·z + b with complex a
@@ -78,7 +78,7 @@ class SolvedShape:
         return positions(self.coefficients[i, j][None], [s], self.L, t)[0, 0] + self.starts[i, j]
 
 
-MAX_RESULT_BYTES = 256 * 2 ** 20     # a result JSON read back (README, "Limits and hardening")
+MAX_RESULT_BYTES = 256 * 2 ** 20     # a result JSON read back (docs/limits.md)
 
 
 def load_result(path: Path) -> SolvedShape:

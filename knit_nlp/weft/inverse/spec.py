@@ -1,4 +1,4 @@
-"""The control keys of a weft problem file (spec/inverse_problems.md, section 1).
+"""The control keys of a weft problem file (docs/inverse.md, "Deformation control").
 
 ``actuated``/``bounds`` on ``[[clamp]]``, ``actuated``/``translation_bounds``/``rotation_bounds``
 on ``[[rigid_clamp]]``, ``[[goal]]``, ``[[opening]]`` and ``[control]``. They are read here and

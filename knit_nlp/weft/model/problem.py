@@ -1,6 +1,6 @@
 """A weft-knit problem: read from TOML, checked completely before any symbolic work.
 
-The contract is the README's "Weft problem files"; every rule a bad file can break raises
+The contract is docs/weft_files.md; every rule a bad file can break raises
 :class:`~knit_nlp.errors.ProblemError` naming file, table and key.
 """
 from __future__ import annotations
@@ -26,11 +26,11 @@ from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_
 # at most L/4 long; on the 10 x 10 diagonal pull 8 nodes give energy within 7e-12 (relative) and
 # centrelines within 5e-10 of 32 nodes, while 16 nodes cost twice the function evaluations.
 DEFAULT_NODES = 8
-MAX_NODES = 64            # README, "Limits"
+MAX_NODES = 64            # docs/limits.md
 MAX_HARMONICS = 30
 MAX_CONTINUATION = 1000
 
-# Grip shorthands (README, "Grips"): which loops a clamp, rigid clamp or load table names.
+# Grip shorthands (docs/weft_files.md, "Grips"): which loops a clamp, rigid clamp or load table names.
 EDGES = {"bottom": ("course", "first"), "top": ("course", "last"),
          "left": ("wale", "first"), "right": ("wale", "last")}
 # The point an edge grips when the table gives none: the yarn's ends on the side edges.

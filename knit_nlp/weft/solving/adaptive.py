@@ -16,7 +16,7 @@ Start from the corner form; after each solve of the condensed reduced model
    so the plain difference δ underestimates the error 2.5-6 × on coarse grids (true RMS 14.3,
    difference 2.6 from the corners). η is zero where G's solution is also the finer grids'
    (at the full solution, when G contains it) and ranks loops like the true error: along the
-   30 × 30 run (README) Spearman 0.81-0.96 over the loops and estimate / true RMS 0.90-2.0.
+   30 × 30 run (docs/measurements.md) Spearman 0.81-0.96 over the loops and estimate / true RMS 0.90-2.0.
    Measured and not kept: a few full-model IPOPT iterations from the lifted solution (the
    previous indicator): far from the full solution the Hessian is indefinite and IPOPT's
    regularisation shortens the steps, so it estimated 0.31 for a true RMS error of 10.6 and
