@@ -5,6 +5,8 @@ import numpy as np
 import pytest
 
 from knit_nlp.studies import LoadPath, run_study
+from knit_nlp.weft.model.cases import course_pull
+from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.study import WeftStudy
 from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.api import solve as solve_problem
@@ -81,3 +83,27 @@ def test_study_of_a_straight_yarn_buckles_from_a_natural_problem():
     assert rep.success and any(a.startswith("perturbed") for a in rep.attempts)
     force = study.result(rep, p).clamps[1].reaction[0]
     assert -force == pytest.approx(elastica_force(40.0, 36.0, 1.0), rel=2e-3)
+
+
+
+def test_a_study_of_a_reduced_problem_solves_what_solve_solves(tmp_path):
+    """Issue 18: studies built the old lifted reduced model (no clamp-rank extension, no
+    representatives) while solve() used the condensed one. A study point (run_study, through
+    the worker's WeftStudy) and solve() of the same reduced problem: same energy, same
+    representatives (here extended: the course pull's clamps are dependent over the corners),
+    same parameter count, on both points of a warm-started path."""
+    doc = course_pull(6)
+    doc["reduction"] = {"representative_courses": [1, 6], "representative_wales": [1, 6]}
+    path = LoadPath("red", doc, [{"material": {"k_b": kb}} for kb in (0.01, 0.05)])
+    summary = run_study("r", [path], tmp_path, workers=1)
+    cached = sorted((tmp_path / "r" / "points").glob("*.json"))
+    problem = parse_problem(doc, "<r>")
+    for kb, row, js in zip((0.01, 0.05), summary["points"], cached):
+        alone = solve_problem(problem, params=WeftParams.of(problem).with_(material={"k_b": kb}))
+        point = json.loads(js.read_text())
+        assert alone.success and row["success"] and alone.model == point["model"] == "reduced"
+        assert row["energy"]["total"] == pytest.approx(alone.energy.total, rel=1e-8)
+        assert point["representatives"] == alone.representatives()
+        assert "asked" in point["representatives"]
+        assert point["n_parameters"] == alone.nlp.n_parameters
+    assert WeftStudy(problem).nlp.representatives() == alone.representatives()

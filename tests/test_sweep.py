@@ -119,3 +119,74 @@ def test_bad_axes_are_one_line_and_exit_2(tmp_path, capsys, args, where):
     err = capsys.readouterr().err
     assert err.startswith("knit-nlp: ") and err.count("\n") == 1 and where in err, err
     assert not list(tmp_path.iterdir())                  # nothing solved, nothing written
+
+
+ADAPTIVE = """
+name = "adaptive_pull"
+[fabric]
+courses = 3
+wales = 3
+[[clamp]]
+loop = [1, 1]
+point = "start"
+position = [0.0, 0.0]
+[[clamp]]
+loop = [1, 3]
+point = "H"
+displacement = [4.0, 3.0]
+[reduction]
+adaptive = true
+tolerance = 0.01
+"""
+
+
+def test_sweep_of_an_adaptive_problem_solves_the_adaptive_model(tmp_path):
+    """Issue 18: the sweep built the full NLP for [reduction] adaptive = true and called it
+    reduced. Each point must be what solve() gives: the adaptive model's parameter count and
+    energy, not the full model's."""
+    path = tmp_path / "adaptive_pull.toml"
+    path.write_text(ADAPTIVE)
+    assert _sweep(tmp_path, str(path), "--vary", "material.k_b=0.01:0.02:2", "--name", "a") == 0
+    points = sorted((tmp_path / "a" / "points").glob("*.json"))
+    assert len(points) == 2
+    for js, row in zip(points, _rows(tmp_path, "a")):
+        point = json.loads(js.read_text())
+        pr = knit_nlp.load_problem(path)
+        params = knit_nlp.weft.WeftParams.of(pr).with_(material={"k_b": row["label"]["material.k_b"]})
+        alone = knit_nlp.solve(pr, params=params)
+        full = knit_nlp.solve(pr, reduced=False, params=params)
+        assert alone.success and full.success and point["success"]
+        assert point["model"] == "reduced" and "adaptive" in point
+        assert point["n_parameters"] == alone.nlp.n_parameters < full.nlp.n_parameters
+        assert point["representatives"] == alone.representatives()
+        assert row["energy"]["total"] == pytest.approx(alone.energy.total, rel=1e-7)
+        assert abs(row["energy"]["total"] - full.energy.total) > 1e-4 * full.energy.total
+
+
+def test_an_old_jacquard_result_with_a_number_for_energy_is_still_read(tmp_path, capsys):
+    """The jacquard JSON's energy became the Energy object; a study cached before (energy a
+    number, no message) replays into the same rows, CSV and picture, and overlay refuses it in
+    one line (it is not a weft result) instead of failing on it."""
+    args = ["jacquard_all_net", "--vary", "ground.stiffness=1:2:2", "--name", "old"]
+    assert _sweep(tmp_path, *args) == 0
+    new = _rows(tmp_path, "old")
+    for js in (tmp_path / "old" / "points").glob("*.json"):
+        doc = json.loads(js.read_text())
+        assert set(doc["energy"]) == {"total", "spring", "bending", "load_work"}
+        doc["energy"] = doc["energy"]["total"]
+        del doc["message"]
+        js.write_text(json.dumps(doc))
+    (tmp_path / "old" / "summary.json").unlink()
+    assert _sweep(tmp_path, *args) == 0
+    assert all(isinstance(json.loads(js.read_text())["energy"], float)     # replayed, not
+               for js in (tmp_path / "old" / "points").glob("*.json"))     # solved again
+    old = _rows(tmp_path, "old")
+    assert [r["energy"] for r in old] == [r["energy"] for r in new]
+    assert all(r["energy"]["spring"] == r["energy"]["total"] > 0 for r in old)
+    table = list(csv.DictReader((tmp_path / "old" / "sweep.csv").open()))
+    assert [float(t["energy_total"]) for t in table] == [r["energy"]["total"] for r in new]
+    js = next((tmp_path / "old" / "points").glob("*.json"))
+    capsys.readouterr()
+    assert main(["overlay", str(js), str(js), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "NPZ" in err
