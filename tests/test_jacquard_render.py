@@ -118,7 +118,7 @@ def test_readme_letter_k_command(tmp_path, monkeypatch, capsys, saved_figures):
     README writes it (from a scratch folder), printing what the README says it prints."""
     readme = README.read_text()
     command = re.search(r"knit-nlp (solve jacquard_letter_k[^\n`]*)", readme).group(1)
-    printed = re.search(r"It prints `(pull top by [^`]*)`", readme).group(1)
+    printed = re.search(r"It prints\s+`(pull top by [^`]*)`", readme).group(1)
     monkeypatch.chdir(tmp_path)
     assert main(command.split()) == 0
     assert printed in capsys.readouterr().out
