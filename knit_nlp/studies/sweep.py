@@ -15,7 +15,6 @@ from __future__ import annotations
 import itertools
 import re
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -117,8 +116,3 @@ def study_name(name: str) -> str:
         raise ArgumentError(f"--name {name}", "use letters, digits, '_', '-' and '.' "
                             "(not first), at most 100 characters")
     return name
-
-
-def output_dir(out: str | Path, name: str) -> Path:
-    """``OUT/<name>``: where the study writes (summary, CSV, picture, cache)."""
-    return Path(out) / study_name(name)
