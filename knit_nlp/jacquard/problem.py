@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
+import matplotlib.image as mpimg
 import numpy as np
 
 from ..errors import ProblemError, quoted
@@ -153,8 +154,6 @@ def _load_png(path: Path, table: Table, key: str, shape: tuple[int, int]) -> np.
     The header's width x height must be the fabric's wales x courses (``shape`` = (n, m)) and
     is checked before anything is decoded, so an image can never decode into more pixels than
     the size limits allow."""
-    import matplotlib.image as mpimg  # deferred: only image designs need it
-
     data = _read_design_bytes(path, table, key)
     size = png_size(data)
     if size is None:
