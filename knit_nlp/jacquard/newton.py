@@ -146,7 +146,7 @@ def minimise(energy: SpringEnergy, z0: np.ndarray, tol: float, max_iter: int,
     for it in range(max_iter + 1):
         g_max = float(np.max(np.abs(g))) if g.size else 0.0
         if g_max <= tol:
-            return outcome(True, f"converged: max |dE/dx| {g_max:.3g} <= tol {tol:g}", it, g_max)
+            return outcome(True, f"max |dE/dx| {g_max:.3g} <= tol {tol:g}", it, g_max)
         if it == max_iter or time.perf_counter() >= deadline:
             why = f"max_iter {max_iter} reached" if it == max_iter else "max_time exceeded"
             return outcome(False, f"{why}: max |dE/dx| {g_max:.3g} > tol {tol:g}", it, g_max)
