@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -44,8 +45,10 @@ import numpy as np
 from ..ipopt import ipopt_options, succeeded
 from .problem import JacquardProblem
 from .result import JacquardResult
-from .newton import NewtonOutcome, SpringEnergy, minimise
 from .springs import Network, SpringSet, build_network, spring_geometry
+
+if TYPE_CHECKING:
+    from .newton import NewtonOutcome
 
 MAX_ROUNDS = 20          # constraint-generation rounds before giving up
 NEAR_LIMIT = 1e-3        # also add length limits within this relative margin of binding
@@ -283,6 +286,7 @@ def newton_applies(problem: JacquardProblem, net: Network, s: SpringSet) -> bool
 def _newton_round(problem: JacquardProblem, net: Network, s: SpringSet, eps: float,
                   deadline: float) -> tuple[np.ndarray, NewtonOutcome, float]:
     """The relaxation without constraints by Newton's method: positions, outcome, set-up s."""
+    from .newton import SpringEnergy, minimise      # scipy only where a jacquard solve needs it
     t = time.perf_counter()
     free = ~net.fixed
     energy = SpringEnergy(s, free, net.held, net.natural, eps)
