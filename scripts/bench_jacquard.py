@@ -10,7 +10,11 @@ same energy (vectorised numpy energy and gradient written here from the unmerged
 ``scipy.optimize.minimize(method="L-BFGS-B")``), stopped as soon as its residual force (the
 largest net spring force on a free particle, ``residual_force``) is at most the one the static
 solver reached; same-run ratios and the split (set-up, evaluations, linear algebra, line
-search, iterations) are printed.
+search, iterations) are printed. L-BFGS-B's line search works on energy values, whose rounding
+(~1e-12 of an energy of ~1e3) stops it before the static solver's residual (~1.2e-8, the
+regularisation's own pull) on these fabrics: the ratio is then marked ``>=`` (its time to
+stalling is a lower bound of its time to the target), and its time to 10x the static
+residual is printed too (a ratio in the peer's favour).
 
 ``--cli SIZES``: ``knit-nlp solve`` of a generated problem file (TOML + two design files in a
 temporary folder), ``repeats`` runs in fresh processes: wall clock min/median/max, and in one
@@ -116,7 +120,7 @@ def solve_peer(p: JacquardProblem, target: float, eps: float, max_iter: int = 20
     net = build_network(p)
     energy = PeerEnergy(p, net, eps)
     setup = time.perf_counter() - t0
-    state = {"residual": np.inf, "check_s": 0.0, "reached": False}
+    state = {"residual": np.inf, "check_s": 0.0, "reached": False, "loose": None}
 
     def check(intermediate_result) -> None:
         t = time.perf_counter()
@@ -124,6 +128,8 @@ def solve_peer(p: JacquardProblem, target: float, eps: float, max_iter: int = 20
         x[energy.free] = intermediate_result.x.reshape(-1, 2)
         state["residual"] = residual_force(x, net)
         state["check_s"] += time.perf_counter() - t
+        if state["loose"] is None and state["residual"] <= 10 * target:
+            state["loose"] = setup + t - ts - state["check_s"]
         if state["residual"] <= target:
             state["reached"] = True
             raise StopIteration
@@ -136,6 +142,7 @@ def solve_peer(p: JacquardProblem, target: float, eps: float, max_iter: int = 20
     return {"time": setup + solve, "setup": setup, "evaluations": energy.seconds,
             "n_evaluations": energy.evaluations, "iterations": int(res.nit),
             "residual": state["residual"], "reached": state["reached"],
+            "time_to_10x": state["loose"],
             "message": str(res.message)}
 
 
@@ -176,7 +183,10 @@ def run_peer(sizes: list[int], repeats: int, ipopt: bool) -> None:
                   f"{pe['n_evaluations']} evaluations {pe['evaluations']:.2f} s, set-up "
                   f"{pe['setup']:.2f} s, residual {pe['residual']:.3g}"
                   f"{'' if pe['reached'] else ', target NOT reached: ' + pe['message']}) | "
-                  f"ratio L-BFGS-B / static {bound}{ratio:.1f}", flush=True)
+                  f"ratio L-BFGS-B / static {bound}{ratio:.1f}" + (
+                      f"; L-BFGS-B to 10x the static residual {pe['time_to_10x']:.2f} s, ratio "
+                      f"{pe['time_to_10x'] / st['time']:.1f}" if pe["time_to_10x"] else ""),
+                  flush=True)
             if ipopt:
                 ip = static_row(p, "ipopt")
                 gap = np.max(np.abs(ip["result"].positions - r.positions)) / p.w

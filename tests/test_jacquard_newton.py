@@ -224,3 +224,30 @@ def test_json_text_writes_large_arrays_in_bulk_and_keeps_the_rest():
     assert back == json.loads(json.dumps(_plain(data), indent=1))
     assert back["particles"]["final"][3][1] is None
     assert text.count("\n") < 2 * 1500 + 50          # one [x, y] per line, not one number
+
+
+def test_line_search_keeps_every_step_downhill_from_a_far_start():
+    """From a start 0.6 w away from the natural grid (springs crossing slack/taut, full Newton
+    steps that overshoot), every accepted step lowers the energy and the iteration still ends
+    at IPOPT's equilibrium."""
+    from knit_nlp.jacquard import newton
+    p = _random_problem(10, 8, 5)
+    net = build_network(p)
+    s = merge_parallel(net.springs)
+    energy = SpringEnergy(s, ~net.fixed, net.held, net.natural,
+                          p.solver.regularization * float(s.k.max()))
+    z0 = net.held[~net.fixed].ravel() + 0.6 * p.w * np.random.default_rng(2).standard_normal(
+        2 * (~net.fixed).sum())
+    values = []
+    original = energy.gradient
+
+    def recording(z):
+        values.append(energy.value(z))
+        return original(z)
+
+    energy.gradient = recording
+    out = newton.minimise(energy, z0, 1e-10, 100, float("inf"))
+    assert out.converged
+    assert all(b <= a + 1e-9 * abs(a) for a, b in zip(values, values[1:]))
+    assert np.max(np.abs(energy.positions(out.z) - solve_static(p, method="ipopt").positions)) \
+        < 1e-7 * p.w
