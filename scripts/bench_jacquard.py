@@ -23,6 +23,9 @@ further process the phases (import, reading, set-up, solving, JSON + picture, su
 ``--explicit SIZES``: static, then the explicit solver until its residual force is at most
 the static one.
 
+``--preconditioners SIZES``: one hard Newton system (after five Newton steps) solved by CG
+with multigrid hierarchies of several settings (and SuperLU where affordable).
+
     .venv/bin/python scripts/bench_jacquard.py --peer 100 300 --cli 500 --repeats 3
     .venv/bin/python scripts/bench_jacquard.py --explicit 50 --max-steps 400000
 
@@ -257,6 +260,54 @@ def run_cli(sizes: list[int], repeats: int) -> None:
                                            f"{v:.2f} s" for k, v in profile.items()), flush=True)
 
 
+# --- preconditioners ------------------------------------------------------------------------
+
+def run_preconditioners(sizes: list[int]) -> None:
+    """One hard Newton system (after 5 Newton steps) solved by CG with pyamg hierarchies of
+    several settings, and by SuperLU where that is affordable."""
+    import pyamg
+    from scipy.sparse.linalg import splu
+    from knit_nlp.jacquard import linalg, newton
+    from knit_nlp.jacquard.static import merge_parallel
+    base = load_problem(BASE)
+    for size in sizes:
+        p = resized(base, size)
+        net = build_network(p)
+        s = merge_parallel(net.springs)
+        energy = newton.SpringEnergy(s, ~net.fixed, net.held, net.natural,
+                                     p.solver.regularization * float(s.k.max()))
+        z = newton.minimise(energy, net.held[~net.fixed].ravel(), 1e-10, 5, np.inf).z
+        H, rhs = energy.hessian(z), -energy.gradient(z)
+        tr = np.zeros((H.shape[0], 2))
+        tr[0::2, 0] = tr[1::2, 1] = 1.0
+        gs1 = {"presmoother": ("block_gauss_seidel", {"sweep": "forward"}),
+               "postsmoother": ("block_gauss_seidel", {"sweep": "backward"})}
+        configs = {"kept (translations, theta 0.05, one forward + one backward sweep)":
+                   {"strength": ("symmetric", {"theta": 0.05}), **gs1},
+                   "symmetric sweeps": {"strength": ("symmetric", {"theta": 0.05})},
+                   "theta 0": gs1, "evolution strength": {"strength": "evolution", **gs1}}
+        for name, kw in configs.items():
+            np.random.seed(0)
+            t = time.perf_counter()
+            hierarchy = pyamg.smoothed_aggregation_solver(H, B=tr, improve_candidates=None,
+                                                          coarse_solver="splu", **kw)
+            mg = linalg.Multigrid.__new__(linalg.Multigrid)
+            mg.hierarchy, mg.levels = hierarchy, hierarchy.levels
+            setup = time.perf_counter() - t
+            cells = []
+            for rtol in (2e-4, 1e-7):
+                t = time.perf_counter()
+                _, k, _ = linalg.pcg(H, rhs, mg.operator(), rtol, 1000)
+                cells.append(f"to {rtol:g}: {k} it {time.perf_counter() - t:.2f} s")
+            print(f"{size} x {size} AMG {name}: set-up {setup:.2f} s, " + ", ".join(cells)
+                  + f", operator complexity {hierarchy.operator_complexity():.2f}", flush=True)
+        if H.shape[0] <= 40_000:
+            t = time.perf_counter()
+            splu(H.tocsc()).solve(rhs)
+            print(f"{size} x {size} SuperLU (COLAMD): {time.perf_counter() - t:.2f} s",
+                  flush=True)
+
+
 # --- explicit -------------------------------------------------------------------------------
 
 def run_explicit(sizes: list[int], max_steps: int) -> None:
@@ -284,6 +335,8 @@ def main() -> None:
     ap.add_argument("--peer", type=int, nargs="*", default=[100])
     ap.add_argument("--cli", type=int, nargs="*", default=[])
     ap.add_argument("--explicit", type=int, nargs="*", default=[])
+    ap.add_argument("--preconditioners", type=int, nargs="*", default=[],
+                    help="sizes at which to compare multigrid settings on one Newton system")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--ipopt", action="store_true", help="also the IPOPT formulation (--peer)")
     ap.add_argument("--max-steps", type=int, default=400_000)
@@ -294,6 +347,7 @@ def main() -> None:
     run_peer(args.peer, args.repeats, args.ipopt)
     run_cli(args.cli, args.repeats)
     run_explicit(args.explicit, args.max_steps)
+    run_preconditioners(args.preconditioners)
     print(f"load average at the end {os.getloadavg()[0]:.2f}")
 
 
