@@ -133,12 +133,21 @@ class _Tiling:
         return sys.codes[np.mod(j, self.p.courses), np.mod(i, self.p.wales)]
 
 
+def _add(ax: "Axes", patch: PathPatch) -> None:
+    """Add a patch inside the panel's fixed limits: not ``add_patch``, which would find the
+    extrema of every Bezier segment to update the data limits (4 s of a 7 s picture), and
+    left out of the layout, which would measure it again."""
+    patch.set_in_layout(False)
+    patch.set_clip_path(ax.patch)
+    ax.add_artist(patch)
+
+
 def _stroke(ax: "Axes", path: MplPath, colour: str, width_pts: float,
             outline: str | None = None) -> None:
     """A yarn: one compound path, optionally over a darker, slightly wider outline."""
     for c, lw in ([(outline, width_pts * 1.3)] if outline else []) + [(colour, width_pts)]:
-        ax.add_patch(PathPatch(path, facecolor="none", edgecolor=c, linewidth=lw,
-                               capstyle="round", joinstyle="round"))
+        _add(ax, PathPatch(path, facecolor="none", edgecolor=c, linewidth=lw,
+                           capstyle="round", joinstyle="round"))
 
 
 def _underlaps(t: _Tiling, sys: JacquardSystem, i, j) -> dict[str, np.ndarray]:
@@ -185,15 +194,16 @@ def draw_fabric(ax: "Axes", p: JacquardProblem, x: np.ndarray, title: str) -> No
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_facecolor(BACKGROUND)
-    ax.figure.canvas.draw()
+    ax.figure.get_layout_engine().execute(ax.figure)     # the layout a draw would make ...
+    ax.apply_aspect()                                     # ... without drawing everything
     dpp = ax.transData.transform([(p.w, 0), (0, 0)])
     pts_per_w = abs(dpp[0, 0] - dpp[1, 0]) * 72.0 / ax.figure.dpi
     systems = {s.name: s for s in p.systems}
     front = t.codes(systems["fall_plate"], i, j)
     for struct, code in STRUCTURE_CODES.items():
         if (front == code).any():
-            ax.add_patch(PathPatch(polygon_path(cells[front == code]), linewidth=0,
-                                   facecolor=COLOURS["fall_plate"], alpha=TINT[struct]))
+            _add(ax, PathPatch(polygon_path(cells[front == code]), linewidth=0,
+                               facecolor=COLOURS["fall_plate"], alpha=TINT[struct]))
     layers = {name: _underlaps(t, s, i, j) for name, s in systems.items()}
     for struct, ctrl in layers["inlay"].items():                       # back bar first
         _stroke(ax, bezier_path(ctrl, False), COLOURS["inlay"],

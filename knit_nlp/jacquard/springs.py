@@ -213,6 +213,22 @@ def accumulate(n: int, s: SpringSet, f: np.ndarray) -> np.ndarray:
     return np.column_stack([fx, fy])
 
 
+def spring_hessians(x: np.ndarray, s: SpringSet) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The 2 x 2 Hessian of each spring's energy in its vector d, entries (xx, xy, yy).
+
+    For a spring in force (rope: l > l0; loop-width: l < l0), with u = d / l,
+    ``H = k [(1 - l0/l) I + (l0/l) u u^T]`` (the second derivative of 1/2 k (l - l0)^2);
+    zero otherwise (rope springs are convex: H is positive semidefinite).
+    """
+    d, length = spring_geometry(x, s)
+    active = np.where(s.compress, length < s.l0, length > s.l0)
+    safe = np.where(active, length, 1.0)
+    ratio = np.where(active, s.l0 / safe, 0.0)
+    iso = np.where(active, s.k * (1.0 - ratio), 0.0)
+    aniso = s.k * ratio / safe ** 2
+    return (iso + aniso * d[:, 0] ** 2, aniso * d[:, 0] * d[:, 1], iso + aniso * d[:, 1] ** 2)
+
+
 def spring_forces(x: np.ndarray, s: SpringSet, v: np.ndarray | None = None,
                   damping: float = 0.0) -> np.ndarray:
     """Net spring force (and eq. 2 damping k_d (v_q - v_p) if ``v`` given) on every particle."""

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -47,6 +48,9 @@ from .problem import JacquardProblem
 from .result import JacquardResult
 from .springs import Network, SpringSet, build_network, spring_geometry
 
+if TYPE_CHECKING:
+    from .newton import NewtonOutcome
+
 MAX_ROUNDS = 20          # constraint-generation rounds before giving up
 NEAR_LIMIT = 1e-3        # also add length limits within this relative margin of binding
 
@@ -54,12 +58,20 @@ NEAR_LIMIT = 1e-3        # also add length limits within this relative margin of
 def merge_parallel(s: SpringSet) -> SpringSet:
     """Springs on the same particle pair with the same rest length, limit and law act as one
     spring of summed stiffness (exact: sum_i 1/2 k_i (l - l0)+^2 = 1/2 (sum k_i) (l - l0)+^2).
-    With the default pretensions the pillar and the two systems' longitudinal springs merge."""
-    key = np.column_stack([s.a, s.b, s.shift, np.round(s.l0, 12), np.round(s.limit, 12),
-                           s.compress])
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.ravel()
-    k = np.bincount(inverse, s.k, first.size)
+    With the default pretensions the pillar and the two systems' longitudinal springs merge.
+
+    Groups are found by one stable lexicographic sort of the keys (a, b, shift, l0, limit,
+    law): each merged spring keeps its group's first spring's attributes, in key order."""
+    l0, limit = np.round(s.l0, 12), np.round(s.limit, 12)
+    keys = (s.a, s.b, s.shift[:, 0], s.shift[:, 1], l0, limit, s.compress)
+    order = np.lexsort(keys[::-1])
+    starts = np.zeros(s.n, dtype=bool)
+    starts[:1] = True
+    for key in keys:
+        sorted_key = key[order]
+        starts[1:] |= sorted_key[1:] != sorted_key[:-1]
+    first = order[starts]
+    k = np.bincount(np.cumsum(starts) - 1, s.k[order], first.size)
     return SpringSet(s.a[first], s.b[first], s.shift[first], k, s.l_init[first], s.l0[first],
                      s.limit[first], s.compress[first], s.kind[first])
 
@@ -262,20 +274,100 @@ def _ipopt_options(problem: JacquardProblem, print_level: int, extra: dict | Non
                          **(extra or {}))
 
 
+METHODS = ("auto", "newton", "ipopt")
+# the status of a static solve that Newton's method finished (no constraint round needed); the
+# message says how: max |dE/dx| against tol, steps, the linear solver
+NEWTON_CONVERGED = "Converged"
+
+
+def newton_applies(problem: JacquardProblem, net: Network, s: SpringSet) -> bool:
+    """Whether the first (unconstrained) round can be solved by newton.py: rope springs only
+    (convex energy), no floating component (no centroid equalities) and the exact Hessian
+    (``[solver] hessian = "limited-memory"`` asks for IPOPT's quasi-Newton)."""
+    return problem.solver.hessian == "exact" and not s.compress.any() and not net.floating
+
+
+def _newton_round(problem: JacquardProblem, net: Network, s: SpringSet, eps: float,
+                  deadline: float) -> tuple[np.ndarray, NewtonOutcome, float]:
+    """The relaxation without constraints by Newton's method: positions, outcome, set-up s."""
+    from .newton import SpringEnergy, minimise      # scipy only where a jacquard solve needs it
+    t = time.perf_counter()
+    free = ~net.fixed
+    energy = SpringEnergy(s, free, net.held, net.natural, eps)
+    setup = time.perf_counter() - t
+    out = minimise(energy, net.held[free].ravel(), problem.solver.tol,
+                   problem.solver.max_iter, deadline)
+    return energy.positions(out.z).ravel(), out, setup
+
+
 def solve_static(problem: JacquardProblem, network: Network | None = None, *,
-                 print_level: int = 0, extra_options: dict | None = None) -> JacquardResult:
-    """Minimise the rope-spring energy under the order and length-limit constraints (IPOPT)."""
+                 method: str = "auto", print_level: int = 0,
+                 extra_options: dict | None = None) -> JacquardResult:
+    """Minimise the rope-spring energy under the order and length-limit constraints.
+
+    ``method``: ``"auto"`` (default) solves the first, unconstrained round by Newton's method
+    (newton.py) where it applies (``newton_applies``) and IPOPT otherwise; ``"ipopt"`` uses
+    IPOPT for every round; ``"newton"`` insists on Newton for the first round. Later rounds
+    of the constraint generation (active length limits or order constraints) are IPOPT's,
+    warm-started from the previous round. A Newton round that does not converge is handed
+    to IPOPT from where it stopped (the status then says so).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
     t0 = time.perf_counter()
     net = network or build_network(problem)
     s = merge_parallel(net.springs)
-    inc = incidence(s, net.natural.shape[0])
-    ipopt = _ipopt_options(problem, print_level, extra_options)
+    use_newton = method == "newton" or (method == "auto" and newton_applies(problem, net, s))
+    if method == "newton" and not newton_applies(problem, net, s):
+        raise ValueError("Newton's method needs rope springs only, no floating component and "
+                         "the exact Hessian (see newton_applies)")
+    eps = problem.solver.regularization * float(np.max(s.k)) if s.n else 0.0
     work = WorkingSet(np.zeros(0, dtype=int), np.zeros(0, dtype=int))
     x = net.held.ravel().copy()
-    timings = {"build_s": time.perf_counter() - t0, "solve_s": 0.0}
-    iterations, status, success = 0, "", False
+    timings: dict = {"build_s": time.perf_counter() - t0, "solve_s": 0.0}
+    iterations, note = 0, ""
     deadline = t0 + problem.solver.max_time
-    for rounds in range(1, MAX_ROUNDS + 1):
+    first = 1
+    if use_newton:
+        x, out, setup = _newton_round(problem, net, s, eps, deadline)
+        timings["build_s"] += setup
+        timings["solve_s"] += sum(out.timings.values())
+        timings["profile"] = out.timings
+        iterations = out.iterations
+        message = f"{out.status} (Newton, {out.iterations} steps, {out.linear})"
+        success = out.converged
+        if not success and time.perf_counter() >= deadline:
+            return _result(problem, net, x, False, OUT_OF_TIME,
+                           describe(OUT_OF_TIME, problem.solver.max_time), iterations, timings,
+                           1, work)
+        new = violations(x.reshape(-1, 2), net, s, work) if success else work
+        if success and new.limits.size == 0 and new.orders.size == 0:
+            return _result(problem, net, x, True, NEWTON_CONVERGED, message, iterations,
+                           timings, 1, work)
+        work, first = (new, 2) if success else (work, 1)
+        note = "Newton round not converged, IPOPT from its end: " if not success else ""
+    return _ipopt_rounds(problem, net, s, x, work, first, timings, iterations, deadline, note,
+                         _ipopt_options(problem, print_level, extra_options))
+
+
+def _result(problem: JacquardProblem, net: Network, x: np.ndarray, success: bool, status: str,
+            message: str, iterations: int, timings: dict, rounds: int,
+            work: WorkingSet) -> JacquardResult:
+    return JacquardResult(problem, net, "static", x.reshape(-1, 2), success, status, message,
+                          iterations=iterations, timings=timings,
+                          constraints={"rounds": rounds, "length_limits": int(work.limits.size),
+                                       "order": int(work.orders.size)})
+
+
+def _ipopt_rounds(problem: JacquardProblem, net: Network, s: SpringSet, x: np.ndarray,
+                  work: WorkingSet, first: int, timings: dict, iterations: int,
+                  deadline: float, note: str, ipopt: dict) -> JacquardResult:
+    """Constraint generation with IPOPT from round ``first``, warm from ``x``."""
+    tb = time.perf_counter()
+    inc = incidence(s, net.natural.shape[0])
+    timings["build_s"] += time.perf_counter() - tb
+    status, success, rounds = "", False, first
+    for rounds in range(first, MAX_ROUNDS + 1):
         tb = time.perf_counter()
         if tb >= deadline:
             status, success = OUT_OF_TIME, False
@@ -302,7 +394,5 @@ def solve_static(problem: JacquardProblem, network: Network | None = None, *,
     message = (f"constraints still violated after {MAX_ROUNDS} rounds"
                if status == "Constraints_Still_Violated"
                else describe(status, problem.solver.max_time))
-    return JacquardResult(problem, net, "static", x.reshape(-1, 2), success, status, message,
-                          iterations=iterations, timings=timings,
-                          constraints={"rounds": rounds, "length_limits": int(work.limits.size),
-                                       "order": int(work.orders.size)})
+    return _result(problem, net, x, success, status, note + message, iterations, timings,
+                   rounds, work)

@@ -10,11 +10,12 @@ def solve_summary(r: JacquardResult, paths: list[Path]) -> str:
     """A few lines for the terminal."""
     p = r.problem
     skew = r.wale_skew()["mean_angle_deg"]
-    count = f"{r.steps} steps" if r.solver == "explicit" else f"{r.iterations} IPOPT iterations"
+    count = f"{r.steps} steps" if r.solver == "explicit" else f"{r.iterations} iterations"
     return "\n".join([
         f"{p.name}: jacquard {p.wales} x {p.courses}, {r.network.springs.n} springs, "
         f"solver {r.solver}: {'converged' if r.success else 'NOT converged'} ({r.message})",
-        f"  {count}, {sum(r.timings.values()):.3g} s; residual force {r.residual_force:.3g}; "
+        f"  {count}, {r.timings['build_s'] + r.timings['solve_s']:.3g} s; "
+        f"residual force {r.residual_force:.3g}; "
         f"zero-energy modes {r.network.zero_modes}",
         f"  max |dx| {abs(r.displacement()[:, 0]).max() / p.w:.4g} w; wale skew "
         f"{skew.min():+.3g}..{skew.max():+.3g} deg; max stretch {r.max_stretch():.4f} "
