@@ -91,6 +91,7 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the named problems")
     _sweep_parser(sub)
     _inverse_parsers(sub)
+    _calibrate_parser(sub)
     return parser
 
 
@@ -269,8 +270,21 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return 0 if failed == 0 else 1
 
 
+def _calibrate_parser(sub: Any) -> None:
+    """``calibrate`` (weft.calibration.command: its own module, hooked in here)."""
+    from .weft.calibration.command import add_parser
+    add_parser(sub)
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from .weft.calibration.command import run
+    check_out(args.out)
+    return run(args, prepare_out, check_overwrite)
+
+
 COMMANDS = {"list": _cmd_list, "solve": _cmd_solve, "compare": _cmd_compare, "sweep": _cmd_sweep,
-            "control": _cmd_inverse, "fit": _cmd_inverse, "overlay": _cmd_inverse}
+            "control": _cmd_inverse, "fit": _cmd_inverse, "overlay": _cmd_inverse,
+            "calibrate": _cmd_calibrate}
 
 
 def check_out(out: str) -> Path:
