@@ -86,7 +86,7 @@ class TestModel:
         finder = implicit_derivatives if method == "implicit" else fd_derivatives
         dax_m, dlat_m = finder(self.model, c, material, fm) if material else (None, None)
         if method != "implicit":
-            self.solves += len(c.u) * len(material)
+            self.solves += 2 * len(c.u) * len(material)
         dax, dlat = np.zeros((len(fm), len(names))), np.zeros((len(fm), len(names)))
         for q, name in enumerate(names):
             if name == "length_scale":

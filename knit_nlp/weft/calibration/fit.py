@@ -25,6 +25,8 @@ MAX_EVALUATIONS = 40
 # precision 1e-5 moves a value by about sqrt(1e-5 N)·σ ≈ 0.05 of its standard error (N ≈ 200).
 FTOL = 1e-5
 XTOL = 1e-6
+SPAN = 1e6                  # a fitted value stays within this factor of its starting value
+MAX_VALUE = 1e9             # and below the largest number a problem file takes
 PENALTY = 1.0               # residual of a strain the model could not reach (strains are ~0.1)
 
 
@@ -51,13 +53,21 @@ class FitOutcome:
 def fit_log(names: list[str], initial: np.ndarray, residual: Callable[[np.ndarray], np.ndarray],
             jacobian: Callable[[np.ndarray], np.ndarray]) -> FitOutcome:
     """Minimise |residual(values)|² over log values; ``jacobian`` is d residual / d log value."""
-    result = least_squares(lambda z: residual(np.exp(z)), np.log(initial),
-                           jac=lambda z: jacobian(np.exp(z)), method="trf", x_scale=1.0,
-                           xtol=XTOL, ftol=FTOL, gtol=1e-10, max_nfev=MAX_EVALUATIONS)
+    z0 = np.log(initial)
+    lower = z0 - np.log(SPAN)
+    upper = np.minimum(z0 + np.log(SPAN), np.log(MAX_VALUE))
+    result = least_squares(lambda z: residual(np.exp(z)), z0,
+                           jac=lambda z: jacobian(np.exp(z)), bounds=(lower, upper),
+                           method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=1e-10,
+                           max_nfev=MAX_EVALUATIONS)
     values = np.exp(result.x)
+    at_bound = [n for n, z, lo, hi in zip(names, result.x, lower, upper)
+                if min(z - lo, hi - z) < 1e-6]
     r = residual(values)
     Jz = jacobian(values)
     std, corr, warnings = uncertainty(names, values, r, Jz, initial)
+    warnings += [f"{n} stopped at its bound ({SPAN:g} times or 1/{SPAN:g} of its starting value,"
+                 f" at most {MAX_VALUE:g})" for n in at_bound]
     ok = bool(result.success) and bool(np.all(np.isfinite(r)))
     status = {-1: "Failed", 0: "Maximum_Evaluations", 1: "Converged_Gradient",
               2: "Converged_Cost", 3: "Converged_Step", 4: "Converged_Cost_And_Step"}.get(

@@ -1,6 +1,6 @@
 """``<name>.calibration.png``: per test, measured strains against force as a band (median and
 range over runs) and the model's curve, axial and lateral; fitted tests drawn solid, predicted
-ones dashed."""
+ones dashed, on the same colours (blue axial, orange lateral)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -31,7 +31,7 @@ def _panel(ax, t: "TestOutcome") -> None:
         ax.plot(forces, np.median(runs, axis=0), color=colour, lw=1.0, ls=":",
                 label=f"measured {kind}: median")
         model = t.curve.sample_axial if kind == "axial" else t.curve.sample_lateral
-        what = "model, fitted" if t.test.use == "fit" else "model, predicted"
+        what = "model on a fit test" if t.test.use == "fit" else "model, predicted (held out)"
         ax.plot(t.curve.sample_force, model, color=colour, lw=2.0, ls=style,
                 label=f"{what} ({kind})")
         points = t.metric.measured_axial if kind == "axial" else t.metric.measured_lateral
@@ -48,7 +48,7 @@ def _panel(ax, t: "TestOutcome") -> None:
     ax.set_title(f"{t.test.file}: pulled along the {t.test.direction} ({t.test.use})\n"
                  f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
                  f"{axial}{lat}{state}", fontsize=9)
-    ax.legend(fontsize=7, loc="center right")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     ax.grid(alpha=0.3)
 
 
@@ -57,7 +57,7 @@ def plot_calibration(path: Path, result: "CalibrationResult") -> Path:
     n = len(result.tests)
     cols = min(n, 2)
     rows = (n + cols - 1) // cols
-    fig = new_figure(figsize=(6.4 * cols, 4.6 * rows + 0.6), constrained_layout=True)
+    fig = new_figure(figsize=(6.4 * cols, 5.6 * rows + 0.6), constrained_layout=True)
     axes = fig.subplots(rows, cols, squeeze=False)
     for ax, t in zip(axes.ravel(), result.tests):
         _panel(ax, t)

@@ -72,13 +72,18 @@ def loop_counts(base: WeftProblem, direction: str, aspect: float,
                 min_loops: int) -> tuple[int, int]:
     """(courses, wales) of the specimen for a measured gauge/width ``aspect``: ``min_loops``
     on the shorter side, the longer side's count the one nearest the aspect (module doc)."""
+    nat = base.natural
+    head = float(nat.xy([0.5 * nat.length])[0, 1] - nat.xy([0.0])[0, 1])
     sides = [(min_loops, k) for k in range(min_loops, MAX_LOOPS + 1)]       # (along, across)
     sides += [(k, min_loops) for k in range(min_loops + 1, MAX_LOOPS + 1)]
 
     def miss(side: tuple[int, int]) -> float:
         m, n = _courses_wales(direction, *side)
-        return abs(np.log(_gauge(base, direction, m, n)
-                          / _pitch_width(base, direction, m, n) / aspect))
+        if direction == "courses":          # clamps on the yarn ends: n wale spacings apart
+            gauge, width = n * nat.wale_spacing, m * nat.course_spacing
+        else:                               # sinkers of course 1 to heads of course m
+            gauge, width = (m - 1) * nat.course_spacing + head, n * nat.wale_spacing
+        return abs(np.log(gauge / width / aspect))
     return _courses_wales(direction, *min(sides, key=miss))
 
 
@@ -88,15 +93,6 @@ def _courses_wales(direction: str, along: int, across: int) -> tuple[int, int]:
 
 def _pitch_width(base: WeftProblem, direction: str, m: int, n: int) -> float:
     return m * base.natural.course_spacing if direction == "courses" else n * base.natural.wale_spacing
-
-
-def _gauge(base: WeftProblem, direction: str, m: int, n: int) -> float:
-    """Natural separation of the two clamps' points along the pull, from their mean positions."""
-    nat = base.natural
-    if direction == "courses":
-        return n * nat.wale_spacing
-    head = nat.xy([0.5 * nat.length])[0, 1] - nat.xy([0.0])[0, 1]
-    return (m - 1) * nat.course_spacing + head
 
 
 def specimen_doc(doc: dict[str, Any], direction: str, courses: int, wales: int,
