@@ -110,6 +110,7 @@ def _with_cell(lines: list[str], k: int, column: int, value: str) -> list[str]:
     ("never_reaches", ("x.csv", "run 1", "no frame reaches 25 N", "lower them")),
     ("never_rises", ("x.csv", "run 2", "never rises")),
     ("huge_cell", ("x.csv", "characters")),
+    ("long_cell", ("x.csv", "line 5", "a cell of 100 characters")),
     ("empty", ("x.csv", "no header and no rows")),
     ("non_finite", ("x.csv", "must be finite")),
     ("not_utf8", ("x.csv", "not UTF-8")),
@@ -132,6 +133,8 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
                          + [sbs_row(2, k, 1.0 - k / 10, 200, 100) for k in range(11)])
     elif case == "huge_cell":
         text = "\n".join(_with_cell(lines, 4, 2, "9" * 100_000))
+    elif case == "long_cell":
+        text = "\n".join(_with_cell(lines, 4, 2, "9" * 100))
     elif case == "empty":
         text = ""
     elif case == "non_finite":
@@ -156,6 +159,8 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
     (("test", "use", "predict"), ("(top level) test", "at least one test with use = \"fit\"")),
     (("units", "force", "kN"), ("[units] force", "newtons")),
     (("clamp", None, [{"edge": "left"}]), ("clamp", "rigid clamps")),
+    (("load", None, [{"edge": "right", "force": [1.0, 0.0]}]), ("load", "pulled by its clamp")),
+    (("reduction", None, {"adaptive": True}), ("reduction", "full model")),
     (("calibrate", "fit", ["length_scale"]), ()),           # valid: parsed, not solved here
 ])
 def test_bad_specs_are_refused_in_one_line(tmp_path, capsys, edit, needles):
@@ -178,6 +183,15 @@ def test_bad_specs_are_refused_in_one_line(tmp_path, capsys, edit, needles):
         parse_spec(doc, tmp_path / "spec.toml")
     for needle in needles:
         assert needle in str(err.value), str(err.value)
+
+
+def test_a_shipped_spec_is_found_by_its_name_under_the_named_problems():
+    from knit_nlp.problems import problems_dir
+    from knit_nlp.weft.calibration.command import spec_path
+    shipped = problems_dir() / "real_fabric" / "acrylic_fit_x.toml"
+    assert spec_path("real_fabric/acrylic_fit_x") == shipped
+    assert spec_path("real_fabric/acrylic_fit_x.toml") == shipped
+    assert spec_path("no/such\0spec") == Path("no/such\0spec")
 
 
 def test_the_shipped_spec_reads_its_data():

@@ -101,6 +101,18 @@ def test_strain_sensitivities_at_fixed_force_agree_with_finite_differences(monke
         assert np.all(np.abs(imp - fd).max(axis=0) < 1e-3 * scale)
 
 
+def test_past_its_end_a_curve_continues_along_its_last_tangent_only_in_the_fit():
+    model = _model("courses")
+    c = model.curve(SYNTH_TRUTH, goal=1e9, strain_limit=0.2)
+    top, sp = c.force[-1], model.specimen
+    end = strains_at(c, sp, [top])
+    ahead = strains_at(c, sp, [top * 1.01, top * 1.02], extrapolate=True)
+    assert np.all(np.isnan(strains_at(c, sp, [top * 1.01])[0]))
+    for k in range(2):                       # equal increments: a straight continuation
+        assert ahead[k][0] - end[k][0] == pytest.approx(ahead[k][1] - ahead[k][0], rel=1e-9)
+    assert ahead[0][0] > end[0][0] and ahead[1][0] < end[1][0]    # longer, narrower
+
+
 def test_length_scale_and_material_trade_exactly(tmp_path):
     """Forces scale with every stiffness together and with the width: k_a, k_b, R_f times λ with
     length_scale over λ leaves every strain at every force unchanged."""
@@ -115,6 +127,22 @@ def test_length_scale_and_material_trade_exactly(tmp_path):
     a, b = tm.strains(v, forces), tm.strains(scaled, forces)
     assert np.all(np.isfinite(a[0]))
     assert np.allclose(a, b, atol=1e-6)
+
+
+def test_the_fits_jacobian_is_the_residuals_derivative(tmp_path):
+    """d residual / d log value, for a material value and the length scale, against central
+    differences of the residual (5 %: the implicit derivative is the model's, the difference
+    the interpolated curve's)."""
+    ramp_runs(tmp_path / "x.csv")
+    spec = load_spec(_write(tmp_path, SPEC_SBS.replace('fit = ["k_b"]',
+                                                       'fit = ["k_b", "length_scale"]')))
+    cal = Calibration(spec)
+    v = np.array([0.02, 3000.0])
+    J = cal.jacobian(v)
+    for q in range(2):
+        step = np.exp(1e-3 * np.eye(2)[q])
+        fd = (cal.residual(v * step) - cal.residual(v / step)) / 2e-3
+        assert np.linalg.norm(J[:, q] - fd) < 0.05 * np.linalg.norm(fd), q
 
 
 def test_held_out_tests_never_enter_the_fit(tmp_path):
@@ -143,6 +171,9 @@ def test_loop_counts_follow_the_aspect_ratio():
     assert loop_counts(base, "courses", 4 * w / (9 * c), 4) == (9, 4)     # the wales shorter
     m, n = loop_counts(base, "wales", 0.53, 6)
     sp = build_specimen(SYNTH_DOC, "<s>", "wales", m, n, "s")
+    # the wale pull's clamps: sinkers of course 1 (lowest) to heads of course m (highest)
+    assert sp.gauge == pytest.approx((m - 1) * c + base.natural.height, rel=1e-9)
+    assert sp.pitch_width == pytest.approx(n * w)
     assert m == 6 and abs(np.log(sp.aspect / 0.53)) < abs(np.log(sp.gauge / (
         (n + 1) * w) / 0.53)) and abs(np.log(sp.aspect / 0.53)) < abs(np.log(sp.gauge / (
             (n - 1) * w) / 0.53))

@@ -10,6 +10,7 @@ import argparse
 from pathlib import Path
 from typing import Any, Callable
 
+from ...problems import problems_dir
 from .calibrate import calibrate
 from .result import CalibrationResult
 from .spec import load_spec
@@ -20,7 +21,8 @@ def add_parser(sub: Any) -> None:
     cal = sub.add_parser("calibrate", help="weft: fit material values on measured tensile tests "
                          "and predict held-out ones (README, Against a real fabric)")
     cal.add_argument("spec", metavar="SPEC.toml", help="a calibration spec: a weft problem file "
-                     "with [[test]] tables and a [calibrate] table")
+                     "with [[test]] tables and a [calibrate] table; or one under the named "
+                     "problems' folder, e.g. real_fabric/acrylic_fit_x")
     cal.add_argument("--out", default="results", help="output folder (default: results)")
     cal.add_argument("--force", action="store_true",
                      help="overwrite results of another spec in --out")
@@ -29,13 +31,28 @@ def add_parser(sub: Any) -> None:
 def run(args: argparse.Namespace, prepare_out: Callable[[str, str, tuple[str, ...]], Path],
         check_overwrite: Callable[..., None]) -> int:
     """Read and check everything, then solve, then write: bad input writes nothing."""
-    spec = load_spec(Path(args.spec))
+    spec = load_spec(spec_path(args.spec))
     out = prepare_out(args.out, spec.name, ("calibration", "curves"))
     check_overwrite(out.glob(f"{spec.name}.calibration.json"), spec.source, args.force)
     result = calibrate(spec)
     paths = result.save(out)
     print(summary(result, paths))
     return 0 if result.success else 1
+
+
+def spec_path(text: str) -> Path:
+    """The spec file: a path, else the same name (with or without ``.toml``) under the named
+    problems' folder, which an installed package carries (``knit_nlp.problems``)."""
+    path = Path(text)
+    try:
+        if path.exists():
+            return path
+        for candidate in (problems_dir() / text, problems_dir() / f"{text}.toml"):
+            if candidate.is_file():
+                return candidate
+    except (OSError, ValueError):        # a NUL or an over-long name: load_spec says so
+        pass
+    return path
 
 
 def summary(result: CalibrationResult, paths: list[Path]) -> str:
