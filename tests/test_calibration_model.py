@@ -13,8 +13,9 @@ import pytest
 
 from calibration_files import (SPEC_SBS, SYNTH_DOC, SYNTH_TRUTH, ramp_runs, synthetic_columns,
                                synthetic_spec)
+import knit_nlp
 from knit_nlp.cli import main
-from knit_nlp.weft.calibration import calibrate, load_spec
+from knit_nlp.weft.calibration import load_spec
 from knit_nlp.weft.calibration.calibrate import Calibration
 from knit_nlp.weft.calibration.curve import (SpecimenModel, fd_derivatives,
                                              implicit_derivatives, strains_at)
@@ -185,7 +186,7 @@ def test_the_models_own_curve_is_fitted_back_within_its_standard_errors(tmp_path
     each known to better than 20 %."""
     width = synthetic_columns(tmp_path / "synthetic.csv")
     start = {**SYNTH_TRUTH, "k_a": 0.03, "k_b": 0.0004}
-    res = calibrate(synthetic_spec(tmp_path, width, '["k_a", "k_b"]', start))
+    res = knit_nlp.calibrate(synthetic_spec(tmp_path, width, '["k_a", "k_b"]', start))
     assert res.success, res.message
     for name in ("k_a", "k_b"):
         row = res.parameters()[name]
@@ -193,6 +194,7 @@ def test_the_models_own_curve_is_fitted_back_within_its_standard_errors(tmp_path
         assert abs(row["value"] - SYNTH_TRUTH[name]) < 3 * row["std_error"], (name, row)
     rms = res.tests[0].metric
     assert rms.rms_axial < 0.003 and rms.rms_lateral < 0.003        # the noise level
+    assert res.nit > 0 and res.energy is None and "k_a" in repr(res)
 
 
 def test_calibrate_command_writes_its_three_files(tmp_path, capsys):

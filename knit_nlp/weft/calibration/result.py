@@ -108,6 +108,12 @@ class CalibrationResult:
         return "; ".join([head, *failed])
 
     @property
+    def energy(self) -> None:
+        """The results contract's ``energy``: a calibration stores none (its many equilibria
+        are in the tests' curves); ``fit.cost`` is the least-squares objective."""
+        return None
+
+    @property
     def nit(self) -> int:
         """Residual evaluations of the fit (each one model curve per fit test)."""
         return 0 if self.fit is None else self.fit.nit
