@@ -178,8 +178,10 @@ class Calibration:
             np.zeros(0), np.zeros(0))
         curve = ModelCurve(c.force * scale, c.u / tm.specimen.gauge,
                            c.lateral / tm.specimen.lateral_width - 1.0, sample, s_ax, s_lat)
+        reason = "" if c.complete else (f"{c.reason}: it reaches {top:.4g} N of the "
+                                        f"{tm.measured.max_force:.4g} N measured")
         return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
-                           c.complete, c.reason)
+                           c.complete, reason)
 
 
 def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:

@@ -115,8 +115,8 @@ class SpecimenModel:
         while fs[-1] < goal:
             remaining = strain_limit * L0 - us[-1]
             if remaining < MIN_STRAIN_STEP * L0 or len(us) > 10 * NODES:
-                c.complete, c.reason = False, (f"the model's force is {fs[-1]:.4g} at strain "
-                                               f"{us[-1] / L0:.3g}; the goal {goal:.4g} is not reached")
+                c.complete, c.reason = False, (f"stopped at axial strain {us[-1] / L0:.3g} "
+                                               "(the strain limit) short of the goal force")
                 break
             if remaining - step < MIN_STRAIN_STEP * L0:     # no sliver of a last step
                 step = remaining
@@ -132,8 +132,8 @@ class SpecimenModel:
                 break
             f = float(self.force(rep.lam_g))
             if not f > fs[-1]:
-                c.complete, c.reason = False, (f"the model's force stops rising at strain "
-                                               f"{u / L0:.3g} ({f:.4g} after {fs[-1]:.4g})")
+                c.complete, c.reason = False, (f"the model's force stops rising at axial "
+                                               f"strain {u / L0:.3g}")
                 break
             stiffness = (f - fs[-1]) / step
             us.append(u)
