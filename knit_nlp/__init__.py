@@ -8,6 +8,7 @@ double-jacquard warp-knit mass-spring model of Zhang et al. (``knit_nlp.jacquard
     result = knit_nlp.solve(problem)                  # typed: result.success, result.energy, ...
     result.save("results")                            # the files `knit-nlp solve` writes
     knit_nlp.compare("diagonal_pull")                 # full against reduced (weft)
+    knit_nlp.calibrate("problems/real_fabric/acrylic_fit_x.toml")   # fit on measured tests
 """
 __version__ = "0.1.0"
 
@@ -16,4 +17,13 @@ from .errors import ProblemError  # noqa: E402
 from .outcome import Energy  # noqa: E402
 
 __all__ = ["__version__", "MODELS", "ProblemError", "Energy", "load_problem", "parse_problem",
-           "solve", "compare"]
+           "solve", "compare", "calibrate"]
+
+
+def calibrate(spec_or_path):
+    """Fit weft material values on measured tensile tests and predict held-out ones: a
+    calibration spec (path or :class:`~knit_nlp.weft.calibration.CalibrationSpec`) in, a typed
+    :class:`~knit_nlp.weft.calibration.CalibrationResult` out (``knit-nlp calibrate``). Imported
+    on first use: it needs scipy's optimiser, which ``import knit_nlp`` does not load."""
+    from .weft.calibration import calibrate as run
+    return run(spec_or_path)

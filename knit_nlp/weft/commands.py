@@ -1,5 +1,5 @@
 """The weft model's part of the command line: its ``knit-nlp solve`` flags and how they become
-solve and save options, and its own commands (``control``, ``fit``, ``overlay``).
+solve and save options, and its own commands (``control``, ``fit``, ``overlay``, ``calibrate``).
 
 Everything here is data or a function the model table (``knit_nlp.api.MODELS``) points to; the
 command line (``knit_nlp.cli``) reads it from there. A new weft command is one ``Command`` in
@@ -15,6 +15,7 @@ from typing import Any
 from ..errors import ProblemError, quoted
 from ..problems import resolve
 from ..tomlio import load_toml
+from .calibration import command as calibration
 from .inverse import run
 from .inverse.spec import has_control_keys, strip_control_keys
 from .model.problem import MAX_CONTINUATION, WeftProblem
@@ -116,4 +117,11 @@ COMMANDS = (
       (("--problem",), {"default": None, "help": "the result's problem file (to resolve point "
                                                  "labels; default: found by the result's name)"}),
       OUT), run_overlay),
+    ("calibrate", "weft: fit material values on measured tensile tests and predict held-out ones",
+     ((("spec",), {"metavar": "SPEC.toml",
+                   "help": "a calibration spec: a weft problem file with [[test]] tables and a "
+                           "[calibrate] table, or one under the named problems' folder, e.g. "
+                           "real_fabric/acrylic_fit_x"}), OUT,
+      (("--force",), {"action": "store_true",
+                      "help": "overwrite results of another spec in --out"})), calibration.run),
 )

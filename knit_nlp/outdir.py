@@ -1,0 +1,51 @@
+"""The output folder of every command (``--out``): checked before anything is solved, created
+only once the input has been read and checked, so bad input writes nothing."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .errors import ProblemError, quoted, shown
+
+
+def check_out(out: str) -> Path:
+    """The output folder, checked without creating anything: refused (one line, exit 2) if it
+    names a file, lies under a file, or its nearest existing folder cannot be written."""
+    folder = Path(out)
+    if not out or "\0" in out:
+        raise ProblemError("--out", "", "", f"not a usable folder name: {quoted(out)}")
+    try:
+        if folder.exists() and not folder.is_dir():
+            raise ProblemError(out, "", "", "--out names an existing file; give a folder")
+        existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
+    except OSError as err:
+        raise ProblemError(out, "", "", f"cannot create the output folder "
+                           f"({shown(err.strerror or err)})") from None
+    if not existing.is_dir():
+        raise ProblemError(out, "", "", f"--out lies under {quoted(existing)}, which is "
+                           "not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ProblemError(out, "", "", f"cannot create the output folder (cannot write into "
+                           f"{quoted(existing)})")
+    return folder
+
+
+def prepare_out(out: str, name: str, kinds: tuple[str, ...]) -> Path:
+    """The output folder, checked (:func:`check_out`) and created; also refused if it holds a
+    non-file where an output must go. Called after the problem is read and checked, before
+    solving: bad input writes nothing."""
+    folder = check_out(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ProblemError(out, "", "", f"cannot create the output folder "
+                           f"({shown(err.strerror or err)})") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ProblemError(out, "", "", "cannot write into the output folder")
+    for kind in kinds:
+        for suffix in ("json", "npz", "png", "svg", "csv", "gif"):
+            target = folder / f"{name}.{kind}.{suffix}"
+            if target.exists() and not target.is_file():
+                raise ProblemError(out, "", "", f"{quoted(target.name)} exists and is not a "
+                                   "file; results cannot be written there")
+    return folder

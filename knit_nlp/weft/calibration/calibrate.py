@@ -1,0 +1,207 @@
+"""Calibration: fit material values (and the length scale) on measured tests, predict the rest.
+
+Each test is a specimen model (``specimen``, ``curve``); its real force is the model force
+times the width ratio s = W / (pitch width), W the test's width in length units (given, or its
+width in clamp widths × ``length_scale``). The fit matches, on every ``use = "fit"`` test, the
+model's strains at 20 forces evenly spaced up to the largest force every run reaches against
+every run's strains at its first frame reaching them (axial, and lateral where measured and
+asked for). Tests with ``use = "predict"`` never enter the fit: they are evaluated once, at the
+fitted values, with the metric (``metric``) and the standard errors the fit's covariance
+implies for the model's strains.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives, strain_slopes,
+                    strains_at)
+from .fit import PENALTY, FitOutcome, fit_log
+from .measured import MeasuredTest
+from .metric import levels, metric
+from .result import CalibrationResult, ModelCurve, TestOutcome
+from .spec import CalibrationSpec, TestSpec, load_spec
+from .specimen import build_specimen
+
+GOAL_MARGIN = 1.02          # the model curve runs to 2 % past the largest measured force
+STRAIN_LIMIT_FACTOR = 3.0   # ... or stops at 3 times the largest measured axial strain
+STRAIN_LIMIT_FLOOR = 0.5    #     (but not below 0.5, nor above curve.MAX_STRAIN)
+CURVE_SAMPLES = 121         # model curve points written and drawn
+
+
+class TestModel:
+    """One test's specimen model and its curves at given values (the last one cached)."""
+
+    def __init__(self, spec: CalibrationSpec, k: int) -> None:
+        self.test: TestSpec = spec.tests[k]
+        self.specimen = build_specimen(spec.doc, str(spec.source), self.test.direction,
+                                       self.test.courses, self.test.wales, spec.test_name(k))
+        self.model = SpecimenModel(self.specimen)
+        self._cache: tuple[tuple[float, ...], Curve] | None = None
+        measured = max(float(np.max(r.axial)) for r in self.measured.runs)
+        self.strain_limit = min(MAX_STRAIN, max(STRAIN_LIMIT_FLOOR, STRAIN_LIMIT_FACTOR * measured))
+        self.solves = 0
+        self.iterations = 0
+
+    @property
+    def measured(self) -> MeasuredTest:
+        return self.test.measured
+
+    def width(self, values: dict[str, float]) -> float:
+        """The specimen's width in length units."""
+        if self.test.width is not None:
+            return self.test.width
+        return float(self.measured.width_clamps * values["length_scale"])
+
+    def scale(self, values: dict[str, float]) -> float:
+        """Real force over model force: width over the model specimen's pitch width."""
+        return self.width(values) / self.specimen.pitch_width
+
+    def curve(self, values: dict[str, float]) -> Curve:
+        key = (*(values[k] for k in ("k_a", "k_b", "R_f", "length_scale")), self.strain_limit)
+        if self._cache is None or self._cache[0] != key:
+            goal = GOAL_MARGIN * self.measured.max_force / self.scale(values)
+            c = self.model.curve({k: values[k] for k in ("k_a", "k_b", "R_f")}, goal,
+                                 self.strain_limit)
+            self.solves += c.solves
+            self.iterations += c.iterations
+            self._cache = (key, c)
+        return self._cache[1]
+
+    def strains(self, values: dict[str, float], forces: np.ndarray,
+                extrapolate: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Model axial and lateral strain at real forces (N); past the curve's end NaN, or
+        continued along its last tangent (``extrapolate``, for the fit)."""
+        return strains_at(self.curve(values), self.specimen,
+                          np.asarray(forces) / self.scale(values), extrapolate)
+
+    def derivatives(self, values: dict[str, float], forces: np.ndarray, names: list[str],
+                    method: str) -> tuple[np.ndarray, np.ndarray]:
+        """d(axial, lateral strain at real forces)/d(log value) for ``names``."""
+        c = self.curve(values)
+        fm = np.asarray(forces) / self.scale(values)
+        material = [n for n in names if n != "length_scale"]
+        finder = implicit_derivatives if method == "implicit" else fd_derivatives
+        dax_m, dlat_m = finder(self.model, c, material, fm) if material else (None, None)
+        if method != "implicit":
+            self.solves += 2 * len(c.u) * len(material)
+        dax, dlat = np.zeros((len(fm), len(names))), np.zeros((len(fm), len(names)))
+        for q, name in enumerate(names):
+            if name == "length_scale":
+                if self.test.width is None:      # s ∝ length_scale: ε(F/s), d/dlog s = −F ε'(F)
+                    sax, slat = strain_slopes(c, self.specimen, fm)
+                    dax[:, q], dlat[:, q] = -fm * sax, -fm * slat
+            else:
+                k = material.index(name)
+                dax[:, q] = dax_m[:, k] * values[name]
+                dlat[:, q] = dlat_m[:, k] * values[name]
+        return dax, dlat
+
+    def matched(self, strains: tuple[str, ...]) -> tuple[str, ...]:
+        """The strains this test contributes to a fit."""
+        return tuple(s for s in strains if s == "axial" or self.measured.has_lateral)
+
+
+class Calibration:
+    """The spec's test models and the least-squares problem over the fitted values."""
+
+    def __init__(self, spec: CalibrationSpec) -> None:
+        t0 = time.perf_counter()
+        self.spec = spec
+        self.models = [TestModel(spec, k) for k in range(len(spec.tests))]
+        self.build_s = time.perf_counter() - t0
+        self.names = list(spec.fit)
+        self._fit_data = {}
+        for tm in self.models:
+            if tm.test.use == "fit":
+                forces = tm.test.fit_forces()
+                self._fit_data[id(tm)] = (forces, levels(tm.measured, forces),
+                                          levels(tm.measured, forces, lateral=True)
+                                          if tm.measured.has_lateral else None)
+
+    def values(self, fitted: np.ndarray) -> dict[str, float]:
+        return {**self.spec.values, **dict(zip(self.names, map(float, fitted)))}
+
+    def _fit_models(self) -> list[TestModel]:
+        return [tm for tm in self.models if tm.test.use == "fit"]
+
+    def residual(self, fitted: np.ndarray) -> np.ndarray:
+        """Model minus measured strains over every fit test, run and fit force."""
+        v = self.values(fitted)
+        parts = []
+        for tm in self._fit_models():
+            forces, ax, lat = self._fit_data[id(tm)]
+            model_ax, model_lat = tm.strains(v, forces, extrapolate=True)
+            for kind in tm.matched(self.spec.strains):
+                model, data = (model_ax, ax) if kind == "axial" else (model_lat, lat)
+                parts.append(np.nan_to_num(model[None, :] - data, nan=PENALTY).ravel())
+        return np.concatenate(parts)
+
+    def jacobian(self, fitted: np.ndarray) -> np.ndarray:
+        """d residual / d log(fitted values)."""
+        v = self.values(fitted)
+        rows = []
+        for tm in self._fit_models():
+            forces, ax, lat = self._fit_data[id(tm)]
+            dax, dlat = tm.derivatives(v, forces, self.names, self.spec.sensitivities)
+            for kind in tm.matched(self.spec.strains):
+                d = dax if kind == "axial" else dlat
+                rows.append(np.tile(np.nan_to_num(d), (ax.shape[0], 1)))
+        return np.vstack(rows)
+
+    def fit(self) -> FitOutcome | None:
+        if not self.names:
+            return None
+        initial = np.array([self.spec.values[n] for n in self.names])
+        return fit_log(self.names, initial, self.residual, self.jacobian)
+
+    def outcome(self, tm: TestModel, values: dict[str, float],
+                cov_log: np.ndarray | None) -> TestOutcome:
+        """A test at the final values: its metric, model curve and strain uncertainty. The
+        curve may run to ``curve.MAX_STRAIN`` here, to reach the largest measured force."""
+        tm.strain_limit = MAX_STRAIN
+        c = tm.curve(values)
+        forces = np.array(self.spec.forces)
+        ax, lat = tm.strains(values, forces)
+        points = metric(tm.measured, self.spec.forces, ax, lat)
+        se_ax = se_lat = None
+        if cov_log is not None and c.complete:
+            dax, dlat = tm.derivatives(values, forces, self.names, self.spec.sensitivities)
+            se_ax = np.sqrt(np.maximum(np.einsum("fi,ij,fj->f", dax, cov_log, dax), 0.0))
+            se_lat = np.sqrt(np.maximum(np.einsum("fi,ij,fj->f", dlat, cov_log, dlat), 0.0))
+        scale = tm.scale(values)
+        top = c.force[-1] * scale if len(c.force) else 0.0
+        sample = np.linspace(0.0, top, CURVE_SAMPLES)
+        s_ax, s_lat = strains_at(c, tm.specimen, sample / scale) if len(c.force) > 1 else (
+            np.zeros(0), np.zeros(0))
+        curve = ModelCurve(c.force * scale, c.u / tm.specimen.gauge,
+                           c.lateral / tm.specimen.lateral_width - 1.0, sample, s_ax, s_lat)
+        reason = "" if c.complete else (f"{c.reason}: it reaches {top:.4g} N of the "
+                                        f"{tm.measured.max_force:.4g} N measured")
+        return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
+                           c.complete, reason)
+
+
+def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:
+    """Fit a spec's ``[calibrate] fit`` values on its fit tests and evaluate every test
+    (the Python entry point behind ``knit-nlp calibrate``). Bad input raises ProblemError."""
+    spec = spec_or_path if isinstance(spec_or_path, CalibrationSpec) else load_spec(spec_or_path)
+    t0 = time.perf_counter()
+    cal = Calibration(spec)
+    t1 = time.perf_counter()
+    ans = cal.fit()
+    t2 = time.perf_counter()
+    values = cal.values(ans.values) if ans is not None else dict(spec.values)
+    cov_log = None
+    if ans is not None and all(s is not None for s in ans.std_errors):
+        se = np.array(ans.std_errors) / ans.values
+        cov_log = ans.correlation * np.outer(se, se)
+    outcomes = [cal.outcome(tm, values, cov_log) for tm in cal.models]
+    t3 = time.perf_counter()
+    timings = {"build_s": cal.build_s, "fit_s": t2 - t1, "evaluate_s": t3 - t2,
+               "total_s": t3 - t0, "forward_solves": sum(tm.solves for tm in cal.models),
+               "ipopt_iterations": sum(tm.iterations for tm in cal.models)}
+    return CalibrationResult(spec, values, ans, outcomes, timings)
+

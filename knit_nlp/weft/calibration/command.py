@@ -1,0 +1,69 @@
+"""``knit-nlp calibrate SPEC.toml [--out DIR]``: the command-line door to :func:`calibrate`.
+
+Exit codes as every command: 0 the fit converged and every model curve reached its test's
+largest force; 1 otherwise (files still written, ``"success": false``); 2 a bad spec or test file
+(one line, nothing written).
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ...outdir import prepare_out
+from ...problems import problems_dir
+from ...provenance import check_overwrite
+from .calibrate import calibrate
+from .result import CalibrationResult
+from .spec import load_spec
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read and check everything, then solve, then write: bad input writes nothing."""
+    spec = load_spec(spec_path(args.spec))
+    out = prepare_out(args.out, spec.name, ("calibration", "curves"))
+    check_overwrite(out.glob(f"{spec.name}.calibration.json"), spec.source, args.force)
+    result = calibrate(spec)
+    paths = result.save(out)
+    print(summary(result, paths))
+    return 0 if result.success else 1
+
+
+def spec_path(text: str) -> Path:
+    """The spec file: a path, else the same name (with or without ``.toml``) under the named
+    problems' folder, which an installed package carries (``knit_nlp.problems``)."""
+    path = Path(text)
+    try:
+        if path.exists():
+            return path
+        for candidate in (problems_dir() / text, problems_dir() / f"{text}.toml"):
+            if candidate.is_file():
+                return candidate
+    except (OSError, ValueError):        # a NUL or an over-long name: load_spec says so
+        pass
+    return path
+
+
+def summary(result: CalibrationResult, paths: list[Path]) -> str:
+    """What the command prints: values with standard errors, per test the metric."""
+    lines = [f"{result.name}: {result.status} ({result.nit} evaluations, "
+             f"{result.timings['total_s']:.1f} s, {result.timings['forward_solves']} forward "
+             f"solves)"]
+    for name, row in result.parameters().items():
+        if row["fitted"]:
+            se = row.get("std_error")
+            err = "undetermined" if se is None else f"± {se:.3g}"
+            lines.append(f"  {name} = {row['value']:.6g} {err} (fitted; from {row['initial']:.4g})")
+        else:
+            lines.append(f"  {name} = {row['value']:.6g} (held)")
+    for t in result.tests:
+        m = t.metric
+        lat = "" if m.rms_lateral is None else f", lateral {m.rms_lateral:.4f}"
+        axial = "n/a" if m.rms_axial is None else f"{m.rms_axial:.4f}"
+        sp = t.specimen.problem
+        state = "" if t.success else f"  [model curve incomplete: {t.reason}]"
+        lines.append(f"  {t.test.file} ({t.test.use}, {t.test.direction}, {sp.courses} x "
+                     f"{sp.wales} loops): rms strain error axial {axial}{lat}{state}")
+    for w in (result.fit.warnings if result.fit is not None else []):
+        lines.append(f"  warning: {w}")
+    lines.append(f"  wrote {', '.join(str(p) for p in paths)}")
+    return "\n".join(lines)

@@ -1,0 +1,263 @@
+"""A model test curve: the pulled clamp moved in warm-started steps, force and strains recorded.
+
+One forward NLP is built per specimen (:class:`~knit_nlp.weft.inverse.equilibrium.Equilibrium`)
+and re-solved at every step from the previous step's solution. Steps aim at even force
+increments (the secant stiffness of the last step sets the next), so the curve is resolved
+alike wherever its slope; a failed solve halves the step. The curve ends at the first node
+past the goal force, or where the model's force stops rising, or at ``MAX_STRAIN``.
+
+Strain at a force is read by monotone cubic (PCHIP) interpolation of the nodes. Sensitivities
+of those strains to the material values come either from the implicit-function theorem at each
+node (``implicit``: one KKT factorization per node, :meth:`Equilibrium.sensitivity`): at fixed
+force, dε/dθ = −(∂F/∂θ)/(∂F/∂u)/L0 and the lateral strain's likewise; or from curves re-solved at
+perturbed values on the same clamp positions, warm-started from the base nodes
+(``finite_differences``). ``scripts/bench_calibration.py`` measures both.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+from scipy import sparse
+from scipy.interpolate import PchipInterpolator
+from scipy.sparse.linalg import splu
+
+from ..inverse.equilibrium import Equilibrium
+from ..inverse.points import point_function, point_jacobian
+from ..model.params import WeftParams
+from .specimen import PULLED, Specimen
+
+SENSITIVITIES = ("implicit", "finite_differences")
+NODES = 12                  # force increments aimed at between zero and the goal (measured:
+                            # strains at the metric forces within 2.3e-4 of 96 increments)
+FIRST_STRAIN = 0.01         # the first step, before any stiffness is known
+MIN_STRAIN_STEP = 1e-4
+MAX_STRAIN_STEP = 0.1
+MAX_STRAIN = 3.0            # a jersey loop (ω = 2) pulled straight along the course: L/w − 1 = 3.5
+MAX_HALVINGS = 6
+KKT_RESIDUAL = 1e-8        # relative residual above which a KKT solve is refused
+# Finite differences: central, with a relative step of 1e-3. The step must move the KKT
+# residual well above IPOPT's tolerance (1e-8), or the warm-started solve returns the base point
+# unchanged: at 1e-5 the 2 x 3 course pull's dF/dk_b came out 15 times too small (measured).
+FD_STEP = 1e-3
+
+
+@dataclass
+class Curve:
+    """Nodes of a model test curve at material values ``material`` (model force units)."""
+
+    u: np.ndarray                      # pulled clamp's travel
+    force: np.ndarray                  # its reaction along the pull, on the model specimen
+    lateral: np.ndarray                # distance between the free edges' points
+    xs: list[np.ndarray] = field(repr=False, default_factory=list)
+    lams: list[np.ndarray] = field(repr=False, default_factory=list)
+    material: dict[str, float] = field(default_factory=dict)
+    complete: bool = True              # reached the goal force
+    reason: str = ""                   # why not
+    solves: int = 0
+    iterations: int = 0
+
+
+class SpecimenModel:
+    """A specimen's forward NLP, built once, and its curves."""
+
+    def __init__(self, specimen: Specimen) -> None:
+        self.specimen = specimen
+        self.eq = Equilibrium(specimen.problem)
+        low, high = specimen.lateral_points
+        self._points = point_jacobian(point_function(self.eq.wnlp, [*low, *high]))
+        self._n_low = len(low)
+        self.base = WeftParams.of(specimen.problem)
+        rows = np.arange(self.eq.wnlp.rigid_rows[PULLED - 1].start,
+                         self.eq.wnlp.rigid_rows[PULLED - 1].stop)
+        self._rows = rows.reshape(-1, 2)[:, specimen.axis]     # the pull's component per point
+        self.build_s = self.eq.build_s
+
+    def params(self, material: dict[str, float], u: float) -> np.ndarray:
+        return self.base.with_(material=material,
+                               rigid={PULLED: self.specimen.translation(u)}).vector()
+
+    def force(self, lam: np.ndarray) -> np.ndarray:
+        """The pulled clamp's force on the fabric along the pull (results.RigidClampReaction:
+        −λ of its rows), for λ of shape (m,) or (m, k)."""
+        return -np.sum(lam[self._rows], axis=0)
+
+    def lateral(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """Distance between the free edges' points and its gradient in x."""
+        P, J = self._points(x)
+        other = 1 - self.specimen.axis
+        P, J = np.asarray(P), np.asarray(ca.DM(J))
+        k = self._n_low
+        w = np.r_[-np.full(k, 1.0 / k), np.full(P.shape[1] - k, 1.0 / (P.shape[1] - k))]
+        rows = 2 * np.arange(P.shape[1]) + other            # vec(P) is column-major
+        return float(P[other] @ w), w @ J[rows]
+
+    def _solve(self, p: np.ndarray, x0: np.ndarray | None, curve: Curve):
+        rep = self.eq.solve(p, x0)
+        curve.solves += 1
+        curve.iterations += rep.iterations
+        return rep
+
+    def curve(self, material: dict[str, float], goal: float,
+              strain_limit: float = MAX_STRAIN) -> Curve:
+        """Pull until the force passes ``goal`` (model force units), or the axial strain
+        ``strain_limit``."""
+        L0 = self.specimen.gauge
+        c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
+        rep = self._solve(self.params(material, 0.0), None, c)
+        if not rep.success:
+            c.complete, c.reason = False, f"the unloaded specimen did not solve ({rep.status})"
+            return c
+        us, fs, lats = [0.0], [0.0], [self.lateral(rep.x)[0]]
+        c.xs, c.lams = [rep.x], [rep.lam_g]
+        step = FIRST_STRAIN * L0
+        while fs[-1] < goal:
+            remaining = strain_limit * L0 - us[-1]
+            if remaining < MIN_STRAIN_STEP * L0 or len(us) > 10 * NODES:
+                c.complete, c.reason = False, (f"stopped at axial strain {us[-1] / L0:.3g} "
+                                               "(the strain limit) short of the goal force")
+                break
+            if remaining - step < MIN_STRAIN_STEP * L0:     # no sliver of a last step
+                step = remaining
+            for _ in range(MAX_HALVINGS + 1):
+                u = us[-1] + step
+                rep = self._solve(self.params(material, u), c.xs[-1], c)
+                if rep.success:
+                    break
+                step /= 2
+            else:
+                c.complete, c.reason = False, (f"no equilibrium past strain {us[-1] / L0:.3g} "
+                                               f"({rep.status})")
+                break
+            f = float(self.force(rep.lam_g))
+            if not f > fs[-1]:
+                c.complete, c.reason = False, (f"the model's force stops rising at axial "
+                                               f"strain {u / L0:.3g}")
+                break
+            stiffness = (f - fs[-1]) / step
+            us.append(u)
+            fs.append(f)
+            lats.append(self.lateral(rep.x)[0])
+            c.xs.append(rep.x)
+            c.lams.append(rep.lam_g)
+            step = float(np.clip(goal / NODES / stiffness, MIN_STRAIN_STEP * L0,
+                                 min(MAX_STRAIN_STEP * L0, 3 * step)))
+        c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
+        return c
+
+    def on_grid(self, material: dict[str, float], base: Curve) -> Curve:
+        """The curve at other material values on ``base``'s clamp positions, each solve
+        warm-started from ``base``'s solution there (finite differences)."""
+        c = Curve(base.u.copy(), np.zeros_like(base.u), np.zeros_like(base.u),
+                  material=dict(material))
+        for k, u in enumerate(base.u):
+            rep = self._solve(self.params(material, u), base.xs[k], c)
+            if not rep.success:
+                c.complete, c.reason = False, f"a perturbed solve failed ({rep.status})"
+                return c
+            c.force[k] = float(self.force(rep.lam_g))
+            c.lateral[k] = self.lateral(rep.x)[0]
+        return c
+
+    def kkt_sensitivity(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
+                        dp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """dx/dθ, dλ/dθ = −K⁻¹ ∂F/∂p · dp on the equilibrium's KKT system (``Equilibrium.kkt``),
+        solved by SuperLU with the residual checked. (CasADi's MUMPS, which
+        ``Equilibrium.sensitivity`` uses, returned the right-hand side unchanged, without an
+        error, on the course pull at k_a = 4003, k_b = 0.009, R_f = 0.045 N/mm, N mm²; SuperLU's
+        residual there is 1e-14.) NaN where the system is singular."""
+        K, Fp = self.eq.kkt(x, lam, p)
+        rows, cols = K.sparsity().get_triplet()
+        mat = sparse.csc_matrix((np.asarray(K.nonzeros()).ravel(), (rows, cols)), shape=K.shape)
+        rhs = -(np.asarray(ca.DM(Fp)) @ dp)
+        try:
+            dz = splu(mat).solve(rhs)
+        except RuntimeError:                    # exactly singular
+            dz = np.full(rhs.shape, np.nan)
+        bad = np.linalg.norm(mat @ dz - rhs, axis=0) > KKT_RESIDUAL * (1 + np.linalg.norm(rhs, axis=0))
+        dz[:, bad] = np.nan
+        n = self.eq.n
+        return dz[:n], dz[n:]
+
+    def node_sensitivities(self, c: Curve, names: list[str]) -> tuple[np.ndarray, np.ndarray,
+                                                                      np.ndarray, np.ndarray]:
+        """At every node: ∂F/∂u, ∂F/∂θ (nodes × k), ∂lat/∂u, ∂lat/∂θ, θ the material values
+        ``names`` (implicit-function theorem on each node's KKT system)."""
+        base = self.params(c.material, 0.0)
+        dirs = [self.params(c.material, 1.0) - base]
+        for name in names:
+            dirs.append(self.params({**c.material, name: c.material[name] + 1.0}, 0.0) - base)
+        dp = np.stack(dirs, axis=1)
+        Fu, Ft, Lu, Lt = [], [], [], []
+        for u, x, lam in zip(c.u, c.xs, c.lams):
+            dx, dlam = self.kkt_sensitivity(x, lam, self.params(c.material, u), dp)
+            dF = self.force(dlam)
+            dL = self.lateral(x)[1] @ dx
+            Fu.append(dF[0])
+            Ft.append(dF[1:])
+            Lu.append(dL[0])
+            Lt.append(dL[1:])
+        return np.array(Fu), np.array(Ft).reshape(len(c.u), -1), np.array(Lu), np.array(
+            Lt).reshape(len(c.u), -1)
+
+
+def strains_at(c: Curve, specimen: Specimen, forces: np.ndarray,
+               extrapolate: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Axial and lateral strain at model forces ``forces``: NaN past the curve's last node, or
+    with ``extrapolate`` continued along the last node's tangent (so that a fit far from the
+    answer, whose curve stops short, still sees how far it is)."""
+    forces = np.asarray(forces, dtype=float)
+    if len(c.u) < 2 or not np.all(np.diff(c.force) > 0):   # (a re-solved curve may not rise)
+        nan = np.full(forces.shape, np.nan)
+        return nan, nan.copy()
+    top = c.force[-1]
+    inside = np.clip(forces, 0.0, top)
+    u_of, lat_of = PchipInterpolator(c.force, c.u), PchipInterpolator(c.force, c.lateral)
+    u, lat = u_of(inside), lat_of(inside)
+    beyond = forces - inside
+    if extrapolate:
+        u = u + beyond * u_of.derivative()(top)
+        lat = lat + beyond * lat_of.derivative()(top)
+    else:
+        u, lat = np.where(beyond > 0, np.nan, u), np.where(beyond > 0, np.nan, lat)
+    return u / specimen.gauge, lat / specimen.lateral_width - 1.0
+
+
+def strain_slopes(c: Curve, specimen: Specimen, forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """d(axial strain)/dF and d(lateral strain)/dF along the curve at ``forces`` (the last
+    node's past it, as ``strains_at`` extrapolates)."""
+    forces = np.clip(np.asarray(forces, dtype=float), 0, c.force[-1])
+    du = PchipInterpolator(c.force, c.u).derivative()(forces)
+    dl = PchipInterpolator(c.force, c.lateral).derivative()(forces)
+    return du / specimen.gauge, dl / specimen.lateral_width
+
+
+def implicit_derivatives(model: SpecimenModel, c: Curve, names: list[str],
+                         forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """d(axial, lateral strain at fixed model forces)/dθ (len(forces) × k), implicit function."""
+    Fu, Ft, Lu, Lt = model.node_sensitivities(c, names)
+    sp = model.specimen
+    ok = Fu > 0
+    du = np.where(ok[:, None], -Ft / np.where(ok, Fu, 1.0)[:, None], 0.0)   # du/dθ at fixed F
+    dax = du / sp.gauge
+    dlat = (Lt + Lu[:, None] * du) / sp.lateral_width
+    interp = lambda nodes: np.stack([np.interp(forces, c.force, nodes[:, k])  # noqa: E731
+                                     for k in range(nodes.shape[1])], axis=1)
+    return interp(dax), interp(dlat)
+
+
+def fd_derivatives(model: SpecimenModel, c: Curve, names: list[str],
+                   forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The same by central differences of curves re-solved on ``c``'s clamp positions."""
+    sp = model.specimen
+    dax, dlat = [], []
+    for name in names:
+        h = FD_STEP * c.material[name]
+        pairs = [strains_at(model.on_grid({**c.material, name: c.material[name] + sign * h}, c),
+                            sp, forces) for sign in (1.0, -1.0)]
+        dax.append((pairs[0][0] - pairs[1][0]) / (2 * h))
+        dlat.append((pairs[0][1] - pairs[1][1]) / (2 * h))
+    shape = (len(forces), len(names))
+    return (np.stack(dax, axis=1) if dax else np.zeros(shape),
+            np.stack(dlat, axis=1) if dlat else np.zeros(shape))

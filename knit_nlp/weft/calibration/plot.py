@@ -1,0 +1,72 @@
+"""``<name>.calibration.png``: per test, measured strains against force as a band (median and
+range over runs) and the model's curve, axial and lateral; fitted tests drawn solid, predicted
+ones dashed, on the same colours (blue axial, orange lateral). It reads a
+``result.CalibrationResult`` (and its ``TestOutcome``s) without importing it: the result module
+imports this one to save itself."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...figures import new_figure, save_figure
+from .metric import levels
+
+COLOURS = {"axial": "tab:blue", "lateral": "tab:orange"}
+BAND_POINTS = 150
+
+
+def _panel(ax, t: Any) -> None:
+    measured = t.test.measured
+    forces = np.linspace(0.0, measured.common_force, BAND_POINTS)
+    style = "-" if t.test.use == "fit" else "--"
+    kinds = ("axial", "lateral") if measured.has_lateral else ("axial",)
+    for kind in kinds:
+        runs = levels(measured, forces, lateral=kind == "lateral")
+        colour = COLOURS[kind]
+        ax.fill_between(forces, runs.min(axis=0), runs.max(axis=0), color=colour, alpha=0.2,
+                        lw=0, label=f"measured {kind}: range of {len(measured.runs)} runs")
+        ax.plot(forces, np.median(runs, axis=0), color=colour, lw=1.0, ls=":",
+                label=f"measured {kind}: median")
+        model = t.curve.sample_axial if kind == "axial" else t.curve.sample_lateral
+        what = "model on a fit test" if t.test.use == "fit" else "model, predicted (held out)"
+        ax.plot(t.curve.sample_force, model, color=colour, lw=2.0, ls=style,
+                label=f"{what} ({kind})")
+        points = t.metric.measured_axial if kind == "axial" else t.metric.measured_lateral
+        ax.plot(t.metric.forces, points, "o", ms=4, mfc="white", color=colour)
+    ax.axhline(0.0, color="0.6", lw=0.5)
+    ax.set_xlabel("force (N)")
+    ax.set_ylabel("strain (–)")
+    ax.set_xlim(0.0, max(measured.max_force, t.metric.forces[-1]) * 1.02)
+    rms = t.metric
+    lat = "" if rms.rms_lateral is None else f", lateral {rms.rms_lateral:.3f}"
+    axial = "n/a" if rms.rms_axial is None else f"{rms.rms_axial:.3f}"
+    state = "" if t.success else f"\nmodel curve stops: {t.reason[:70]}"
+    sp = t.specimen.problem
+    ax.set_title(f"{t.test.file}: pulled along the {t.test.direction} ({t.test.use})\n"
+                 f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
+                 f"{axial}{lat}{state}", fontsize=9)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+    ax.grid(alpha=0.3)
+
+
+def plot_calibration(path: Path, result: Any) -> Path:
+    """One panel per test (module doc); circles: the measured medians the metric uses."""
+    n = len(result.tests)
+    cols = min(n, 2)
+    rows = (n + cols - 1) // cols
+    fig = new_figure(figsize=(6.4 * cols, 5.6 * rows + 0.6), constrained_layout=True)
+    axes = fig.subplots(rows, cols, squeeze=False)
+    for ax, t in zip(axes.ravel(), result.tests):
+        _panel(ax, t)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    units = result.spec.base.units
+    vals = ", ".join(
+        f"{k} = {v['value']:.4g}" + (" (fitted)" if v["fitted"] else "")
+        for k, v in result.parameters().items())
+    fig.suptitle(f"{result.name}: {vals}\n(k_a, k_b in {units.force}/{units.length}, R_f in "
+                 f"{units.force}·{units.length}², length_scale in {units.length} per clamp width;"
+                 f" circles: measured medians at the metric forces)", fontsize=9)
+    return save_figure(fig, path, dpi=110)

@@ -1,0 +1,189 @@
+"""The typed result of a calibration and the files it writes (docs/real_fabric.md).
+
+``CalibrationResult`` follows the results contract of the solve commands: ``success``,
+``status``, ``message``, ``nit``, ``to_json()`` and ``save(out)``. It writes
+``<name>.calibration.json`` (values, standard errors, correlation, per test its metric),
+``<name>.curves.csv`` (every test's model curve: ``test,use,force_N,axial_strain,
+lateral_strain``) and ``<name>.calibration.png`` (``plot``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ...jsonio import write_csv, write_json
+from ...provenance import source_record
+from .metric import MetricPoints
+from .plot import plot_calibration
+
+if TYPE_CHECKING:
+    from .fit import FitOutcome
+    from .spec import CalibrationSpec, TestSpec
+    from .specimen import Specimen
+
+CURVE_COLUMNS = ("test", "use", "force_N", "axial_strain", "lateral_strain")
+TARGETS = {"fit": {"axial": 0.03}, "predict": {"axial": 0.05, "lateral": 0.05}}   # issue 20
+
+
+@dataclass(frozen=True)
+class ModelCurve:
+    """A model test curve in the data's units: the solved nodes and a PCHIP-sampled curve."""
+
+    force: np.ndarray              # N, at the solved nodes
+    axial: np.ndarray
+    lateral: np.ndarray
+    sample_force: np.ndarray       # N, evenly spaced from 0 to the last node
+    sample_axial: np.ndarray
+    sample_lateral: np.ndarray
+
+
+@dataclass(frozen=True)
+class TestOutcome:
+    """One test at the final values."""
+
+    test: "TestSpec"
+    specimen: "Specimen"
+    width: float                   # length units
+    metric: MetricPoints
+    model_se_axial: np.ndarray | None      # standard error of the model's strain at the metric
+    model_se_lateral: np.ndarray | None    # forces, from the fit's covariance
+    curve: ModelCurve
+    success: bool                  # the model curve reached the largest measured force
+    reason: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        t, sp = self.test, self.specimen
+        out = {"file": t.file, "format": t.format, "direction": t.direction, "use": t.use,
+               "success": self.success, "rms_strain_error": {
+                   "axial": self.metric.rms_axial, "lateral": self.metric.rms_lateral},
+               "metric": self.metric.to_json(),
+               "specimen": {"courses": sp.problem.courses, "wales": sp.problem.wales,
+                            "aspect_measured": t.aspect if t.aspect_source != "fabric" else None,
+                            "aspect_source": t.aspect_source, "aspect_model": sp.aspect,
+                            "gauge": sp.gauge, "pitch_width": sp.pitch_width,
+                            "width": self.width, "width_clamps": t.width_clamps},
+               "runs": len(t.measured.runs), "max_force_measured": t.measured.max_force,
+               "max_force_model": float(self.curve.force[-1]) if len(self.curve.force) else 0.0}
+        if self.model_se_axial is not None:
+            out["metric"]["model_std_error"] = {"axial": self.model_se_axial,
+                                                "lateral": self.model_se_lateral}
+        if not self.success:
+            out["reason"] = self.reason
+        return out
+
+
+@dataclass(repr=False)
+class CalibrationResult:
+    """Fitted values with standard errors and correlation, and every test's outcome."""
+
+    spec: "CalibrationSpec"
+    values: dict[str, float]
+    fit: "FitOutcome | None"
+    tests: list[TestOutcome]
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def success(self) -> bool:
+        return (self.fit is None or self.fit.success) and all(t.success for t in self.tests)
+
+    @property
+    def status(self) -> str:
+        if self.fit is not None and not self.fit.success:
+            return self.fit.status
+        failed = [t.test.file for t in self.tests if not t.success]
+        if failed:
+            return "Model_Curve_Incomplete"
+        return "Evaluated" if self.fit is None else self.fit.status
+
+    @property
+    def message(self) -> str:
+        failed = [f"{t.test.file}: {t.reason}" for t in self.tests if not t.success]
+        head = "nothing fitted" if self.fit is None else self.fit.message
+        return "; ".join([head, *failed])
+
+    @property
+    def energy(self) -> None:
+        """The results contract's ``energy``: a calibration stores none (its many equilibria
+        are in the tests' curves); ``fit.cost`` is the least-squares objective."""
+        return None
+
+    @property
+    def nit(self) -> int:
+        """Residual evaluations of the fit (each one model curve per fit test)."""
+        return 0 if self.fit is None else self.fit.nit
+
+    def parameters(self) -> dict[str, dict[str, Any]]:
+        fitted = list(self.spec.fit)
+        out = {}
+        for name in ("k_a", "k_b", "R_f", "length_scale"):
+            if name == "length_scale" and all(t.test.width is not None for t in self.tests):
+                continue
+            row: dict[str, Any] = {"value": self.values[name], "fitted": name in fitted,
+                                   "initial": self.spec.values[name]}
+            if name in fitted and self.fit is not None:
+                row["std_error"] = self.fit.std_errors[fitted.index(name)]
+            out[name] = row
+        return out
+
+    def correlation(self) -> dict[str, Any]:
+        names = list(self.spec.fit)
+        matrix = self.fit.correlation.tolist() if self.fit is not None else []
+        return {"names": names, "matrix": matrix}
+
+    def __repr__(self) -> str:
+        vals = ", ".join(f"{k}={v['value']:.4g}" for k, v in self.parameters().items())
+        rms = "; ".join(f"{t.test.file} ({t.test.use}) axial {_fmt(t.metric.rms_axial)} lateral "
+                        f"{_fmt(t.metric.rms_lateral)}" for t in self.tests)
+        return (f"CalibrationResult({self.name!r}: success={self.success}, status={self.status!r}, "
+                f"{vals}; rms strain error {rms})")
+
+    def to_json(self) -> dict[str, Any]:
+        """``<name>.calibration.json``."""
+        units = self.spec.base.units
+        out = {"name": self.name, "success": self.success, "status": self.status,
+               "message": self.message, "nit": self.nit,
+               "units": {**units.to_json(), "k_a": f"{units.force}/{units.length}",
+                         "k_b": f"{units.force}/{units.length}",
+                         "R_f": f"{units.force}·{units.length}²",
+                         "length_scale": f"{units.length} per clamp width"},
+               "fit": list(self.spec.fit), "parameters": self.parameters(),
+               "correlation": self.correlation(),
+               "metric_forces_N": list(self.spec.forces),
+               "fit_strains": list(self.spec.strains),
+               "sensitivities": self.spec.sensitivities,
+               "tests": [t.to_json() for t in self.tests],
+               "targets": TARGETS,
+               "warnings": self.fit.warnings if self.fit is not None else [],
+               "timings": self.timings}
+        source = source_record(str(self.spec.source))
+        if source:
+            out["source"] = source
+        return out
+
+    def curve_rows(self) -> list[dict[str, Any]]:
+        """The rows of ``<name>.curves.csv``: every test's solved model curve nodes."""
+        rows = []
+        for t in self.tests:
+            for f, a, lat in zip(t.curve.force, t.curve.axial, t.curve.lateral):
+                rows.append({"test": t.test.file, "use": t.test.use, "force_N": f"{f:.9g}",
+                             "axial_strain": f"{a:.9g}", "lateral_strain": f"{lat:.9g}"})
+        return rows
+
+    def save(self, out_dir: Path | str) -> list[Path]:
+        """``DIR/<name>.calibration.json``, ``.curves.csv`` and ``.calibration.png``."""
+        out = Path(out_dir)
+        js = write_json(out / f"{self.name}.calibration.json", self.to_json())
+        csv = write_csv(out / f"{self.name}.curves.csv", self.curve_rows(), CURVE_COLUMNS)
+        png = plot_calibration(out / f"{self.name}.calibration.png", self)
+        return [js, csv, png]
+
+
+def _fmt(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.4f}"

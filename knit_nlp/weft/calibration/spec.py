@@ -1,0 +1,203 @@
+"""A calibration spec: a weft problem file describing the specimen, plus ``[[test]]`` tables
+(measured tests) and a ``[calibrate]`` table (what to fit). docs/real_fabric.md.
+
+Everything is checked, and every test file read and checked, before any model is built: a bad
+spec or CSV is one :class:`ProblemError` (exit 2) and nothing is written.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...errors import ProblemError, quoted
+from ...tomlio import Table, load_toml
+from ..model.params import MATERIAL
+from ..model.problem import WeftProblem, parse_problem
+from .curve import SENSITIVITIES
+from .measured import FORMATS, MeasuredTest, read_test
+from .metric import METRIC_FORCES, check_reaches
+from .specimen import DIRECTIONS, loop_counts
+
+FITTABLE = MATERIAL + ("length_scale",)
+USES = ("fit", "predict")
+STRAINS = ("axial", "lateral")
+OWN_TABLES = ("test", "calibrate")
+REFUSED = {"clamp": "the calibration grips every test with its own two rigid clamps",
+           "rigid_clamp": "the calibration grips every test with its own two rigid clamps",
+           "load": "a test is pulled by its clamp, not by loads",
+           "reduction": "the calibration solves the full model"}
+DEFAULT_MIN_LOOPS = 6
+MAX_LOOPS_SPEC = 40
+MAX_TESTS = 16
+FIT_LEVELS = 20             # fit forces: evenly spaced up to the largest force every run reaches
+
+
+@dataclass(frozen=True)
+class TestSpec:
+    """One ``[[test]]`` table, read and checked, with its measured runs."""
+
+    file: str                              # as written in the spec
+    format: str
+    direction: str
+    use: str
+    measured: MeasuredTest
+    width: float | None                    # specimen width (length units), if given
+    aspect: float                          # gauge / width used for the loop counts
+    aspect_source: str                     # "pins", "spec"
+    courses: int
+    wales: int
+    table: str
+
+    @property
+    def width_clamps(self) -> float | None:
+        return None if self.width is not None else self.measured.width_clamps
+
+    def fit_forces(self) -> np.ndarray:
+        top = self.measured.common_force
+        return top * np.arange(1, FIT_LEVELS + 1) / FIT_LEVELS
+
+
+@dataclass(frozen=True)
+class CalibrationSpec:
+    """A checked calibration spec."""
+
+    name: str
+    description: str
+    source: Path
+    doc: dict[str, Any]                    # the weft problem tables shared by every test
+    base: WeftProblem                      # that problem on a placeholder 2 x 2 fabric
+    tests: tuple[TestSpec, ...]
+    fit: tuple[str, ...]
+    values: dict[str, float]               # k_a, k_b, R_f and length_scale (initial / known)
+    forces: tuple[float, ...]
+    strains: tuple[str, ...]
+    min_loops: int
+    sensitivities: str
+
+    def test_name(self, k: int) -> str:
+        return f"{self.name}_test{k + 1}"
+
+
+def load_spec(path: Path | str) -> CalibrationSpec:
+    """Read and check a calibration spec and its test files."""
+    path = Path(path)
+    return parse_spec(load_toml(path), path)
+
+
+def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
+    """Check a parsed spec document (``source`` names it and anchors its test files)."""
+    source = Path(source)
+    top = Table(doc, source, "")
+    for key, why in REFUSED.items():
+        if top.has(key):
+            raise top.error(key, f"not in a calibration spec: {why}")
+    shared = {k: copy.deepcopy(v) for k, v in doc.items() if k not in OWN_TABLES}
+    fabric = shared.pop("fabric", None)
+    base = parse_problem({**shared, "fabric": {"courses": 2, "wales": 2}}, source)
+    if base.units.force != "N":
+        raise ProblemError(source, "units", "force", f"the tests' forces are in newtons "
+                           f"(force_N); set force = \"N\" (got {quoted(base.units.force)})")
+    fixed = _fabric(top) if fabric is not None else None
+    cal = top.table("calibrate", required=True)
+    fit = tuple(cal.strings("fit", choices=FITTABLE))
+    if len(set(fit)) != len(fit):
+        raise cal.error("fit", "lists a value twice")
+    length_scale = cal.number("length_scale", None, positive=True)
+    forces = tuple(cal.numbers("forces", list(METRIC_FORCES)))
+    if not forces or any(f <= 0 for f in forces) or list(forces) != sorted(set(forces)):
+        raise cal.error("forces", "must be positive forces in N, increasing, each once")
+    strains = tuple(cal.strings("strains", list(STRAINS), choices=STRAINS))
+    if not strains or len(set(strains)) != len(strains) or "axial" not in strains:
+        raise cal.error("strains", "must list axial (and optionally lateral), each once")
+    min_loops = cal.integer("min_loops", DEFAULT_MIN_LOOPS, minimum=2, maximum=MAX_LOOPS_SPEC)
+    sens = cal.string("sensitivities", "implicit", choices=SENSITIVITIES)
+    cal.finish()
+    tests = tuple(_read_test(t, source, base, fixed, min_loops, forces)
+                  for t in top.tables("test"))
+    if not tests:
+        raise top.error("test", "a calibration needs at least one [[test]] table")
+    if len(tests) > MAX_TESTS:
+        raise top.error("test", f"{len(tests)} tests; at most {MAX_TESTS}")
+    if fit and not any(t.use == "fit" for t in tests):
+        raise top.error("test", "fitting needs at least one test with use = \"fit\"")
+    in_clamps = [t for t in tests if t.width is None]
+    if in_clamps and length_scale is None:
+        raise cal.error("length_scale", f"required: test {quoted(in_clamps[0].file)} gives its "
+                        "width in clamp widths only; give length_scale (length units per clamp "
+                        "width; the starting value when it is fitted)")
+    if "length_scale" in fit and not any(t.width is None and t.use == "fit" for t in tests):
+        raise cal.error("fit", "length_scale can be fitted only from a fit test whose width is "
+                        "in clamp widths (a stitch_by_stitch file without width = ...)")
+    values = {"k_a": base.k_a, "k_b": base.k_b, "R_f": base.R_f,
+              "length_scale": length_scale if length_scale is not None else 1.0}
+    zero = [n for n in fit if values[n] <= 0]
+    if zero:
+        raise ProblemError(source, "material", zero[0], "a fitted value starts from its "
+                           "[material] value, which must be positive (the fit works on its "
+                           "logarithm)")
+    name = top.stem("name")
+    return CalibrationSpec(name, top.string("description", ""), source, shared, base, tests,
+                           fit, values, forces, strains, min_loops, sens)
+
+
+def _fabric(top: Table) -> tuple[int, int]:
+    """An explicit specimen size, used for every test instead of the aspect ratio."""
+    tab = top.table("fabric")
+    m, n = tab.integer("courses", minimum=2, maximum=MAX_LOOPS_SPEC * 5), tab.integer(
+        "wales", minimum=1, maximum=MAX_LOOPS_SPEC * 5)
+    tab.finish()
+    return m, n
+
+
+def _read_test(tab: Table, source: Path, base: WeftProblem, fixed: tuple[int, int] | None,
+               min_loops: int, forces: tuple[float, ...]) -> TestSpec:
+    tab.allow("file", "format", "direction", "use", "width", "aspect")
+    file = tab.string("file")
+    fmt = tab.string("format", choices=FORMATS)
+    direction = tab.string("direction", choices=DIRECTIONS)
+    use = tab.string("use", choices=USES)
+    width = tab.number("width", None, positive=True)
+    aspect = tab.number("aspect", None, positive=True)
+    tab.finish()
+    measured = read_test(_resolve(source.parent, file, tab), file, fmt)
+    check_reaches(measured, forces, "[calibrate] forces")
+    if width is None and measured.width_clamps is None:
+        raise tab.error("width", f"{quoted(file)} records no width (no clamp_size_px / "
+                        "fabric_width_px comment line): give width = the specimen's width in "
+                        "length units")
+    if aspect is not None:
+        source_name = "spec"
+    elif measured.aspect is not None:
+        aspect, source_name = measured.aspect, "pins"
+    elif fixed is None:
+        raise tab.error("aspect", f"{quoted(file)} has no pin positions: give aspect = gauge "
+                        "length / width, or the specimen's [fabric]")
+    else:
+        source_name = "fabric"
+    if fixed is not None:
+        m, n = fixed
+    else:
+        m, n = loop_counts(base, direction, aspect, min_loops)
+    return TestSpec(file, fmt, direction, use, measured, width, float(aspect or 0.0),
+                    source_name, m, n, tab.name)
+
+
+def _resolve(folder: Path, rel: str, tab: Table) -> Path:
+    """A test file named in the spec: a relative path that stays inside the spec's folder
+    (symbolic links followed), as for jacquard design files."""
+    if not rel or "\0" in rel or Path(rel).is_absolute():
+        raise tab.error("file", f"must be a relative path inside the spec's folder; got "
+                        f"{quoted(rel)}")
+    try:
+        root = folder.resolve()
+        path = (root / rel).resolve()
+    except (OSError, RuntimeError) as err:
+        raise tab.error("file", f"cannot resolve {quoted(rel)} ({quoted(err)})") from None
+    if not path.is_relative_to(root):
+        raise tab.error("file", f"{quoted(rel)} leads outside the spec's folder; test files "
+                        "must lie in it or below it")
+    return path

@@ -1,0 +1,216 @@
+"""The runs of issue 20 on the stitch-by-stitch acrylic stockinette, as one table.
+
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python scripts/bench_calibration.py
+    python scripts/bench_calibration.py --runs b,d        # a subset
+    python scripts/bench_calibration.py --out DIR          # also each run's files (JSON, CSV, PNG)
+
+Every run is the shipped spec ``problems/real_fabric/acrylic_fit_x.toml`` (run b) with a few
+keys changed in memory, so the table says exactly what differs:
+
+- a0  the paper's material (k_a L²/R_f = 100, k_b L²/R_f = 1 with the yarn's R_f and L),
+      nothing fitted, at an assumed clamp width of 25.4 mm (a one-inch grip face)
+- a   the paper's material; only the clamp width (length_scale, which the data lack) fitted on x
+- b   k_a, k_b and length_scale fitted on x (axial and lateral strains), y predicted  [shipped]
+- bx  as b, the fit matching the axial strain only
+- c   as b with yarn contact, ``[yarn] radius = 0.74`` mm (issue 19; reported as waiting when
+      the weft reader does not know ``[yarn]`` yet)
+- d   k_a, k_b and length_scale fitted on x and y together
+- b4, b8, b10   as b with 4, 8 and 10 loops on the specimens' shorter sides (b: 6)
+- bc  as b with the aspect ratios from the clamps (clamp separation over the specimen's width at
+      the clamp) instead of the pins
+- bfd as b with finite-difference sensitivities instead of the implicit-function ones
+
+Then, per run, the two numbers of the curves' shapes that no length scale changes: the course
+pull's stiffening (tangent stiffness dF/dε at axial strain 0.45 over that at 0.05) and the
+wale pull's stiffness per width over the course pull's at strain 0.05 (widths in clamp widths),
+measured (median run) and model. Last, one Jacobian of run b's fit at its answer by both
+sensitivity methods, alternated three times in one process (same-run ratio). Times are
+wall-clock on a shared machine.
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import os
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from knit_nlp.errors import ProblemError  # noqa: E402
+from knit_nlp.tomlio import load_toml  # noqa: E402
+from knit_nlp.weft.calibration import calibrate, parse_spec  # noqa: E402
+from knit_nlp.weft.calibration.calibrate import Calibration  # noqa: E402
+
+SPEC = ROOT / "problems" / "real_fabric" / "acrylic_fit_x.toml"
+PAPER = {"k_a": 100.0, "k_b": 1.0}          # Wada et al.'s k L² / R_f (k_a = 1, k_b = 0.01, R_f = 1, L = 10)
+RUNS = ("a0", "a", "b", "bx", "c", "d", "b4", "b8", "b10", "bc", "bfd")
+
+
+def _paper(doc: dict) -> dict:
+    L, R_f = doc["loop"]["length"], doc["material"]["R_f"]
+    doc["material"].update({k: v * R_f / L ** 2 for k, v in PAPER.items()})
+    return doc
+
+
+def _clamp_aspects(doc: dict) -> dict:
+    """Per test: median over runs of the first frame's clamp separation over fabric_width_px."""
+    import csv
+    for test in doc["test"]:
+        path = SPEC.parent / test["file"]
+        lines = path.read_text().splitlines()
+        width = float(lines[1].split("fabric_width_px =")[1])
+        rows = list(csv.DictReader(ln for ln in lines if not ln.startswith("#")))
+        first: dict[str, dict] = {}
+        for row in rows:
+            if row["run"] not in first or float(row["frame"]) < float(first[row["run"]]["frame"]):
+                first[row["run"]] = row
+        seps = [np.hypot(float(r["top_clamp_x"]) - float(r["bottom_clamp_x"]),
+                         float(r["top_clamp_y"]) - float(r["bottom_clamp_y"])) for r in first.values()]
+        test["aspect"] = float(np.median(seps) / width)
+    return doc
+
+
+def variant(name: str) -> dict:
+    doc = copy.deepcopy(load_toml(SPEC))
+    cal = doc["calibrate"]
+    if name == "a0":
+        _paper(doc)
+        cal["fit"] = []
+    elif name == "a":
+        _paper(doc)
+        cal["fit"] = ["length_scale"]
+    elif name == "bx":
+        cal["strains"] = ["axial"]
+    elif name == "c":
+        doc["yarn"] = {"radius": 0.74}
+    elif name == "d":
+        for test in doc["test"]:
+            test["use"] = "fit"
+    elif name in ("b4", "b8", "b10"):
+        cal["min_loops"] = int(name[1:])
+    elif name == "bc":
+        _clamp_aspects(doc)
+    elif name == "bfd":
+        cal["sensitivities"] = "finite_differences"
+    doc["name"] = f"acrylic_{name}"
+    return doc
+
+
+def _value(row: dict) -> str:
+    v = f"{row['value']:.4g}"
+    if not row["fitted"]:
+        return v
+    se = row.get("std_error")
+    return f"{v}±{se:.2g}" if se is not None else f"{v}(undet.)"
+
+
+def _rms(t: dict) -> str:
+    r = t["rms_strain_error"]
+    fmt = lambda v: "  n/a" if v is None else f"{v:.3f}"     # noqa: E731
+    return f"{fmt(r['axial'])} {fmt(r['lateral'])}"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--runs", default=",".join(RUNS))
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    print(f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')} "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')} "
+          f"load average {os.getloadavg()[0]:.1f} (shared machine: absolute times are noisy)")
+    print("run  k_a (N/mm)        k_b (N/mm)        length_scale (mm)  x: axial lateral  "
+          "y: axial lateral  ok  time (s)  solves  loops x / y")
+    results = {}
+    for name in args.runs.split(","):
+        try:
+            spec = parse_spec(variant(name), SPEC)
+        except ProblemError as err:
+            print(f"{name:<4} not run: {err}")
+            continue
+        t0 = time.perf_counter()
+        res = calibrate(spec)
+        wall = time.perf_counter() - t0
+        results[name] = res
+        js = res.to_json()
+        p = js["parameters"]
+        x, y = js["tests"]
+        loops = " / ".join(f"{t['specimen']['courses']}x{t['specimen']['wales']}" for t in js["tests"])
+        print(f"{name:<4} {_value(p['k_a']):<17} {_value(p['k_b']):<17} "
+              f"{_value(p['length_scale']):<18} {x['use'][:4]} {_rms(x)}  {y['use'][:4]} {_rms(y)}  "
+              f"{'yes' if res.success else 'NO ':<3} {wall:8.1f}  {js['timings']['forward_solves']:6d}"
+              f"  {loops}", flush=True)
+        if args.out:
+            res.save(Path(args.out))
+    _shapes(results)
+    if "b" in results:
+        _sensitivity_timing(results["b"])
+    return 0
+
+
+def _tangent(force: np.ndarray, strain: np.ndarray, at: float, half: float = 0.03) -> float:
+    """dF/dε at strain ``at``: slope of the least-squares line through the points within
+    ``half`` of it."""
+    near = np.abs(strain - at) <= half
+    if near.sum() < 3 or strain.max() < at + half:
+        return float("nan")
+    return float(np.polyfit(strain[near], force[near], 1)[0])
+
+
+def _measured_curve(test) -> tuple[np.ndarray, np.ndarray]:
+    from knit_nlp.weft.calibration.metric import levels
+    forces = np.linspace(0.05, test.measured.common_force, 400)
+    return forces, np.median(levels(test.measured, forces), axis=0)
+
+
+def _shapes(results: dict) -> None:
+    print("\ncurve shapes (no length scale enters): x stiffening = dF/dε at ε 0.45 over 0.05 "
+          "(course pull); y/x = stiffness per width at ε 0.05, wale pull over course pull")
+    rows = []
+    for name, res in results.items():
+        x, y = res.tests
+        row = []
+        for which in ("measured", "model"):
+            if which == "measured":
+                fx, ex = _measured_curve(x.test)
+                fy, ey = _measured_curve(y.test)
+            else:
+                fx, ex = x.curve.sample_force, x.curve.sample_axial
+                fy, ey = y.curve.sample_force, y.curve.sample_axial
+            stiffen = _tangent(fx, ex, 0.45) / _tangent(fx, ex, 0.05)
+            per_width = (_tangent(fy, ey, 0.05) / y.width) / (_tangent(fx, ex, 0.05) / x.width)
+            row.append((stiffen, per_width))
+        rows.append((name, row))
+    (ms, mw) = rows[0][1][0] if rows else (np.nan, np.nan)
+    print(f"  measured: x stiffening {ms:.2f}, y/x {mw:.2f}")
+    for name, row in rows:
+        print(f"  {name:<4} model: x stiffening {row[1][0]:.2f}, y/x {row[1][1]:.2f}")
+
+
+def _sensitivity_timing(res) -> None:
+    """One Jacobian of run b's fit at its answer, implicit against finite differences."""
+    cal = Calibration(res.spec)
+    fitted = np.array([res.values[n] for n in cal.names])
+    cal.residual(fitted)
+    times = {"implicit": [], "finite_differences": []}
+    jac = {}
+    for _ in range(3):
+        for method in times:
+            cal.spec = replace(cal.spec, sensitivities=method)
+            t0 = time.perf_counter()
+            jac[method] = cal.jacobian(fitted)
+            times[method].append(time.perf_counter() - t0)
+    ti, tf = np.median(times["implicit"]), np.median(times["finite_differences"])
+    diff = np.abs(jac["implicit"] - jac["finite_differences"]).max() / np.abs(jac["implicit"]).max()
+    print(f"one Jacobian of run b at its answer: implicit {ti:.2f} s, finite differences "
+          f"{tf:.2f} s (medians of 3, alternated): ratio fd/implicit {tf / ti:.2f}; largest "
+          f"difference {diff:.2e} of the largest entry")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
