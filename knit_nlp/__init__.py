@@ -12,18 +12,10 @@ double-jacquard warp-knit mass-spring model of Zhang et al. (``knit_nlp.jacquard
 """
 __version__ = "0.1.0"
 
-from .api import MODELS, compare, load_problem, parse_problem, solve  # noqa: E402
+from .api import MODELS, calibrate, compare, load_problem, parse_problem, solve  # noqa: E402
 from .errors import ProblemError  # noqa: E402
 from .outcome import Energy  # noqa: E402
 
 __all__ = ["__version__", "MODELS", "ProblemError", "Energy", "load_problem", "parse_problem",
            "solve", "compare", "calibrate"]
 
-
-def calibrate(spec_or_path):
-    """Fit weft material values on measured tensile tests and predict held-out ones: a
-    calibration spec (path or :class:`~knit_nlp.weft.calibration.CalibrationSpec`) in, a typed
-    :class:`~knit_nlp.weft.calibration.CalibrationResult` out (``knit-nlp calibrate``). Imported
-    on first use: it needs scipy's optimiser, which ``import knit_nlp`` does not load."""
-    from .weft.calibration import calibrate as run
-    return run(spec_or_path)

@@ -27,6 +27,7 @@ from .problems import resolve
 from .tomlio import load_toml
 from .weft import commands as weft_commands, keys as weft_keys, study as weft_study
 from .weft.api import compare as compare_weft, solve as solve_weft
+from .weft.inverse.calibration import CalibrationResult, CalibrationSpec, calibrate as calibrate_weft
 from .weft.model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .weft.model.problem import WeftProblem, parse_problem as parse_weft
 from .weft.output.comparison import Comparison
@@ -171,3 +172,12 @@ def compare(problem_or_name: WeftProblem | str | Path) -> Comparison:
     if model.compare is None:
         raise ValueError(f"compare is for weft problems; {problem.name!r} is a {model.name} problem")
     return model.compare(problem)
+
+
+def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:
+    """Fit weft material values on measured tensile tests and predict held-out ones: a
+    calibration spec (a path, a shipped spec's name such as ``real_fabric/acrylic_fit_x``, or
+    a loaded :class:`~knit_nlp.weft.inverse.calibration.CalibrationSpec`) in, a typed
+    :class:`~knit_nlp.weft.inverse.calibration.CalibrationResult` out (``knit-nlp calibrate``;
+    docs/real_fabric.md)."""
+    return calibrate_weft(spec_or_path)

@@ -44,8 +44,8 @@ sys.path.insert(0, str(ROOT))
 
 from knit_nlp.errors import ProblemError  # noqa: E402
 from knit_nlp.tomlio import load_toml  # noqa: E402
-from knit_nlp.weft.calibration import calibrate, parse_spec  # noqa: E402
-from knit_nlp.weft.calibration.calibrate import Calibration  # noqa: E402
+from knit_nlp.weft.inverse.calibration import calibrate, parse_spec  # noqa: E402
+from knit_nlp.weft.inverse.calibration.calibrate import Calibration  # noqa: E402
 
 SPEC = ROOT / "problems" / "real_fabric" / "acrylic_fit_x.toml"
 PAPER = {"k_a": 100.0, "k_b": 1.0}          # Wada et al.'s k L² / R_f (k_a = 1, k_b = 0.01, R_f = 1, L = 10)
@@ -163,7 +163,7 @@ def _tangent(force: np.ndarray, strain: np.ndarray, at: float, half: float = 0.0
 
 
 def _measured_curve(test) -> tuple[np.ndarray, np.ndarray]:
-    from knit_nlp.weft.calibration.metric import levels
+    from knit_nlp.weft.inverse.calibration.metric import levels
     forces = np.linspace(0.05, test.measured.common_force, 400)
     return forces, np.median(levels(test.measured, forces), axis=0)
 

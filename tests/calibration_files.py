@@ -91,8 +91,8 @@ def synthetic_columns(path: Path, truth: dict[str, float] = SYNTH_TRUTH, courses
     """The model's own course-pull curve (``courses`` x ``wales``, ``truth``) written as a
     ``columns`` test of ``runs`` runs with Gaussian strain noise, forces up to ``top`` N; returns
     the specimen width (mm) that makes the model's force at strain 0.4 equal ``top``."""
-    from knit_nlp.weft.calibration.curve import SpecimenModel, strains_at
-    from knit_nlp.weft.calibration.specimen import build_specimen
+    from knit_nlp.weft.inverse.calibration.curve import SpecimenModel, strains_at
+    from knit_nlp.weft.inverse.calibration.specimen import build_specimen
     sp = build_specimen({**SYNTH_DOC, "material": truth}, "<synthetic>", "courses", courses,
                         wales, "synthetic")
     c = SpecimenModel(sp).curve(truth, goal=1e9, strain_limit=0.4)

@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from calibration_files import SPEC_SBS, ramp_runs, sbs_row, write_columns, write_sbs, write_spec
 from knit_nlp.cli import main
 from knit_nlp.errors import ProblemError
-from knit_nlp.weft.calibration import load_spec, parse_spec
-from knit_nlp.weft.calibration.measured import read_columns, read_stitch_by_stitch
-from knit_nlp.weft.calibration.metric import levels, metric
+from knit_nlp.weft.inverse.calibration import load_spec, parse_spec
+from knit_nlp.weft.inverse.calibration.measured import read_columns, read_stitch_by_stitch
+from knit_nlp.weft.inverse.calibration.metric import levels, metric
 
 SETTINGS = settings(max_examples=60, deadline=5000, derandomize=False,
                     suppress_health_check=[HealthCheck.too_slow,
@@ -187,7 +187,7 @@ def test_bad_specs_are_refused_in_one_line(tmp_path, capsys, edit, needles):
 
 def test_a_shipped_spec_is_found_by_its_name_under_the_named_problems():
     from knit_nlp.problems import problems_dir
-    from knit_nlp.weft.calibration.command import spec_path
+    from knit_nlp.weft.inverse.calibration.spec import spec_path
     shipped = problems_dir() / "real_fabric" / "acrylic_fit_x.toml"
     assert spec_path("real_fabric/acrylic_fit_x") == shipped
     assert spec_path("real_fabric/acrylic_fit_x.toml") == shipped

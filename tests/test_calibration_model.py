@@ -15,11 +15,11 @@ from calibration_files import (SPEC_SBS, SYNTH_DOC, SYNTH_TRUTH, ramp_runs, synt
                                synthetic_spec)
 import knit_nlp
 from knit_nlp.cli import main
-from knit_nlp.weft.calibration import load_spec
-from knit_nlp.weft.calibration.calibrate import Calibration
-from knit_nlp.weft.calibration.curve import (SpecimenModel, fd_derivatives,
+from knit_nlp.weft.inverse.calibration import load_spec
+from knit_nlp.weft.inverse.calibration.calibrate import Calibration
+from knit_nlp.weft.inverse.calibration.curve import (SpecimenModel, fd_derivatives,
                                              implicit_derivatives, strains_at)
-from knit_nlp.weft.calibration.specimen import build_specimen, loop_counts
+from knit_nlp.weft.inverse.calibration.specimen import build_specimen, loop_counts
 from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.output.results import WeftResult
@@ -88,7 +88,7 @@ def test_strain_sensitivities_at_fixed_force_agree_with_finite_differences(monke
     """d(strain at a fixed force)/dθ: implicit function (−∂F/∂θ / ∂F/∂u) against central
     differences through the interpolated curves, on a curve fine enough (strain steps 0.01)
     for the interpolation to be exact to 1e-3."""
-    from knit_nlp.weft.calibration import curve
+    from knit_nlp.weft.inverse.calibration import curve
     monkeypatch.setattr(curve, "MAX_STRAIN_STEP", 0.01)
     model = _model("courses")
     c = model.curve(SYNTH_TRUTH, goal=1e9, strain_limit=0.3)

@@ -15,7 +15,7 @@ from typing import Any
 from ..errors import ProblemError, quoted
 from ..problems import resolve
 from ..tomlio import load_toml
-from .calibration import command as calibration
+from .inverse.calibration import command as calibration
 from .inverse import run
 from .inverse.spec import has_control_keys, strip_control_keys
 from .model.problem import MAX_CONTINUATION, WeftProblem

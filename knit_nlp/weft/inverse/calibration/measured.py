@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import ProblemError, quoted
-from ...tomlio import MAX_MAGNITUDE, read_regular_file
+from ....errors import ProblemError, quoted
+from ....tomlio import MAX_MAGNITUDE, read_regular_file
 
 MAX_TEST_BYTES = 32 * 2 ** 20      # a test's CSV (the shipped ones are 0.2 and 0.6 MB)
 MAX_CELL_CHARS = 64                # a number or a run label

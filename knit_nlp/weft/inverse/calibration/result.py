@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ...jsonio import write_csv, write_json
-from ...provenance import source_record
+from ....jsonio import write_csv, write_json
+from ....provenance import source_record
 from .metric import MetricPoints
 from .plot import plot_calibration
 

@@ -23,9 +23,9 @@ from scipy import sparse
 from scipy.interpolate import PchipInterpolator
 from scipy.sparse.linalg import splu
 
-from ..inverse.equilibrium import Equilibrium
-from ..inverse.points import point_function, point_jacobian
-from ..model.params import WeftParams
+from ..equilibrium import Equilibrium
+from ..points import point_function, point_jacobian
+from ...model.params import WeftParams
 from .specimen import PULLED, Specimen
 
 SENSITIVITIES = ("implicit", "finite_differences")

@@ -13,10 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import ProblemError, quoted
-from ...tomlio import Table, load_toml
-from ..model.params import MATERIAL
-from ..model.problem import WeftProblem, parse_problem
+from ....errors import ProblemError, quoted
+from ....problems import problems_dir
+from ....tomlio import Table, load_toml
+from ...model.params import MATERIAL
+from ...model.problem import WeftProblem, parse_problem
 from .curve import SENSITIVITIES
 from .measured import FORMATS, MeasuredTest, read_test
 from .metric import METRIC_FORCES, check_reaches
@@ -83,9 +84,25 @@ class CalibrationSpec:
 
 
 def load_spec(path: Path | str) -> CalibrationSpec:
-    """Read and check a calibration spec and its test files."""
-    path = Path(path)
+    """Read and check a calibration spec and its test files: a path, or a shipped spec's name
+    (:func:`spec_path`)."""
+    path = spec_path(str(path))
     return parse_spec(load_toml(path), path)
+
+
+def spec_path(text: str) -> Path:
+    """The spec file: a path, else the same name (with or without ``.toml``) under the named
+    problems' folder, which an installed package carries (``knit_nlp.problems``)."""
+    path = Path(text)
+    try:
+        if path.exists():
+            return path
+        for candidate in (problems_dir() / text, problems_dir() / f"{text}.toml"):
+            if candidate.is_file():
+                return candidate
+    except (OSError, ValueError):        # a NUL or an over-long name: load_spec says so
+        pass
+    return path
 
 
 def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:

@@ -9,9 +9,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ...outdir import prepare_out
-from ...problems import problems_dir
-from ...provenance import check_overwrite
+from ....outdir import prepare_out
+from ....provenance import check_overwrite
 from .calibrate import calibrate
 from .result import CalibrationResult
 from .spec import load_spec
@@ -19,28 +18,13 @@ from .spec import load_spec
 
 def run(args: argparse.Namespace) -> int:
     """Read and check everything, then solve, then write: bad input writes nothing."""
-    spec = load_spec(spec_path(args.spec))
+    spec = load_spec(args.spec)
     out = prepare_out(args.out, spec.name, ("calibration", "curves"))
     check_overwrite(out.glob(f"{spec.name}.calibration.json"), spec.source, args.force)
     result = calibrate(spec)
     paths = result.save(out)
     print(summary(result, paths))
     return 0 if result.success else 1
-
-
-def spec_path(text: str) -> Path:
-    """The spec file: a path, else the same name (with or without ``.toml``) under the named
-    problems' folder, which an installed package carries (``knit_nlp.problems``)."""
-    path = Path(text)
-    try:
-        if path.exists():
-            return path
-        for candidate in (problems_dir() / text, problems_dir() / f"{text}.toml"):
-            if candidate.is_file():
-                return candidate
-    except (OSError, ValueError):        # a NUL or an over-long name: load_spec says so
-        pass
-    return path
 
 
 def summary(result: CalibrationResult, paths: list[Path]) -> str:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import ProblemError
+from ....errors import ProblemError
 from .measured import MeasuredTest, Run
 
 METRIC_FORCES = (2.0, 5.0, 10.0, 15.0, 20.0, 25.0)      # N

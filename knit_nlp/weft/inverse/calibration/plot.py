@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ...figures import new_figure, save_figure
+from ....figures import new_figure, save_figure
 from .metric import levels
 
 COLOURS = {"axial": "tab:blue", "lateral": "tab:orange"}

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from ..transcription.rows import rigid_natural_points
-from ..model.problem import WeftProblem, parse_problem
+from ...transcription.rows import rigid_natural_points
+from ...model.problem import WeftProblem, parse_problem
 
 DIRECTIONS = ("courses", "wales")
 MAX_LOOPS = 200                    # along the pull, from the aspect ratio
