@@ -203,7 +203,7 @@ class _Geometry:
         self.N = ca.vertcat(-ca.sin(Th), ca.cos(Th))
         self.d = PA - PB
         self.sigma = ca.transpose(sigma)
-        self.gap = ca.vec(-self.sigma * ca.sum1(self.d * self.N))
+        self.gap = ca.vec(self.sigma * ca.sum1(self.d * self.N))
 
 
 def _basis(u: ca.MX, L: float, t: int) -> list[ca.MX]:
