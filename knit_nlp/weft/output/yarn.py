@@ -9,7 +9,7 @@ from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
 
 YARN_ALPHA = 0.3
-CONTACT = "crimson"
+CONTACT = "black"
 
 
 def yarn_bands(lines: np.ndarray, radius: float) -> list[np.ndarray]:
@@ -40,5 +40,5 @@ def draw_yarn(ax: Axes, result: Any, deformed: np.ndarray) -> None:
     contacts = result.extra.get("contact", {}).get("contacts", [])
     if contacts:
         pts = np.array([c["point"] for c in contacts])
-        ax.plot(pts[:, 0], pts[:, 1], "o", ms=3, color=CONTACT, zorder=5,
+        ax.plot(pts[:, 0], pts[:, 1], "o", ms=3.5, mfc="white", mec=CONTACT, mew=1.0, zorder=5,
                 label=f"active contact ({len(contacts)})")
