@@ -24,6 +24,7 @@ from ...model.contact.natural import NaturalFabric
 from ...model.contact.pairs import Grid, Pairs, find_pairs
 from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
+from ....outcome import OUT_OF_TIME
 from ..solve import SolveReport, WeftSolver
 
 TOL = 1e-4                 # relative gap shortfall accepted at the end (target: 1e-3)
@@ -81,6 +82,7 @@ class ContactSolver:
         self.solver: WeftSolver | None = None
         self.build_s = 0.0
         self.log = None                  # a callable receiving every Round as it ends
+        self.deadline = np.inf           # the wall-clock budget shared with the paper's solves
 
     def pairs(self, x_base: np.ndarray) -> Pairs:
         """Contact pairs of a base-layout state."""
@@ -105,6 +107,7 @@ class ContactSolver:
         t0 = time.perf_counter()
         self.cnlp = build_contact_nlp(self.base, np.array(kA), np.array(kB))
         self.solver = WeftSolver(self.cnlp, ipopt=WARM)
+        self.solver.deadline = self.deadline
         self.build_s += time.perf_counter() - t0
         return True
 
@@ -228,6 +231,9 @@ class ContactSolver:
         x, tau, dtau, halvings = x_start, 0.0, 1.0 / steps, 0
         pairs, lam, warm = self.pairs(x), None, None
         while tau < 1.0:
+            if time.perf_counter() >= self.deadline:
+                report.success, report.status = False, OUT_OF_TIME
+                break
             nxt = min(1.0, tau + dtau)
             out = self.step(p_natural + nxt * (p_target - p_natural), x, pairs, warm,
                             nxt >= 1.0, report, rounds, f"load {nxt:.4g}")

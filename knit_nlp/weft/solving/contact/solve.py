@@ -50,6 +50,9 @@ def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver
     block. Load steps from a start that fail are tried again from the natural fabric."""
     problem = base.problem
     solver.start_clock()
+    contact.deadline = solver.deadline
+    if contact.solver is not None:
+        contact.solver.deadline = solver.deadline
     p = params.vector()
     p_from, x_from = WeftParams.natural(problem).vector(), base.x0
     if x_start is not None and contact.clean(x_start):
