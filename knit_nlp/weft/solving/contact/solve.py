@@ -22,6 +22,7 @@ from ...model.params import WeftParams
 from ...model.problem import WeftProblem
 from ...transcription.full import FullNLP
 from ..solve import DEFAULT_START, SolveReport, WeftSolver, solve as solve_nlp, start_point
+from ..starts import needs_perturbation
 from .rounds import TOL, ContactRun, ContactSolver
 
 STEPS = 4                  # first load steps of a contact path when none are asked for
@@ -85,8 +86,10 @@ def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver
 
 def _paper_first(base: FullNLP, solver: WeftSolver, params: WeftParams, x0, continuation):
     """The paper's model, tried once: a continuation when one is asked for, else one IPOPT
-    solve from the usual start (no retries: where it fails, contact takes over)."""
-    if continuation:
+    solve from the usual start (no retries: where it fails, contact takes over), or the
+    perturbed starts where the natural yarn is straight and compressed."""
+    if continuation or (x0 is None and needs_perturbation(base, params.vector())):
+        # asked-for steps, or a straight yarn under compression: the paper's perturbed starts
         return solve_nlp(base, solver, params=params, x0=x0, continuation=continuation)
     t0 = time.perf_counter()
     levels: list[str] = []
