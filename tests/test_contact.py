@@ -217,3 +217,20 @@ def test_lifted_contact_points_start_on_their_rows():
                 p[c.base.p.size + c.n_slots:c.base.p.size + 2 * c.n_slots])
     g = np.asarray(ca.Function("g", [c.nlp["x"], c.nlp["p"]], [c.nlp["g"]])(x0, p)).ravel()
     assert np.abs(g[c.g.slice("contact_lift")]).max() < 1e-12
+
+
+def test_a_contact_solve_keeps_to_its_time_budget():
+    """[solver] max_time bounds the contact rounds too: out of time is reported, not hidden."""
+    pr = squeezed(0.5)
+    pr = dataclasses.replace(pr, solver=dataclasses.replace(pr.solver, max_time=0.05))
+    res = solve(pr)
+    assert not res.success and res.status == "Maximum_WallTime_Exceeded"
+
+
+def test_without_a_radius_nothing_changes():
+    """The paper's model: no contact block, the same solution as the same problem read with a
+    radius but solved without one (the contact study only starts where [yarn] is)."""
+    free = solve(squeezed(0.5, None))
+    assert "contact" not in free.to_json() and free.success
+    again = solve(dataclasses.replace(squeezed(0.5), yarn=None))
+    np.testing.assert_array_equal(free.x, again.x)

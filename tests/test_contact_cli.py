@@ -161,3 +161,15 @@ def test_check_of_a_natural_fabric_is_clean_with_and_without_a_radius(solved, tm
     nat["loops"]["coefficients"] = np.broadcast_to(pr.natural.coeffs, (2, 3, 8)).tolist()
     nat["loops"]["course_starts"] = pr.natural_starts()[:, 0].tolist()
     assert check(nat, pr).ok
+
+
+def test_control_and_fit_with_a_radius_are_refused_with_a_reason(tmp_path, capsys):
+    """Their implicit-function gradients do not hold the active contacts yet: exit 2, one line,
+    nothing written (not a silent solve without contact)."""
+    from knit_nlp.problems import resolve
+    path = tmp_path / "place_stitch.toml"
+    path.write_text(resolve("place_stitch").read_text() + "\n" + YARN)
+    assert main(["control", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "control and fit has no yarn contact yet" in err and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()

@@ -33,12 +33,15 @@ class ContactRefused(ProblemError, ValueError):
     """A model or option that has no yarn contact yet (one line; exit 2 on the command line)."""
 
 
-def refuse(problem: WeftProblem, what: str) -> ContactRefused:
-    """The refusal of ``what`` for a problem with a yarn radius, naming ``[yarn] radius``."""
-    return ContactRefused(problem.source, "yarn", "radius", f"{what} has no yarn contact yet "
-                          "(its loops are interpolated, the contact pairs are between actual "
-                          "loops); solve the full model (knit-nlp solve --full, or Full() in "
-                          "Python), or remove [yarn] for the paper's model")
+REDUCED_WHY = ("its loops are interpolated from representatives and contact pairs are between "
+               "actual loops; solve the full model (knit-nlp solve --full, or Full() in Python)")
+
+
+def refuse(problem: WeftProblem, what: str, why: str = REDUCED_WHY) -> ContactRefused:
+    """The refusal of ``what`` for a problem with a yarn radius, naming ``[yarn] radius``,
+    saying why and what to do instead."""
+    return ContactRefused(problem.source, "yarn", "radius", f"{what} has no yarn contact yet: "
+                          f"{why}, or remove [yarn] for the paper's model")
 
 
 def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver,
