@@ -93,7 +93,7 @@ def curve(n: int, strain: float, steps: int, radius: float | None, budget: float
     return pr, rows
 
 
-def plot_curves(path: str, n: int, radius: float, curves: dict) -> None:
+def plot_curves(path: str, n: int, curves: dict) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -103,11 +103,14 @@ def plot_curves(path: str, n: int, radius: float, curves: dict) -> None:
         units = pr.units
         e = [0.0] + [r[0] * 100 for r in rows if r[2]]
         f = [0.0] + [r[1] for r in rows if r[2]]
-        ax.plot(e, f, "o-", ms=4, label=label)
+        failed = [r[0] * 100 for r in rows if not r[2]]
+        ax.plot(e, f, "o-", ms=4, label=label + (f" (not converged at {failed} %)" if failed
+                                                  else ""))
     ax.set_xlabel("course-direction strain [%] (edge displacement / natural width)")
     ax.set_ylabel(f"right edge reaction, x [{units.force}]")
     ax.set_title(f"{n} x {n} jersey stretched along the courses between rigid edges\n"
-                 f"(paper's material; yarn radius {radius:g} {units.length}, L = 10)",
+                 f"(paper's material, loop length L = 10 {units.length}; r: yarn radius "
+                 f"[{units.length}])",
                  fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -124,6 +127,8 @@ def main() -> None:
     ap.add_argument("--curve", type=int, default=12, help="fabric of the stretch curve (0: none)")
     ap.add_argument("--strain", type=float, default=0.5)
     ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--radii", type=float, nargs="+", default=[RADIUS],
+                    help="yarn radii of the stretch curves (beside the paper's model)")
     ap.add_argument("--plot", default="docs/contact_stretch.png")
     args = ap.parse_args()
     print(f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')} "
@@ -137,13 +142,13 @@ def main() -> None:
               f"{r.get('active')}, new crossings {r.get('new_crossings')}", flush=True)
     if args.curve:
         curves = {}
-        for label, radius in (("without contact (paper's model)", None),
-                              (f"with contact, r = {RADIUS:g}", RADIUS)):
+        for label, radius in [("without contact (paper's model)", None)] + [
+                (f"with contact, r = {r:g}", r) for r in args.radii]:
             print(f"x-stretch {args.curve}x{args.curve}, {label}:")
             t0 = time.perf_counter()
             curves[label] = curve(args.curve, args.strain, args.steps, radius, args.budget)
             print(f"  {time.perf_counter() - t0:.1f} s")
-        plot_curves(args.plot, args.curve, RADIUS, curves)
+        plot_curves(args.plot, args.curve, curves)
         print(f"wrote {args.plot}")
 
 
