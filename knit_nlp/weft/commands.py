@@ -1,5 +1,6 @@
 """The weft model's part of the command line: its ``knit-nlp solve`` flags and how they become
-solve and save options, and its own commands (``control``, ``fit``, ``overlay``, ``calibrate``).
+solve and save options, and its own commands (``control``, ``fit``, ``overlay``, ``calibrate``,
+``check``).
 
 Everything here is data or a function the model table (``knit_nlp.api.MODELS``) points to; the
 command line (``knit_nlp.cli``) reads it from there. A new weft command is one ``Command`` in
@@ -13,12 +14,14 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ProblemError, quoted
+from ..outdir import prepare_out
 from ..problems import resolve
 from ..tomlio import load_toml
 from .inverse.calibration import command as calibration
 from .inverse import run
 from .inverse.spec import has_control_keys, strip_control_keys
-from .model.problem import MAX_CONTINUATION, WeftProblem
+from .model.problem import MAX_CONTINUATION, WeftProblem, parse_problem
+from .output.check import SAMPLES, check, load_result_json, write_check
 from .output.export import EXPORTS
 from .output.plot import COLOURINGS
 
@@ -53,6 +56,9 @@ FLAGS = (
                       "help": "with a continuation, also write a GIF of the loading path"}, None),
     (("--export",), {"nargs": "+", "choices": EXPORTS, "default": [],
                      "help": "also write the deformed centrelines as CSV and/or SVG"}, None),
+    (("--yarn",), {"action": "store_true",
+                   "help": "draw the yarn with its thickness ([yarn] radius) and mark the "
+                           "active contacts"}, None),
 )
 
 
@@ -73,6 +79,9 @@ def solve_options(args: Namespace, problem: WeftProblem, path: Path) -> dict[str
         raise ProblemError(path, "", "", "--warm-from-reduced starts the full model: add --full")
     if args.animate and not (args.continuation or problem.solver.continuation):
         raise ProblemError(path, "", "", "--animate draws a loading path: add --continuation N")
+    if args.yarn and problem.yarn is None:
+        raise ProblemError(path, "yarn", "radius", "--yarn draws the yarn's thickness: add "
+                           "[yarn] radius = r (length units) to the problem file")
     opts: dict[str, Any] = {"continuation": args.continuation,
                             "warm_from_reduced": args.warm_from_reduced, "verbose": args.verbose}
     if args.reduced or args.full:
@@ -82,7 +91,8 @@ def solve_options(args: Namespace, problem: WeftProblem, path: Path) -> dict[str
 
 def save_options(args: Namespace) -> dict[str, Any]:
     """``WeftResult.save`` options from the flags."""
-    return {"colour": args.colour or "course", "export": args.export, "animate": args.animate}
+    return {"colour": args.colour or "course", "export": args.export, "animate": args.animate,
+            "yarn": args.yarn}
 
 
 def run_control(args: Namespace) -> int:
@@ -99,6 +109,54 @@ def run_overlay(args: Namespace) -> int:
     return run.overlay_file(Path(args.result), Path(args.image), args.match,
                             Path(args.observations) if args.observations else None,
                             resolve(args.problem) if args.problem else None, Path(args.out))
+
+
+def _samples(text: str) -> int:
+    """``check --samples``: a whole number in 16..5000 (argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise ArgumentTypeError(f"expected a whole number, got {quoted(text)}") from None
+    if not 16 <= value <= 5000:
+        raise ArgumentTypeError(f"must be in 16..5000, got {value}")
+    return value
+
+
+def run_check(args: Namespace) -> int:
+    """``knit-nlp check``: one line on stdout and ``<result stem>.check.json`` in ``--out``;
+    0 clean, 1 violations (bad input: ProblemError, exit 2)."""
+    result_path = Path(args.result)
+    result = load_result_json(result_path)
+    given = resolve(args.problem) if args.problem else None
+    problem = _problem_of(result, result_path, given)
+    report = check(result, problem, args.samples, str(result_path))
+    write_check(report, result_path, prepare_out(args.out, problem.name, ()))
+    print(report.line())
+    return 0 if report.ok else 1
+
+
+def _problem_of(result: Any, result_path: Path, given: Path | None) -> WeftProblem:
+    """The result's problem: ``given``, else its recorded source file, else a file named
+    after it beside the result or among the named problems."""
+    if given is None:
+        name = str(result.get("problem", "")) if isinstance(result, dict) else ""
+        source = result.get("source") if isinstance(result, dict) else None
+        recorded = Path(source["file"]) if isinstance(source, dict) and isinstance(
+            source.get("file"), str) else None
+        for candidate in (recorded, result_path.parent / f"{name}.toml"):
+            if candidate is not None and candidate.is_file():
+                given = candidate
+                break
+        else:
+            try:
+                given = resolve(name)
+            except ProblemError:
+                raise ProblemError(result_path, "", "problem", f"cannot find the problem file "
+                                   f"{quoted(name)}; pass --problem FILE") from None
+    doc = load_toml(given)
+    if doc.get("model", "weft") != "weft":
+        raise ProblemError(given, "", "model", "check is for weft results")
+    return parse_problem(strip_control_keys(doc), given)
 
 
 OUT = (("--out",), {"default": "results", "help": "output folder (default: results)"})
@@ -124,4 +182,12 @@ COMMANDS = (
                            "real_fabric/acrylic_fit_x"}), OUT,
       (("--force",), {"action": "store_true",
                       "help": "overwrite results of another spec in --out"})), calibration.run),
+    ("check", "weft: count yarns passing through each other (crossings not in the natural "
+     "fabric) and gaps below 2r in a result",
+     ((("result",), {"metavar": "RESULT.json"}),
+      (("--problem",), {"default": None, "help": "the result's problem file (default: its "
+                                                 "recorded source, or found by its name)"}),
+      (("--samples",), {"type": _samples, "default": SAMPLES, "metavar": "N",
+                        "help": f"polyline samples per loop (default {SAMPLES})"}), OUT),
+     run_check),
 )

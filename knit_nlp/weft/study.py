@@ -6,7 +6,10 @@
   loads; numbered from 1); :meth:`WeftStudy.solve` re-solves, warm-started from a given point.
 - :class:`AdaptiveStudy`: the adaptive-representatives strategy (``solving.adaptive``), which
   refines its grid afresh at every point (a grid fitted to one load is not another's).
-- :func:`study` picks one for a parametrisation: the one place ``Adaptive`` is told apart.
+- :class:`ContactStudy`: a problem with ``[yarn] radius``: the full model with yarn contact
+  (``solving.contact``); the reduced and adaptive models refuse a radius.
+- :func:`study` picks one for a parametrisation: the one place ``Adaptive`` and a yarn radius
+  are told apart.
 - :func:`prepare_point`, :func:`solve_point` and :func:`study_row`: a study point from plain
   data (a problem document, parameter changes, a warm start) and its summary row, for
   ``knit_nlp.studies``; :func:`animate_points`: a GIF of a study's solved points.
@@ -20,12 +23,14 @@ from typing import Any, Sequence
 import numpy as np
 
 from .model.centrelines import natural_centrelines
-from .model.parametrisation import Adaptive, Parametrisation
+from .model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .model.params import WeftParams
 from .model.problem import WeftProblem, parse_problem
 from .output.plot import animate
 from .output.results import WeftResult
 from .solving.adaptive import solve_adaptive
+from .solving.contact.rounds import ContactSolver
+from .solving.contact.solve import refuse, solve_with_contact
 from .solving.solve import DEFAULT_START, SolveReport, WeftSolver, solve
 from .transcription.factory import transcribe
 
@@ -72,6 +77,41 @@ class WeftStudy:
         return self.result(rep, params)
 
 
+class ContactStudy(WeftStudy):
+    """The full model of a problem with ``[yarn] radius``: the paper's NLP built once (its
+    solutions, reactions and loading paths read as without contact) and the contact NLP grown
+    with the pairs the solves meet (``solving.contact``); results carry ``extra["contact"]``."""
+
+    def __init__(self, problem: WeftProblem, *, verbose: bool = False) -> None:
+        super().__init__(problem, Full(), verbose=verbose)
+        self.contact = ContactSolver(self.nlp, problem.yarn.radius)
+        self.block: dict[str, Any] = {}
+        self._p_start: np.ndarray | None = None
+
+    def solve(self, params: WeftParams, x0: np.ndarray | None = None,
+              continuation: int | None = None, start: str = DEFAULT_START) -> SolveReport:
+        """Solve with contact at ``params`` from ``x0`` (load steps from it), else from the
+        paper's solution or the natural fabric (``solving.contact.solve``)."""
+        rep, self.block = solve_with_contact(self.nlp, self.solver, self.contact, params,
+                                             continuation, x0, self._p_start)
+        return rep
+
+    def result(self, rep: SolveReport, params: WeftParams) -> WeftResult:
+        result = super().result(rep, params)
+        result.build_s += self.contact.build_s
+        result.extra["contact"] = self.block
+        return result
+
+    def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
+            continuation: int | None = None, start_from: WeftResult | None = None) -> WeftResult:
+        """As :meth:`WeftStudy.run`; load steps from ``start_from`` start at its parameters."""
+        self._p_start = None if start_from is None else start_from.params.vector()
+        try:
+            return super().run(params, x0, continuation, start_from)
+        finally:
+            self._p_start = None
+
+
 class AdaptiveStudy:
     """Adaptive representatives (``solving.adaptive``) at any parameters; the result carries
     every step's grid under ``adaptive``."""
@@ -102,8 +142,14 @@ class AdaptiveStudy:
 def study(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
           verbose: bool = False) -> WeftStudy | AdaptiveStudy:
     """How ``problem`` is solved in ``parametrisation`` (None: the file's own): a fixed
-    transcription built once, or the adaptive strategy."""
+    transcription built once, the adaptive strategy, or the full model with yarn contact
+    (``[yarn] radius``; the reduced models refuse it, :func:`refuse`)."""
     param = problem.parametrisation if parametrisation is None else parametrisation
+    if problem.yarn is not None:
+        if isinstance(param, (Reduced, Adaptive)):
+            own = " (the file's [reduction])" if parametrisation is None else ""
+            raise refuse(problem, f"the reduced model{own}")
+        return ContactStudy(problem, verbose=verbose)
     if isinstance(param, Adaptive):
         return AdaptiveStudy(problem, param)
     return WeftStudy(problem, param, verbose=verbose)

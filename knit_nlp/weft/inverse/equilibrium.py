@@ -30,6 +30,7 @@ import numpy as np
 from ..model.problem import WeftProblem
 from ..model.params import WeftParams
 from ..model.parametrisation import Full
+from ..solving.contact.solve import refuse
 from ..solving.solve import SolveReport, WeftSolver, solve
 from ..transcription.factory import transcribe
 from ..transcription.full import FullNLP
@@ -61,6 +62,11 @@ class Equilibrium:
     """A weft problem's forward NLP and IPOPT instance (built once), plus the KKT Functions."""
 
     def __init__(self, problem: WeftProblem) -> None:
+        if problem.yarn is not None:
+            # the sensitivities would need the active contacts as equality rows of K
+            raise refuse(problem, "control and fit", "their implicit-function gradients do not yet "
+                         "hold the active contacts; solve the problem at chosen targets with "
+                         "knit-nlp solve or sweep")
         t0 = time.perf_counter()
         self.problem = problem
         self.wnlp: FullNLP = transcribe(problem, Full())

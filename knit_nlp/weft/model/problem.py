@@ -83,6 +83,14 @@ class Load:
 
 
 @dataclass(frozen=True)
+class Yarn:
+    """The yarn's thickness (an extension of the paper's model, docs/contact.md): centrelines
+    of yarn pieces that do not cross in the natural fabric stay 2·radius apart."""
+
+    radius: float
+
+
+@dataclass(frozen=True)
 class SolverOptions(BaseSolverOptions):
     """``[solver]``: the shared ``tol``, ``max_iter`` (IPOPT) and ``max_time`` (wall-clock budget
     in seconds of one solve, all its IPOPT calls together), and ``continuation``: steps to the
@@ -114,6 +122,7 @@ class WeftProblem:
     solver: SolverOptions = field(default_factory=SolverOptions)
     source: str = "<memory>"
     units: Units = field(default_factory=Units)
+    yarn: Yarn | None = None          # None: the paper's model, no yarn contact
 
     @property
     def t(self) -> int:
@@ -177,9 +186,20 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
     reduction = _read_reduction(top, m, n) if top.has("reduction") else None
     solver = _read_solver(top.table("solver"))
     units = read_units(top.table("units"))
+    yarn = _read_yarn(top.table("yarn"), natural) if top.has("yarn") else None
     top.finish()
     return WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
-                       clamps, loads, rigid, reduction, solver, str(source), units)
+                       clamps, loads, rigid, reduction, solver, str(source), units, yarn)
+
+
+def _read_yarn(tab: Table, natural: NaturalLoop) -> Yarn:
+    """``[yarn] radius`` (length units): positive, below a quarter of the loop length."""
+    radius = tab.number("radius", positive=True)
+    if radius >= natural.length / 4:
+        raise tab.error("radius", f"{radius:g} is not below a quarter of the loop length "
+                        f"{natural.length:g}; a yarn that thick has no room in its own loop")
+    tab.finish()
+    return Yarn(radius)
 
 
 def _read_loop(tab: Table, fab: Table, m: int,

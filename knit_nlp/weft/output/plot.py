@@ -20,6 +20,7 @@ from ...atomic import temporary_path
 from ...figures import new_figure, save_figure
 from ...units import Units
 from .reactions import SolvedFabric
+from .yarn import draw_yarn
 
 DPI = 110
 COLOURINGS = ("course", "displacement")
@@ -83,9 +84,10 @@ def _grip_bars(result: SolvedFabric) -> tuple[list[np.ndarray], np.ndarray]:
 
 
 def solution_figure(result: SolvedFabric, natural: np.ndarray, deformed: np.ndarray,
-                    colour: str = "course") -> tuple[Figure, Axes]:
+                    colour: str = "course", yarn: bool = False) -> tuple[Figure, Axes]:
     """The solution picture (not saved): natural loops grey, deformed loops coloured by course
-    or by displacement magnitude, grips, targets and force arrows."""
+    or by displacement magnitude, grips, targets and force arrows; with ``yarn`` the yarn with
+    its thickness and the active contacts (``yarn.draw_yarn``)."""
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}; got {colour!r}")
     units = result.problem.units
@@ -109,6 +111,8 @@ def solution_figure(result: SolvedFabric, natural: np.ndarray, deformed: np.ndar
         ax.add_collection(lc)
         bar = fig.colorbar(lc, ax=ax, label="course", shrink=0.8)
         bar.set_ticks(np.unique(np.linspace(1, m, min(m, 10)).round().astype(int)))
+    if yarn:
+        draw_yarn(ax, result, deformed)
     _draw_grips(ax, result)
     _draw_forces(ax, result, size)
     ax.autoscale()
@@ -168,9 +172,9 @@ def _draw_forces(ax: Axes, result: SolvedFabric, size: float) -> None:
 
 
 def plot_solution(path: Path, result: SolvedFabric, natural: np.ndarray,
-                  deformed: np.ndarray, colour: str = "course") -> Path:
+                  deformed: np.ndarray, colour: str = "course", yarn: bool = False) -> Path:
     """PNG of :func:`solution_figure`."""
-    fig, _ = solution_figure(result, natural, deformed, colour)
+    fig, _ = solution_figure(result, natural, deformed, colour, yarn)
     return save_figure(fig, path, dpi=DPI)
 
 

@@ -199,11 +199,13 @@ class WeftResult(Outcome):
         return result
 
     def save(self, out_dir: Path | str, samples: int = SAMPLES, *, colour: str = "course",
-             export: Sequence[str] = (), animate: bool = False) -> list[Path]:
+             export: Sequence[str] = (), animate: bool = False, yarn: bool = False
+             ) -> list[Path]:
         """``DIR/<problem>.<model>.json``, ``.npz`` (s, natural and deformed centrelines,
         coefficients, starts) and ``.png``, as ``knit-nlp solve`` writes them; after a
         continuation also ``.path.csv`` and ``.path.png`` (force against displacement) and, with
-        ``animate``, ``.gif``. ``colour``: "course" or "displacement"; ``export``: any of "csv"
+        ``animate``, ``.gif``; ``yarn``: the picture draws the yarn with its thickness and the
+        active contacts (``[yarn] radius``). ``colour``: "course" or "displacement"; ``export``: any of "csv"
         (``.csv``, rows course, wale, s, x, y) and "svg" (``.svg``)."""
         stem = Path(out_dir) / f"{self.problem.name}.{self.model}"
 
@@ -214,7 +216,7 @@ class WeftResult(Outcome):
         natural, deformed = self.natural_centrelines(samples), self.centrelines(samples)
         paths = [js, write_npz(out(".npz"), s=s, natural=natural, deformed=deformed,
                                coefficients=self.coefficients, starts=self.starts),
-                 plot_solution(out(".png"), self, natural, deformed, colour)]
+                 plot_solution(out(".png"), self, natural, deformed, colour, yarn)]
         if "csv" in export:
             paths.append(write_centreline_csv(out(".csv"), deformed, s))
         if "svg" in export:

@@ -92,13 +92,18 @@ class WeftSolver:
         (each IPOPT call also stops itself at ``max_wall_time`` = max_time)."""
         self.deadline = time.perf_counter() + self.wnlp.problem.solver.max_time
 
-    def once(self, p: np.ndarray, x0: np.ndarray) -> SolveReport:
-        """A single IPOPT solve from x0 (none once the time budget is spent)."""
+    def once(self, p: np.ndarray, x0: np.ndarray, *, lbg: np.ndarray | None = None,
+             ubg: np.ndarray | None = None, lam_g0: np.ndarray | None = None) -> SolveReport:
+        """A single IPOPT solve from x0 (none once the time budget is spent). The rows' bounds
+        are the NLP's own unless given (yarn contact moves its gap rows' bounds between
+        solves); ``lam_g0`` starts the multipliers."""
         t0 = time.perf_counter()
         if t0 >= self.deadline:
             return SolveReport(False, OUT_OF_TIME, x0, np.zeros(self.wnlp.n_constraints),
                                np.nan, 0, 0.0)
-        sol = self.solver(x0=x0, p=p, lbg=self.wnlp.lbg, ubg=self.wnlp.ubg)
+        warm = {} if lam_g0 is None else {"lam_g0": lam_g0}
+        sol = self.solver(x0=x0, p=p, lbg=self.wnlp.lbg if lbg is None else lbg,
+                          ubg=self.wnlp.ubg if ubg is None else ubg, **warm)
         stats = self.solver.stats()
         status = str(stats["return_status"])
         return SolveReport(succeeded(status), status, np.asarray(sol["x"]).ravel(),

@@ -1,0 +1,133 @@
+"""Crossings of the projected centrelines, counted per pair of loops and compared with the
+natural fabric's.
+
+Every course is sampled as a polyline (``per_loop`` segments per loop); segment pairs come from
+a k-d tree over segment midpoints (two segments can only meet if their midpoints are within one
+segment length), never from all pairs. Two segments cross when their parameters both lie in
+[0, 1) (half-open, so a crossing at a shared sample is counted once); neighbouring segments of
+one course share a sample and are skipped. A crossing is located on both yarns by its loops and
+material points. A pair of loops crossing more often than the same two loops of the natural
+fabric (``NaturalFabric.crossings`` of their offset: 4 for vertically neighbouring jersey loops,
+0 otherwise) has new crossings: yarns that passed through each other.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .curves import Curves
+from .natural import NaturalFabric
+from .pairs import Grid, course_samples
+
+
+@dataclass
+class Crossings:
+    """All crossings of a state: loops (k_A < k_B, or equal), material points, position."""
+
+    kA: np.ndarray
+    sA: np.ndarray
+    kB: np.ndarray
+    sB: np.ndarray
+    xy: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.kA)
+
+    def counts(self) -> dict[tuple[int, int], int]:
+        """Crossings per pair of loops."""
+        keys, n = np.unique(np.stack([self.kA, self.kB], 1).reshape(-1, 2), axis=0,
+                            return_counts=True)
+        return {(int(a), int(b)): int(c) for (a, b), c in zip(keys, n)}
+
+
+def find_crossings(curves: Curves, grid: Grid) -> Crossings:
+    """Every crossing of two pieces of yarn (different loops, or one course with itself)."""
+    pts = course_samples(curves, grid)                       # (m, K, 2)
+    m, K = pts.shape[:2]
+    p0 = pts[:, :-1].reshape(-1, 2)
+    d = (pts[:, 1:] - pts[:, :-1]).reshape(-1, 2)
+    length = np.linalg.norm(d, axis=1)
+    tree = cKDTree(p0 + d / 2)
+    uv = tree.query_pairs(float(length.max()) + 1e-12, output_type="ndarray")
+    if uv.size == 0:
+        return _empty()
+    u, v = uv[:, 0], uv[:, 1]
+    cu, iu = np.divmod(u, K - 1)
+    cv, iv = np.divmod(v, K - 1)
+    apart = (cu != cv) | (np.abs(iu - iv) > 1)
+    u, v, cu, iu, cv, iv = u[apart], v[apart], cu[apart], iu[apart], cv[apart], iv[apart]
+    den = d[u, 0] * d[v, 1] - d[u, 1] * d[v, 0]
+    r = p0[v] - p0[u]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tu = (r[:, 0] * d[v, 1] - r[:, 1] * d[v, 0]) / den
+        tv = (r[:, 0] * d[u, 1] - r[:, 1] * d[u, 0]) / den
+    hit = (den != 0) & (tu >= 0) & (tu < 1) & (tv >= 0) & (tv < 1)
+    S = grid.S
+    h = S[1] - S[0]
+    Su, Sv = S[iu[hit]] + tu[hit] * h, S[iv[hit]] + tv[hit] * h
+    kA, sA = grid.loop_of(cu[hit], Su)
+    kB, sB = grid.loop_of(cv[hit], Sv)
+    swap = (kA > kB) | ((kA == kB) & (sA > sB))
+    xy = p0[u[hit]] + tu[hit][:, None] * d[u[hit]]
+    return Crossings(np.where(swap, kB, kA), np.where(swap, sB, sA), np.where(swap, kA, kB),
+                     np.where(swap, sA, sB), xy)
+
+
+def _empty() -> Crossings:
+    z = np.zeros(0)
+    return Crossings(z.astype(int), z, z.astype(int), z, np.zeros((0, 2)))
+
+
+REACH = 2                  # offsets |Δi|, |Δj| <= REACH are searched for natural crossings
+
+
+@dataclass
+class Verdict:
+    """Crossings judged against the natural fabric, per pair of loops: ``new`` maps each pair
+    of loops (k_A, k_B) with more crossings than its natural count to how many more;
+    ``lost`` counts natural crossings missing."""
+
+    new: dict[tuple[int, int], int]
+    lost: int
+
+    @property
+    def clean(self) -> bool:
+        return not self.new
+
+    @property
+    def n_new(self) -> int:
+        return sum(self.new.values())
+
+
+def judge(fab: NaturalFabric, found: Crossings, courses: int, wales: int) -> Verdict:
+    """Count the crossings of every pair of loops against the natural count of its offset. A
+    designed crossing may slide past the end of a loop into the next loop of its course: one
+    crossing too many on a pair of loops next to one too few on the pair that shares a loop
+    with it and whose other loop is the neighbour in the same course is such a slide, not a
+    new crossing."""
+    counts = found.counts()
+    natural: dict[tuple[int, int], int] = {}
+    for di, dj in designed_offsets(fab):
+        for i in range(max(0, -di), min(courses, courses - di)):
+            for j in range(max(0, -dj), min(wales, wales - dj)):
+                natural[(i * wales + j, (i + di) * wales + j + dj)] = fab.crossings((di, dj))
+    excess = {k: c - natural.get(k, 0) for k, c in counts.items() if c > natural.get(k, 0)}
+    deficit = {k: c - counts.get(k, 0) for k, c in natural.items() if counts.get(k, 0) < c}
+    for (a, b) in list(excess):
+        for na, nb in ((a - 1, b), (a + 1, b), (a, b - 1), (a, b + 1)):
+            same_course = (na // wales == a // wales) and (nb // wales == b // wales)
+            key = (min(na, nb), max(na, nb))
+            if not same_course or deficit.get(key, 0) <= 0 or excess[(a, b)] <= 0:
+                continue
+            moved = min(excess[(a, b)], deficit[key])
+            excess[(a, b)] -= moved
+            deficit[key] -= moved
+    return Verdict({k: v for k, v in excess.items() if v > 0}, sum(deficit.values()))
+
+
+def designed_offsets(fab: NaturalFabric) -> list[tuple[int, int]]:
+    """Offsets (Δi, Δj) with Δi > 0 or (Δi = 0, Δj > 0) whose natural loops cross."""
+    return [(di, dj) for di in range(0, REACH + 1) for dj in range(-REACH, REACH + 1)
+            if (di > 0 or dj > 0) and fab.crossings((di, dj)) > 0]

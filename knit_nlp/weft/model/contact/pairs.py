@@ -1,0 +1,355 @@
+"""Contact pairs of an uncrossed fabric state: where two yarn pieces come close, found
+without looking at all pairs.
+
+Each course is one yarn, parametrised by its arc length S = (j − 1)·L + s, and sampled every
+``h`` (about the radius). A k-d tree over the samples (scipy's cKDTree) gives, for each sample
+u, the samples of every course within ``reach`` of it; those of one course form runs (strands
+of that yarn near u). On each strand the sample nearest to u and its two polyline segments give
+u's foot F on that strand; a foot is kept when the segment u–F crosses no other strand of that
+course near u (F is then the nearest point of that yarn to u from u's side). The discrete local
+minima of the distance over both yarns' samples are polished by Newton on (S_A, S_B) on the
+continuous centrelines: the connecting segment then meets both yarns at right angles, a true
+local minimum of the distance between the two centrelines. Near a crossing there is none (the
+distance falls to zero at the crossing), nor inside the lens between two crossings (a saddle),
+so designed interlocks need no zone here.
+
+The state must be uncrossed (crossings.py checks it): the side of a pair is then where A lies
+now, σ = sign((P_A − P_B)·N_B), N_B = (−sin θ_B, cos θ_B) the left normal of B at the foot, and
+it stays so (the gap row σ·(P_A − P_B)·N_B ≥ required keeps it). A pair is dropped on the same
+piece of yarn; its required gap is min(2r, natural gap) (natural.py, "Thick yarn").
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .curves import Curves
+from .natural import NaturalFabric
+
+NEWTON_STEPS = 25
+CROSSING = 1e-9           # relative to L: a polished minimum this close is a crossing
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The fabric's size and the course-arc sampling (every course sampled at the same S)."""
+
+    courses: int
+    wales: int
+    L: float
+    per_loop: int                 # sample intervals per loop
+
+    @property
+    def h(self) -> float:
+        return self.L / self.per_loop
+
+    @property
+    def S(self) -> np.ndarray:
+        """Sample positions along a course, 0..n·L."""
+        return np.linspace(0.0, self.wales * self.L, self.wales * self.per_loop + 1)
+
+    def loop_of(self, course: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Loop index k and material s of course arc S (the end of a loop is the next loop's
+        start; the course's last point is s = L of its last loop)."""
+        j = np.clip(np.floor(np.asarray(S) / self.L).astype(int), 0, self.wales - 1)
+        return np.asarray(course) * self.wales + j, np.asarray(S) - j * self.L
+
+
+@dataclass
+class Pairs:
+    """Contact pairs (one entry each): loops, material points, side, required and current
+    signed gap."""
+
+    kA: np.ndarray
+    sA: np.ndarray
+    kB: np.ndarray
+    sB: np.ndarray
+    sigma: np.ndarray
+    required: np.ndarray
+    gap: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.kA)
+
+    @classmethod
+    def empty(cls) -> "Pairs":
+        z = np.zeros(0)
+        return cls(z.astype(int), z, z.astype(int), z, z, z, z)
+
+    def select(self, keep: np.ndarray) -> "Pairs":
+        return Pairs(*(getattr(self, f.name)[keep] for f in fields(self)))
+
+    def concat(self, other: "Pairs") -> "Pairs":
+        return Pairs(*(np.concatenate([getattr(self, f.name), getattr(other, f.name)])
+                       for f in fields(self)))
+
+
+def course_samples(curves: Curves, grid: Grid) -> np.ndarray:
+    """Positions (m, samples per course, 2) at ``grid.S``."""
+    S = grid.S
+    c = np.repeat(np.arange(grid.courses), S.size).reshape(grid.courses, S.size)
+    k, s = grid.loop_of(c, np.broadcast_to(S, c.shape))
+    return curves.points(k, s)
+
+
+def frames_at(curves: Curves, grid: Grid, course: np.ndarray, S: np.ndarray):
+    """Position, unit tangent, unit left normal and curvature at course arc S."""
+    k, s = grid.loop_of(course, S)
+    P, T, kappa = curves.frames(k, s)
+    return P, T, np.stack([-T[..., 1], T[..., 0]], axis=-1), kappa
+
+
+def polish(curves: Curves, grid: Grid, ca: np.ndarray, Sa: np.ndarray, cb: np.ndarray,
+           Sb: np.ndarray, move_a: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Newton on ½|P_A(S_A) − P_B(S_B)|² from (Sa, Sb) (both, or S_B only: the foot of a fixed
+    point), each S kept on its course and within a few samples of its start."""
+    Sa, Sb = Sa.astype(float).copy(), Sb.astype(float).copy()
+    top, step = grid.wales * grid.L, grid.h
+    active = np.arange(len(Sa))
+    for _ in range(NEWTON_STEPS):
+        if active.size == 0:
+            break
+        a_c, b_c, a_S, b_S = ca[active], cb[active], Sa[active], Sb[active]
+        Pa, Ta, Na, ka = frames_at(curves, grid, a_c, a_S)
+        Pb, Tb, Nb, kb = frames_at(curves, grid, b_c, b_S)
+        d = Pa - Pb
+        ga, gb = np.sum(d * Ta, -1), -np.sum(d * Tb, -1)
+        haa = 1.0 + ka * np.sum(d * Na, -1)
+        hbb = 1.0 - kb * np.sum(d * Nb, -1)
+        if move_a:
+            hab = -np.sum(Ta * Tb, -1)
+            det = haa * hbb - hab ** 2
+            ok = (det > 1e-9) & (haa > 0)
+            det = np.where(ok, det, 1.0)
+            da = np.where(ok, -(hbb * ga - hab * gb) / det, -ga)
+            db = np.where(ok, -(haa * gb - hab * ga) / det, -gb)
+        else:
+            da = np.zeros_like(a_S)
+            ok = hbb > 1e-6
+            db = np.where(ok, -gb / np.where(ok, hbb, 1.0), -gb)
+        scale = np.minimum(1.0, step / np.maximum(np.hypot(da, db), 1e-300))
+        Sa[active] = np.clip(a_S + da * scale, 0.0, top)
+        Sb[active] = np.clip(b_S + db * scale, 0.0, top)
+        active = active[np.abs(da) + np.abs(db) > 1e-12 * grid.L]
+    return Sa, Sb
+
+
+@dataclass
+class Feet:
+    """For each (sample u of course cu, strand of course cv near it): the nearest sample v, the
+    foot on the polyline (arc Sf), the distance and the polyline's left normal there."""
+
+    cu: np.ndarray
+    iu: np.ndarray
+    cv: np.ndarray
+    iv: np.ndarray
+    Sf: np.ndarray
+    foot: np.ndarray
+    normal: np.ndarray
+    dist: np.ndarray
+
+
+def strand_feet(pts: np.ndarray, grid: Grid, reach: float, exclusion: float) -> Feet:
+    """Valid feet of every sample on every strand within ``reach`` (see the module notes)."""
+    m, K = pts.shape[:2]
+    tree = cKDTree(pts.reshape(-1, 2))
+    uv = tree.query_pairs(reach, output_type="ndarray")
+    U = np.concatenate([uv[:, 0], uv[:, 1]]).astype(np.int64)
+    V = np.concatenate([uv[:, 1], uv[:, 0]]).astype(np.int64)
+    cu, iu = np.divmod(U, K)
+    cv, iv = np.divmod(V, K)
+    S = grid.S
+    order = np.argsort(U * (m * K) + V, kind="stable")
+    U, V, cu, iu, cv, iv = U[order], V[order], cu[order], iu[order], cv[order], iv[order]
+    # the same piece of yarn: never a partner, but it may stand between u and a partner
+    excluded = (cu == cv) & (np.abs(S[iu] - S[iv]) <= exclusion)
+    dist = np.linalg.norm(pts[cu, iu] - pts[cv, iv], axis=-1)
+    new_group = np.r_[True, (U[1:] != U[:-1]) | (cv[1:] != cv[:-1])]
+    new_run = new_group | np.r_[True, (iv[1:] != iv[:-1] + 1) | (excluded[1:] != excluded[:-1])]
+    run = np.cumsum(new_run) - 1
+    group = np.cumsum(new_group) - 1
+    # nearest sample of each run
+    best = np.lexsort((dist, run))
+    first = best[np.r_[True, run[best][1:] != run[best][:-1]]]
+    first = first[~excluded[first]]
+    fu, fc, fiu, fcv, fiv = U[first], cu[first], iu[first], cv[first], iv[first]
+    P = pts[fc, fiu]
+    foot, tangent, Sf = _polyline_foot(pts, grid, fcv, fiv, P)
+    normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    d = np.linalg.norm(P - foot, axis=1)
+    valid = _not_blocked(pts, P, foot, group[first], group, cv, iv, run[first], run)
+    return Feet(fc[valid], fiu[valid], fcv[valid], fiv[valid], Sf[valid], foot[valid],
+                normal[valid], d[valid])
+
+
+def _polyline_foot(pts, grid, cv, iv, P):
+    """Projection of P on the two polyline segments around sample iv of course cv."""
+    K = pts.shape[1]
+    best_d = np.full(len(P), np.inf)
+    foot, tangent, Sf = np.zeros_like(P), np.zeros_like(P), np.zeros(len(P))
+    S = grid.S
+    for lo in (iv - 1, iv):
+        a = np.clip(lo, 0, K - 2)
+        p0, p1 = pts[cv, a], pts[cv, a + 1]
+        e = p1 - p0
+        ee = np.maximum(np.sum(e * e, 1), 1e-300)
+        t = np.clip(np.sum((P - p0) * e, 1) / ee, 0.0, 1.0)
+        f = p0 + t[:, None] * e
+        d = np.linalg.norm(P - f, axis=1)
+        better = d < best_d
+        best_d = np.where(better, d, best_d)
+        foot[better] = f[better]
+        tangent[better] = (e / np.sqrt(ee)[:, None])[better]
+        Sf[better] = (S[a] + t * (S[a + 1] - S[a]))[better]
+    return foot, tangent, Sf
+
+
+def _not_blocked(pts, P, foot, fgroup, group, cv, iv, frun, run) -> np.ndarray:
+    """Whether the segment P–foot crosses no polyline segment of another run of its group."""
+    K = pts.shape[1]
+    starts = np.searchsorted(group, fgroup, side="left")
+    ends = np.searchsorted(group, fgroup, side="right")
+    counts = ends - starts
+    owner = np.repeat(np.arange(len(P)), counts)
+    rows = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + \
+        np.repeat(starts, counts)
+    other = run[rows] != frun[owner]
+    owner, rows = owner[other], rows[other]
+    blocked = np.zeros(len(P), dtype=bool)
+    a = np.clip(iv[rows], 0, K - 2)
+    for lo in (a - 1, a):
+        lo = np.clip(lo, 0, K - 2)
+        q0, q1 = pts[cv[rows], lo], pts[cv[rows], lo + 1]
+        hit = _segments_cross(P[owner], foot[owner], q0, q1)
+        np.logical_or.at(blocked, owner[hit], True)
+    return ~blocked
+
+
+def _segments_cross(p0, p1, q0, q1) -> np.ndarray:
+    """Proper intersection of segments p0p1 and q0q1 (row by row)."""
+    def orient(a, b, c):
+        return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    o1, o2 = orient(p0, p1, q0), orient(p0, p1, q1)
+    o3, o4 = orient(q0, q1, p0), orient(q0, q1, p1)
+    return (o1 * o2 < 0) & (o3 * o4 < 0)
+
+
+def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float) -> Pairs:
+    """Closest points (polished local minima of the distance) with gap below required +
+    ``reach``, on an uncrossed state."""
+    pts = course_samples(curves, grid)                        # (m, K, 2)
+    feet = strand_feet(pts, grid, 2 * fab.radius + reach + grid.h, fab.exclusion)
+    if len(feet.cu) == 0:
+        return Pairs.empty()
+    S = grid.S
+    minima = _discrete_minima(pts, feet.cu, feet.iu, feet.cv, feet.iv) & (
+        feet.dist < 2 * fab.radius + reach + grid.h)
+    closest = _closest(fab, curves, grid, feet.cu[minima], S[feet.iu[minima]],
+                       feet.cv[minima], feet.Sf[minima], reach)
+    return closest.concat(_vertices(fab, curves, grid, feet, closest, reach))
+
+
+def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float) -> Pairs:
+    """Samples of a yarn within reach of a strand, each against its foot (polished): where two
+    yarns lie along each other they touch along a line, and one pair per sample holds the
+    whole line, not only its closest points. Not in designed interlocks (required gap 0: a
+    crossing may slide past a sample there), nor within h/4 of a closest-points pair."""
+    S = grid.S
+    kA, sA, kB, sB, same, required = _classify(fab, grid, feet.cu, S[feet.iu], feet.cv, feet.Sf)
+    gap0 = feet.dist
+    keep = ~same & (required > 0) & (gap0 < required + reach)
+    ca, Sa, cb, Sb = feet.cu[keep], S[feet.iu[keep]], feet.cv[keep], feet.Sf[keep]
+    _, Sb = polish(curves, grid, ca, Sa, cb, Sb, move_a=False)
+    top = grid.wales * grid.L
+    inside = (Sb > 1e-9 * grid.L) & (Sb < top - 1e-9 * grid.L)     # a true foot, normal to B
+    ca, Sa, cb, Sb = ca[inside], Sa[inside], cb[inside], Sb[inside]
+    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb)
+    normal, dist = _normal_gap(curves, grid, ca, Sa, cb, Sb)
+    keep = ~same & (required > 0) & (np.abs(normal) < required + reach) & (
+        dist > CROSSING * grid.L)
+    out = Pairs(kA[keep], sA[keep], kB[keep], sB[keep], np.where(normal < 0, -1.0, 1.0)[keep],
+                required[keep], np.abs(normal)[keep])
+    if len(closest) and len(out):
+        # drop samples next to a closest-points pair on the same two loops
+        key_c = closest.kA * (1 << 20) + closest.kB
+        key_v = out.kA * (1 << 20) + out.kB
+        near = np.zeros(len(out), dtype=bool)
+        for q in np.unique(key_v):
+            v = np.nonzero(key_v == q)[0]
+            c = np.nonzero(key_c == q)[0]
+            if c.size:
+                d = np.abs(out.sA[v][:, None] - closest.sA[c][None, :]) + np.abs(
+                    out.sB[v][:, None] - closest.sB[c][None, :])
+                near[v] = d.min(axis=1) < grid.h / 4
+        out = out.select(~near)
+    return out
+
+
+def _discrete_minima(pts: np.ndarray, ca, ia, cb, ib) -> np.ndarray:
+    """Sample pairs whose distance is not above any of its 8 neighbours' on the two courses."""
+    K = pts.shape[1]
+    d0 = np.linalg.norm(pts[ca, ia] - pts[cb, ib], axis=-1)
+    keep = np.ones(d0.shape, dtype=bool)
+    for da in (-1, 0, 1):
+        for db in (-1, 0, 1):
+            if da == db == 0:
+                continue
+            ja, jb = ia + da, ib + db
+            inside = (ja >= 0) & (ja < K) & (jb >= 0) & (jb < K)
+            ja, jb = np.clip(ja, 0, K - 1), np.clip(jb, 0, K - 1)
+            d = np.linalg.norm(pts[ca, ja] - pts[cb, jb], axis=-1)
+            keep &= ~inside | (d0 <= d)
+    return keep
+
+
+def _classify(fab: NaturalFabric, grid: Grid, ca, Sa, cb, Sb):
+    """Loops, material points, whether the pair is one piece of yarn, required gap."""
+    kA, sA = grid.loop_of(ca, Sa)
+    kB, sB = grid.loop_of(cb, Sb)
+    di = kB // grid.wales - kA // grid.wales
+    dj = kB % grid.wales - kA % grid.wales
+    same, required = fab.lookup(di, dj, sA, sB)
+    same |= (ca == cb) & (np.abs(Sa - Sb) <= fab.exclusion)
+    return kA, sA, kB, sB, same, required
+
+
+def _normal_gap(curves, grid, ca, Sa, cb, Sb):
+    """(P_A − P_B)·N_B and |P_A − P_B|."""
+    Pa = frames_at(curves, grid, ca, Sa)[0]
+    Pb, _, Nb, _ = frames_at(curves, grid, cb, Sb)
+    return np.sum((Pa - Pb) * Nb, -1), np.linalg.norm(Pa - Pb, axis=-1)
+
+
+def _closest(fab, curves, grid, ca, Sa, cb, Sb, reach) -> Pairs:
+    """Polished local minima of the distance, deduplicated, non-exempt, within reach."""
+    Sa, Sb = polish(curves, grid, ca, Sa, cb, Sb)
+    key = np.stack([ca, cb, np.rint(Sa / (1e-6 * grid.L)), np.rint(Sb / (1e-6 * grid.L))], 1)
+    _, first = np.unique(key, axis=0, return_index=True)
+    # each minimum is found from both yarns: keep it once, course pair in increasing order
+    ca, Sa, cb, Sb = ca[first], Sa[first], cb[first], Sb[first]
+    swap = (ca > cb) | ((ca == cb) & (Sa > Sb))
+    ca, cb = np.where(swap, cb, ca), np.where(swap, ca, cb)
+    Sa, Sb = np.where(swap, Sb, Sa), np.where(swap, Sa, Sb)
+    key = np.stack([ca, cb, np.rint(Sa / (1e-6 * grid.L)), np.rint(Sb / (1e-6 * grid.L))], 1)
+    _, first = np.unique(key, axis=0, return_index=True)
+    ca, Sa, cb, Sb = ca[first], Sa[first], cb[first], Sb[first]
+    # the gap is measured along B's normal: B's point must not be a yarn end (there the
+    # distance is not normal to B); with A's point at an end it is (a yarn end against a yarn)
+    top = grid.wales * grid.L
+    end_a = (Sa <= 1e-9 * grid.L) | (Sa >= top - 1e-9 * grid.L)
+    end_b = (Sb <= 1e-9 * grid.L) | (Sb >= top - 1e-9 * grid.L)
+    swap = end_b & ~end_a
+    ca, cb = np.where(swap, cb, ca), np.where(swap, ca, cb)
+    Sa, Sb = np.where(swap, Sb, Sa), np.where(swap, Sa, Sb)
+    both_ends = end_a & end_b
+    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb)
+    same |= both_ends
+    normal, dist = _normal_gap(curves, grid, ca, Sa, cb, Sb)
+    crossing = dist < CROSSING * grid.L
+    sigma = np.where(normal < 0, -1.0, 1.0)
+    gap = np.abs(normal)
+    keep = ~same & ~crossing & (gap < required + reach)
+    return Pairs(kA[keep], sA[keep], kB[keep], sB[keep], sigma[keep], required[keep],
+                 gap[keep])

@@ -1,0 +1,186 @@
+"""``knit-nlp check RESULT.json`` (the command is in ``weft.commands``): do the yarns of a weft result pass through each other, and
+(with a yarn radius) are non-crossing pieces closer than 2r?
+
+Works on any weft result JSON (with or without contact): the loops are rebuilt from the
+result's course starts and coefficients (eq. 1) on the problem's loop length, sampled
+``samples`` times per loop. Crossings are counted per pair of loops against the natural fabric
+(crossings.judge: new crossings are yarns that passed through each other; designed crossings
+that vanished are reported as lost). Gaps: every local minimum of the distance between two
+pieces of yarn that are not one piece (pairs.find_pairs, polished on the continuous
+centrelines) closer than 2r·(1 − ``GAP_TOL``) is listed, and one closer than its requirement
+min(2r, natural gap)·(1 − ``GAP_TOL``) (natural.py, "Thick yarn") is a violation.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...errors import ProblemError, shown
+from ...jsonio import write_json
+from ...tomlio import read_regular_file
+from ..model.basis import n_coeffs
+from ..model.contact.crossings import find_crossings, judge
+from ..model.contact.curves import Curves
+from ..model.contact.natural import NaturalFabric
+from ..model.contact.pairs import Grid, find_pairs
+from ..model.problem import WeftProblem
+from ..model.quadrature import positions
+
+GAP_TOL = 1e-3             # the issue's target: no gap below 2r·(1 − 1e-3)
+SAMPLES = 200              # polyline samples per loop
+MAX_RESULT_BYTES = 256 * 2 ** 20
+
+
+@dataclass
+class CheckReport:
+    """What the checker found; ``ok`` when no new crossing and no gap below its requirement."""
+
+    problem: str
+    radius: float | None
+    new_crossings: list[dict[str, Any]]
+    lost_crossings: int
+    short_gaps: list[dict[str, Any]]              # below their requirement: violations
+    below_2r: int                                 # below 2r (thick yarn pairs included)
+    smallest_gap: float | None                    # between pieces that must keep 2r
+    thick_below_2r: int = 0                       # naturally closer than 2r, not closer now
+    interlock_below_2r: int = 0                   # in designed interlocks (crossing is theirs)
+    samples: int = SAMPLES
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.new_crossings and not self.short_gaps
+
+    def line(self) -> str:
+        """The one-line summary."""
+        n_new = sum(c["count"] for c in self.new_crossings)
+        text = (f"{self.problem}: {'clean' if self.ok else 'VIOLATIONS'}: {n_new} new crossings"
+                f" between {len(self.new_crossings)} pairs of loops")
+        if self.radius is not None:
+            text += f"; {len(self.short_gaps)} gaps below their requirement"
+            text += (f", smallest gap {self.smallest_gap / (2 * self.radius):.6g} x 2r "
+                     f"(r = {self.radius:g})" if self.smallest_gap is not None
+                     else f", no pieces within 4r (r = {self.radius:g})")
+            if self.thick_below_2r:
+                text += (f"; {self.thick_below_2r} thick-yarn pairs below 2r (naturally "
+                         "closer, not closer now)")
+            if self.interlock_below_2r:
+                text += f"; {self.interlock_below_2r} pairs in designed interlocks below 2r"
+        else:
+            text += "; no yarn radius, gaps not checked"
+        return text + f"; {self.lost_crossings} designed crossings lost"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"problem": self.problem, "ok": self.ok, "radius": self.radius,
+                "samples_per_loop": self.samples, "gap_tolerance": GAP_TOL,
+                "new_crossings": self.new_crossings, "lost_designed_crossings": self.lost_crossings,
+                "short_gaps": self.short_gaps, "gaps_below_2r": self.below_2r,
+                "thick_yarn_pairs_below_2r": self.thick_below_2r,
+                "interlock_pairs_below_2r": self.interlock_below_2r,
+                "smallest_gap": self.smallest_gap, "notes": self.notes}
+
+
+def loops_of(result: Any, problem: WeftProblem, where: str = "result"
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients (m, n, 2t+2) and loop starts (m, n, 2) of a result JSON, checked against
+    the problem (ProblemError naming the key otherwise)."""
+    m, n, nc = problem.courses, problem.wales, n_coeffs(problem.t)
+    if not isinstance(result, dict):
+        raise ProblemError(where, "", "", f"a weft result is a JSON object, got "
+                           f"{type(result).__name__}")
+    loops = result.get("loops")
+    if not isinstance(loops, dict):
+        raise ProblemError(where, "loops", "", "missing: not a weft solve result")
+    coeffs = _array(loops.get("coefficients"), (m, n, nc), where, "coefficients")
+    course = _array(loops.get("course_starts"), (m, 2), where, "course_starts")
+    ends = positions(coeffs.reshape(-1, nc), [problem.L], problem.L, problem.t).reshape(m, n, 2)
+    starts = np.concatenate([course[:, None], ends[:, :-1]], axis=1).cumsum(axis=1)
+    return coeffs, starts
+
+
+def _array(value: Any, shape: tuple[int, ...], where: str, key: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ProblemError(where, "loops", key, f"must be an array of numbers of shape "
+                           f"{list(shape)} (the problem's courses, wales, ...)") from None
+    if arr.shape != shape:
+        raise ProblemError(where, "loops", key, f"has shape {list(arr.shape)}, the problem "
+                           f"needs {list(shape)}: is it the result of this problem?")
+    if not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > 1e12):
+        raise ProblemError(where, "loops", key, "holds a number that is not finite (or is "
+                           "absurdly large): the solve did not converge")
+    return arr
+
+
+def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
+          where: str = "result") -> CheckReport:
+    """Check a result (a parsed result JSON) of a problem."""
+    coeffs, starts = loops_of(result, problem, where)
+    curves = Curves.of(coeffs, starts, problem.L)
+    grid = Grid(problem.courses, problem.wales, problem.L, samples)
+    radius = problem.yarn.radius if problem.yarn is not None else None
+    fab = NaturalFabric.of(problem, radius if radius is not None else problem.L / 100)
+    found = find_crossings(curves, grid)
+    verdict = judge(fab, found, problem.courses, problem.wales)
+    n = problem.wales
+    new = []
+    for (a, b), extra in sorted(verdict.new.items()):
+        here = (found.kA == a) & (found.kB == b)
+        new.append({"loops": [_loop(a, n), _loop(b, n)], "count": int(here.sum()),
+                    "natural": int(here.sum()) - extra,
+                    "where": np.round(found.xy[here], 6).tolist()})
+    report = CheckReport(problem.name, radius, new, verdict.lost, [], 0, None, samples=samples)
+    if radius is None:
+        return report
+    pairs = find_pairs(fab, curves, grid, reach=2 * radius)
+    if not len(pairs):
+        return report
+    limit = 2 * radius * (1 - GAP_TOL)
+    below = pairs.gap < limit
+    short = pairs.gap < pairs.required * (1 - GAP_TOL)
+    pts = 0.5 * (curves.points(pairs.kA, pairs.sA) + curves.points(pairs.kB, pairs.sB))
+    report.short_gaps = [{"loops": [_loop(a, n), _loop(b, n)], "s": [float(sa), float(sb)],
+                          "gap": float(g), "required": float(r), "point": p.tolist()}
+                         for a, sa, b, sb, g, r, p in zip(pairs.kA[short], pairs.sA[short],
+                                                          pairs.kB[short], pairs.sB[short],
+                                                          pairs.gap[short],
+                                                          pairs.required[short], pts[short])]
+    interlock = pairs.required <= 0.0
+    free = pairs.required >= 2 * radius
+    report.below_2r = int(below.sum())
+    report.thick_below_2r = int(np.sum(below & ~short & ~free & ~interlock))
+    report.interlock_below_2r = int(np.sum(below & interlock))
+    report.smallest_gap = float(pairs.gap[free].min()) if free.any() else None
+    return report
+
+
+def _loop(k: int, n: int) -> list[int]:
+    return [int(k // n) + 1, int(k % n) + 1]
+
+
+def load_result_json(path: Path) -> Any:
+    """A result JSON file (any JSON value; ``check`` judges its shape)."""
+    try:
+        return json.loads(read_regular_file(path, MAX_RESULT_BYTES),
+                          parse_constant=_reject_constant)
+    except ProblemError:
+        raise
+    except (OSError, ValueError, RecursionError) as err:
+        raise ProblemError(path, "", "", f"cannot read it as JSON ({shown(err, 120)})") from None
+
+
+def _reject_constant(name: str) -> float:
+    """JSON's NaN and Infinity are read as NaN, so the shape check names them."""
+    return math.nan
+
+
+def write_check(report: CheckReport, result_path: Path, out: Path) -> Path:
+    """``<result stem>.check.json`` in ``out`` (the report's JSON)."""
+    return write_json(out / f"{result_path.name.removesuffix('.json')}.check.json",
+                      report.to_json())

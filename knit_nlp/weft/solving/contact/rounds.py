@@ -1,0 +1,322 @@
+"""Solving the full weft model with yarn contact: an active set grown between IPOPT solves.
+
+1. The paper's model is solved as before (no contact): usually most pairs never touch.
+2. The state is searched for contact pairs (pairs.py): closest points within reach of their
+   required gap, and samples that passed through a yarn (with the side the natural fabric
+   gives them, so a state with crossings is repaired, not trusted).
+3. Every pair goes into a slot of the contact NLP (rows.py) — slots are per pair of loops and
+   reused: their material points, sides and bounds are parameters — and IPOPT solves the NLP
+   with the gap rows as inequalities, from the current state.
+4. The new state is searched again; the rounds stop when every pair meets its required gap to
+   ``TOL`` (relative) with no crossing, and the contact points stopped moving along the yarns.
+A round needs a new build only when some pair of loops needs more slots than it has.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...model.contact.crossings import find_crossings, judge
+from ...model.contact.curves import Curves
+from ...model.contact.natural import NaturalFabric
+from ...model.contact.pairs import Grid, Pairs, find_pairs
+from ...transcription.contact import ContactNLP, build_contact_nlp
+from ...transcription.full import FullNLP
+from ....outcome import OUT_OF_TIME
+from ..solve import SolveReport, WeftSolver
+
+TOL = 1e-4                 # relative gap shortfall accepted at the end (target: 1e-3)
+STEP_TOL = 0.05            # relative gap shortfall accepted at intermediate load steps
+REACH = 0.02               # pairs within this many loop lengths of their required gap get a slot
+MAX_ROUNDS = 12
+# IPOPT from the last solve's point and multipliers (measured on the 10 x 10 pull, load 0.25 to
+# 0.375 with 160 pairs: 13 iterations warm against 24 cold, the same energy to 4e-8)
+WARM = {"warm_start_init_point": "yes", "mu_init": 1e-5, "warm_start_bound_push": 1e-9,
+        "warm_start_mult_bound_push": 1e-9, "warm_start_slack_bound_push": 1e-9,
+        "warm_start_slack_bound_frac": 1e-9, "warm_start_bound_frac": 1e-9}
+WIDEST = 0.4               # the reach is widened (x2 per failed step) up to this many L
+MOVED = 0.5                # contact points that moved less than this many samples have settled
+FLIP = 1e-6               # a pair now this far (relative to L) on its other side passed through
+SPARE = 0.5                # extra slots per pair of loops, relative, when (re)building
+
+
+@dataclass
+class Round:
+    """One IPOPT solve with contact: what it was for, pairs, slots, iterations and status."""
+
+    note: str
+    pairs: int
+    slots: int
+    rebuilt: bool
+    iterations: int
+    status: str
+    seconds: float
+
+
+@dataclass
+class ContactRun:
+    """The outcome of a contact solve: the base-layout solution and what contact did."""
+
+    report: SolveReport
+    pairs: Pairs
+    lam_gap: np.ndarray                # multiplier of each pair's gap row (≤ 0: pushing apart)
+    rounds: list[Round] = field(default_factory=list)
+    n_variables: int = 0
+    n_constraints: int = 0
+    solved: tuple[Pairs, np.ndarray] | None = None    # the last solve's pairs and multipliers
+
+
+class ContactSolver:
+    """Contact rounds for one problem (the base NLP and its solver are the caller's)."""
+
+    def __init__(self, base: FullNLP, radius: float, per_loop: int | None = None) -> None:
+        pr = base.problem
+        self.base, self.radius = base, float(radius)
+        self.fabric = NaturalFabric.of(pr, radius)
+        per_loop = per_loop or max(16, int(np.ceil(pr.L / radius)))
+        self.grid = Grid(pr.courses, pr.wales, pr.L, per_loop)
+        self.reach = REACH * pr.L
+        self.cnlp: ContactNLP | None = None
+        self.solver: WeftSolver | None = None
+        self.build_s = 0.0
+        self.log = None                  # a callable receiving every Round as it ends
+        self.deadline = np.inf           # the wall-clock budget shared with the paper's solves
+
+    def pairs(self, x_base: np.ndarray) -> Pairs:
+        """Contact pairs of a base-layout state."""
+        curves = Curves.of(self.base.coefficients(x_base), self.base.starts(x_base),
+                           self.base.problem.L)
+        return find_pairs(self.fabric, curves, self.grid, self.reach)
+
+    def _slots(self, pairs: Pairs) -> bool:
+        """Make sure every pair of loops has enough slots; True when rebuilt."""
+        need = _counts(pairs.kA, pairs.kB)
+        have = {} if self.cnlp is None else _counts(self.cnlp.kA, self.cnlp.kB)
+        if self.cnlp is not None and all(have.get(k, 0) >= v for k, v in need.items()):
+            return False
+        if not need and not have:
+            need = {(0, 0): 1}                 # one unused slot: the NLP exists from the start
+        merged = {k: max(v, have.get(k, 0)) for k, v in {**have, **need}.items()}
+        kA, kB = [], []
+        for (a, b), v in sorted(merged.items()):
+            cap = v if have.get((a, b), 0) >= need.get((a, b), 0) else int(np.ceil(v * (1 + SPARE)))
+            kA += [a] * cap
+            kB += [b] * cap
+        t0 = time.perf_counter()
+        self.cnlp = build_contact_nlp(self.base, np.array(kA), np.array(kB))
+        self.solver = WeftSolver(self.cnlp, ipopt=WARM)
+        self.solver.deadline = self.deadline
+        self.build_s += time.perf_counter() - t0
+        return True
+
+    def _assign(self, pairs: Pairs) -> tuple[np.ndarray, ...]:
+        """Per slot: s_A, s_B, σ, required gap, in use; and each pair's slot."""
+        c = self.cnlp
+        n = c.n_slots
+        sA, sB = np.full(n, 0.5 * self.base.problem.L), np.full(n, 0.5 * self.base.problem.L)
+        sigma, required, used = np.ones(n), np.zeros(n), np.zeros(n, dtype=bool)
+        slot_of = np.zeros(len(pairs), dtype=int)
+        free: dict[tuple[int, int], list[int]] = {}
+        for q, key in enumerate(zip(c.kA.tolist(), c.kB.tolist())):
+            free.setdefault(key, []).append(q)
+        for i, key in enumerate(zip(pairs.kA.tolist(), pairs.kB.tolist())):
+            q = free[key].pop(0)
+            slot_of[i] = q
+            sA[q], sB[q], sigma[q] = pairs.sA[i], pairs.sB[i], pairs.sigma[i]
+            required[q], used[q] = pairs.required[i], True
+        return sA, sB, sigma, required, used, slot_of
+
+    def violations(self, pairs: Pairs, tol: float) -> np.ndarray:
+        """Pairs that miss their required gap by more than tol (relative)."""
+        return pairs.gap < pairs.required * (1 - tol)
+
+    def clean(self, x_base: np.ndarray) -> bool:
+        """Whether a state has no yarns that passed through each other: no pair of loops
+        crosses more often than in the natural fabric (crossings.judge)."""
+        found = find_crossings(self._curves(x_base), self.grid)
+        verdict = judge(self.fabric, found, self.grid.courses, self.grid.wales)
+        if not verdict.clean:
+            n = self.grid.wales
+            self.why = "new crossings between loops " + ", ".join(
+                f"({a // n + 1},{a % n + 1})-({b // n + 1},{b % n + 1})"
+                for a, b in list(verdict.new)[:4])
+        return verdict.clean
+
+    def crossed(self, x_base: np.ndarray, used: Pairs, found: Pairs) -> bool:
+        """Whether a solve let yarns pass through each other: a new crossing, or a pair of
+        the solve now on its other side."""
+        if not self.clean(x_base):
+            return True
+        if len(used) == 0 or len(found) == 0:
+            return False
+        idx, dist = _match(used, found, np.inf)
+        near = (idx >= 0) & (dist < self.grid.h)
+        through = near & (used.sigma[np.maximum(idx, 0)] * found.sigma * found.gap
+                          < -FLIP * self.grid.L)
+        if through.any():
+            self.why = f"{int(through.sum())} pairs passed through"
+        return bool(np.any(through))
+
+    def _curves(self, x_base: np.ndarray) -> Curves:
+        return Curves.of(self.base.coefficients(x_base), self.base.starts(x_base),
+                         self.base.problem.L)
+
+    def solve_once(self, p_base: np.ndarray, x_base: np.ndarray, pairs: Pairs,
+                   warm: tuple[np.ndarray, Pairs, np.ndarray] | None, report: SolveReport,
+                   rounds: list[Round], note: str) -> tuple[SolveReport, np.ndarray]:
+        """One IPOPT solve with a slot for every pair, from x_base (warm: the last solve's
+        base multipliers, pairs and their gap multipliers); the pairs' gap multipliers."""
+        t0 = time.perf_counter()
+        rebuilt = self._slots(pairs)
+        sA, sB, sigma, required, used, slot_of = self._assign(pairs)
+        c = self.cnlp
+        lbg, ubg = c.bounds(required, used)
+        x0 = c.lift(x_base, sA, sB)
+        lam0 = None
+        if warm is not None:
+            lam_base, old, lam_old = warm
+            lam_gap = np.zeros(c.n_slots)
+            lam_gap[slot_of] = _carry((old, lam_old), pairs)
+            lam0 = np.concatenate([lam_base, c.lift_multipliers(x0, sigma, lam_gap), lam_gap])
+        rep = self.solver.once(c.parameters(p_base, sA, sB, sigma), x0, lbg=lbg, ubg=ubg,
+                               lam_g0=lam0)
+        report.add_effort(rep)
+        rounds.append(Round(note, len(pairs), c.n_slots, rebuilt, rep.iterations, rep.status,
+                            time.perf_counter() - t0))
+        if self.log is not None:
+            self.log(rounds[-1])
+        return rep, rep.lam_g[c.gap_rows][slot_of]
+
+    def step(self, p: np.ndarray, x: np.ndarray, pairs: Pairs, warm, final: bool,
+             report: SolveReport, rounds: list[Round], note: str):
+        """Solve at parameters p from the uncrossed state x and its pairs; solve again from
+        the result with its own pairs until they meet their gaps (and, at the target, stop
+        moving). None when a solve fails or yarns crossed; else the state, its pairs, warm
+        data and the pairs' multipliers."""
+        tol = TOL if final else STEP_TOL
+        for k in range(MAX_ROUNDS):
+            rep, lam = self.solve_once(p, x, pairs, warm, report, rounds,
+                                       note if k == 0 else f"{note}, round {k + 1}")
+            if not rep.success:
+                report.status = rep.status
+                return None
+            xn = rep.x[:self.base.n_variables]
+            found = self.pairs(xn)
+            if self.crossed(xn, pairs, found):
+                report.status = "Contact_Crossing"
+                if self.log is not None:
+                    self.log(self.why)
+                return None
+            moved = final and _moved((pairs, lam), found, self.grid.h * MOVED)
+            x, warm = xn, (rep.lam_g[:self.base.n_constraints], pairs, lam)
+            report.x, report.objective = x, rep.objective
+            report.lam_g = rep.lam_g[:self.base.n_constraints]
+            if not self.violations(found, tol).any() and not moved:
+                return x, found, warm, _carry((pairs, lam), found)
+            if self.log is not None:
+                short = np.max(1 - found.gap / np.maximum(found.required, 1e-300), initial=0)
+                self.log(f"  again: {int(self.violations(found, tol).sum())} short (worst "
+                         f"{short:.2e}), moved {moved}")
+            pairs = found
+        report.status = "Contact_Rounds_Exceeded"
+        return None
+
+    def run(self, p_target: np.ndarray, p_natural: np.ndarray, x_start: np.ndarray,
+            steps: int, report: SolveReport, max_halvings: int = 8) -> ContactRun:
+        """Load steps from an uncrossed state x_start (at p_natural) to p_target, each solved
+        by :meth:`step` and halved when it fails or lets yarns cross."""
+        rounds: list[Round] = []
+        x, tau, dtau, halvings = x_start, 0.0, 1.0 / steps, 0
+        pairs, lam, warm = self.pairs(x), None, None
+        while tau < 1.0:
+            if time.perf_counter() >= self.deadline:
+                report.success, report.status = False, OUT_OF_TIME
+                break
+            nxt = min(1.0, tau + dtau)
+            out = self.step(p_natural + nxt * (p_target - p_natural), x, pairs, warm,
+                            nxt >= 1.0, report, rounds, f"load {nxt:.4g}")
+            if out is None:
+                # first widen the reach (a pair farther away may be what the step needed:
+                # a body pushed by a load has nothing else to stop it), then halve the step
+                if self.reach < WIDEST * self.base.problem.L:
+                    self.reach *= 2
+                    pairs = self.pairs(x)
+                    continue
+                halvings += 1
+                if halvings > max_halvings:
+                    report.success = False
+                    break
+                dtau /= 2
+                continue
+            x, pairs, warm, lam = out
+            tau, halvings, self.reach = nxt, 0, REACH * self.base.problem.L
+            report.success, report.status = True, "Solve_Succeeded"
+            report.continuation_steps += 1
+            report.path.append((tau, x, report.lam_g))
+            dtau = min(1.0, dtau * 1.5)
+        if lam is None:
+            lam = np.zeros(len(pairs))
+        return ContactRun(report, pairs, lam, rounds,
+                          0 if self.cnlp is None else self.cnlp.n_variables,
+                          0 if self.cnlp is None else self.cnlp.n_constraints,
+                          None if warm is None else (warm[1], warm[2]))
+
+
+def _merge(a: Pairs, b: Pairs) -> Pairs:
+    """a and the pairs of b that a does not already hold (same loops, same points)."""
+    if len(b) == 0:
+        return a
+    if len(a) == 0:
+        return b
+    idx, dist = _match(a, b, np.inf)
+    return a.concat(b.select(~(dist < 1e-9)))
+
+
+def _counts(kA: np.ndarray, kB: np.ndarray) -> dict[tuple[int, int], int]:
+    keys, counts = np.unique(np.stack([kA, kB], 1), axis=0, return_counts=True)
+    return {(int(a), int(b)): int(c) for (a, b), c in zip(keys, counts)}
+
+
+def _match(old: Pairs, new: Pairs, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """For each new pair the index of the old pair on the same loops nearest in (s_A, s_B)
+    (−1 if none), and that distance."""
+    idx = np.full(len(new), -1)
+    dist = np.full(len(new), np.inf)
+    if len(old) == 0 or len(new) == 0:
+        return idx, dist
+    big = int(max(old.kB.max(), new.kB.max())) + 1
+    ko, kn = old.kA * big + old.kB, new.kA * big + new.kB
+    order = np.argsort(ko, kind="stable")
+    ko = ko[order]
+    lo, hi = np.searchsorted(ko, kn, "left"), np.searchsorted(ko, kn, "right")
+    counts = hi - lo
+    owner = np.repeat(np.arange(len(new)), counts)
+    rows = order[np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+                 + np.repeat(lo, counts)]
+    d = np.hypot(old.sA[rows] - new.sA[owner], old.sB[rows] - new.sB[owner])
+    best = np.lexsort((d, owner))
+    first = best[np.r_[True, owner[best][1:] != owner[best][:-1]]] if best.size else best
+    idx[owner[first]] = rows[first]
+    dist[owner[first]] = d[first]
+    return idx, dist
+
+
+def _moved(last: tuple[Pairs, np.ndarray], pairs: Pairs, tol: float) -> bool:
+    """Whether a pair that pushed in the last solve has moved along the yarns by more than tol."""
+    old, lam = last
+    active = np.nonzero(lam < 0)[0]
+    if active.size == 0 or len(pairs) == 0:
+        return False
+    idx, dist = _match(pairs, old.select(active), tol)
+    return bool(np.any(dist > tol))
+
+
+def _carry(last: tuple[Pairs, np.ndarray], pairs: Pairs) -> np.ndarray:
+    """Each new pair's multiplier from the matching pair of the last solve (0 if none)."""
+    old, lam = last
+    if len(old) == 0:
+        return np.zeros(len(pairs))
+    idx, _ = _match(old, pairs, np.inf)
+    return np.where(idx >= 0, lam[np.maximum(idx, 0)], 0.0)

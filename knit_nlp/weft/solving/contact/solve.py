@@ -1,0 +1,168 @@
+"""Solving a weft problem that has a yarn radius (the contact study of ``weft.study`` calls it).
+
+The paper's model is solved first, as always; if its state has no new crossing and no gap
+short of its requirement the contact is inactive and that is the answer. Otherwise contact
+rounds start from it when it has no new crossing (its sides are then right), or load steps
+with contact start from the last uncrossed state (the natural fabric, or the given start) —
+see rounds.py. The report is on the paper's NLP (the contact variables and rows are dropped:
+its solution, clamp reactions and loading path read exactly as without contact; by the
+envelope theorem the reactions are still dU/d(target) with the active contacts), with the
+result JSON's ``contact`` block beside it.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ....errors import ProblemError
+from ...model.contact.crossings import find_crossings, judge
+from ...model.contact.pairs import Pairs
+from ...model.params import WeftParams
+from ...model.problem import WeftProblem
+from ...transcription.full import FullNLP
+from ..solve import DEFAULT_START, SolveReport, WeftSolver, solve as solve_nlp, start_point
+from ..starts import needs_perturbation
+from .rounds import TOL, ContactRun, ContactSolver
+
+STEPS = 4                  # first load steps of a contact path when none are asked for
+ACTIVE = 1e-6              # a contact pushes when −λ exceeds this fraction of the largest (or tol)
+
+
+class ContactRefused(ProblemError, ValueError):
+    """A model or option that has no yarn contact yet (one line; exit 2 on the command line)."""
+
+
+REDUCED_WHY = ("its loops are interpolated from representatives and contact pairs are between "
+               "actual loops; solve the full model (knit-nlp solve --full, or Full() in Python)")
+
+
+def refuse(problem: WeftProblem, what: str, why: str = REDUCED_WHY) -> ContactRefused:
+    """The refusal of ``what`` for a problem with a yarn radius, naming ``[yarn] radius``,
+    saying why and what to do instead."""
+    return ContactRefused(problem.source, "yarn", "radius", f"{what} has no yarn contact yet: "
+                          f"{why}, or remove [yarn] for the paper's model")
+
+
+def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver,
+                       params: WeftParams, continuation: int | None = None,
+                       x_start: np.ndarray | None = None, p_start: np.ndarray | None = None
+                       ) -> tuple[SolveReport, dict]:
+    """Solve the full model of a problem with ``[yarn] radius`` (module docstring) at
+    ``params``, from ``x_start`` (a vector of ``base``, at parameters ``p_start``: load steps
+    from there; unknown, the target's) if given: the report and the result JSON's ``contact``
+    block. Load steps from a start that fail are tried again from the natural fabric."""
+    problem = base.problem
+    solver.start_clock()
+    contact.deadline = solver.deadline
+    if contact.solver is not None:
+        contact.solver.deadline = solver.deadline
+    p = params.vector()
+    p_from, x_from = WeftParams.natural(problem).vector(), base.x0
+    if x_start is not None and contact.clean(x_start):
+        p_from, x_from = (p if p_start is None else p_start), x_start
+    first = _paper_first(base, solver, params, x_start, continuation)
+    if solver.progress is not None:
+        solver.progress.done()
+    route = "paper's model: no contact needed"
+    run = None
+    if first.success:
+        pairs = contact.pairs(first.x)
+        uncrossed = contact.clean(first.x)
+        if uncrossed and not contact.violations(pairs, TOL).any():
+            run = ContactRun(first, pairs, np.zeros(len(pairs)))
+        elif uncrossed:
+            route = "contact rounds from the paper's solution (no yarn crossed in it)"
+            run = contact.run(p, p, first.x, 1, _fresh(base, first))
+            _keep_path(run.report, first)
+    if run is None:
+        where = "the start" if x_from is not base.x0 else "the natural fabric"
+        route = f"load steps with contact from {where} (yarns crossed in the paper's solution)"
+        run = contact.run(p, p_from, x_from, continuation or STEPS, _fresh(base, first))
+        if not run.report.success and x_from is not base.x0:
+            route = ("load steps with contact from the natural fabric (yarns crossed in the "
+                     "paper's solution; the steps from the start failed)")
+            run = contact.run(p, WeftParams.natural(problem).vector(), base.x0,
+                              continuation or STEPS, _fresh(base, run.report))
+    return run.report, contact_block(problem, contact, run, route, problem.solver.tol)
+
+
+def _paper_first(base: FullNLP, solver: WeftSolver, params: WeftParams, x0, continuation):
+    """The paper's model, tried once: a continuation when one is asked for, else one IPOPT
+    solve from the usual start (no retries: where it fails, contact takes over), or the
+    perturbed starts where the natural yarn is straight and compressed."""
+    if continuation or (x0 is None and needs_perturbation(base, params.vector())):
+        # asked-for steps, or a straight yarn under compression: the paper's perturbed starts
+        return solve_nlp(base, solver, params=params, x0=x0, continuation=continuation)
+    t0 = time.perf_counter()
+    levels: list[str] = []
+    x = x0 if x0 is not None else start_point(base, params.vector(), DEFAULT_START, levels)
+    rep = solver.once(params.vector(), x)
+    rep.solve_s = time.perf_counter() - t0
+    rep.attempts = levels + [f"direct: {rep.status} ({rep.iterations} it)"]
+    return rep
+
+
+def _fresh(base: FullNLP, spent: SolveReport) -> SolveReport:
+    """An empty report that already counts the effort of a previous solve."""
+    rep = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
+    rep.add_effort(spent)
+    rep.attempts = list(spent.attempts) + ["paper's model (no contact) first"]
+    return rep
+
+
+def _keep_path(report: SolveReport, first: SolveReport) -> None:
+    """Rounds at the target after a continuation keep that continuation's loading path."""
+    if first.path:
+        report.path = first.path[:-1] + report.path[-1:]
+        report.continuation_steps = first.continuation_steps
+
+
+def contact_block(problem, contact: ContactSolver, run: ContactRun, route: str,
+                  tol: float) -> dict:
+    """The result JSON's ``contact``: radius, pairs in reach, active contacts with their
+    forces (minus the gap rows' multipliers, in the problem's force unit), smallest gaps,
+    the thick-yarn pairs, crossings against the natural fabric, and the effort."""
+    pairs, lam = run.pairs, run.lam_gap
+    force = -lam
+    largest = float(force.max()) if force.size else 0.0
+    active = force > max(ACTIVE * largest, 10 * tol)
+    x = run.report.x
+    found = find_crossings(contact._curves(x), contact.grid)
+    verdict = judge(contact.fabric, found, problem.courses, problem.wales)
+    two_r = 2 * contact.radius
+    pts = _contact_points(contact._curves(x), pairs.select(active))
+    n = problem.wales
+    free = pairs.required >= two_r
+    thick = (pairs.required > 0) & ~free
+    return {
+        "radius": contact.radius,
+        "route": route,
+        "pairs_in_reach": len(pairs),
+        "active": int(active.sum()),
+        "smallest_gap": float(pairs.gap[free].min()) if free.any() else None,
+        "smallest_gap_over_2r": float(pairs.gap[free].min() / two_r) if free.any() else None,
+        "thick_pairs": int(thick.sum()),
+        "thick_smallest_gap_over_required": float(np.min(pairs.gap[thick] / pairs.required[
+            thick])) if thick.any() else None,
+        "interlock_pairs": int(np.sum(pairs.required <= 0)),
+        "largest_force": largest if active.any() else 0.0,
+        "force_unit": problem.units.force,
+        "new_crossings": verdict.n_new,
+        "lost_designed_crossings": verdict.lost,
+        "contacts": [{"loops": [[int(a // n) + 1, int(a % n) + 1], [int(b // n) + 1, int(b % n) + 1]],
+                      "s": [float(sa), float(sb)], "point": pt.tolist(), "force": float(f),
+                      "gap": float(g)}
+                     for a, sa, b, sb, pt, f, g in zip(pairs.kA[active], pairs.sA[active],
+                                                       pairs.kB[active], pairs.sB[active], pts,
+                                                       force[active], pairs.gap[active])],
+        "solves": len(run.rounds),
+        "contact_nlp": {"n_variables": run.n_variables, "n_constraints": run.n_constraints},
+    }
+
+
+def _contact_points(curves, pairs: Pairs) -> np.ndarray:
+    """Midpoints of the contacts' two centreline points."""
+    if len(pairs) == 0:
+        return np.zeros((0, 2))
+    return 0.5 * (curves.points(pairs.kA, pairs.sA) + curves.points(pairs.kB, pairs.sB))

@@ -1,0 +1,316 @@
+"""The contact rows added to the full weft NLP, with closed-form first and second derivatives.
+
+A contact *slot* c holds one pair of material points: s_A on loop k_A and s_B on loop k_B, with
+side σ (all three are NLP parameters, so the contact points move along the yarns between solves
+without rebuilding anything; only the loops of a slot are structural). Each slot lifts five
+variables, like nlp.py lifts clamped points:
+
+    P_A − X_kA − I(a_kA; s_A) = 0,   P_B − X_kB − I(a_kB; s_B) = 0,   Θ − φ(s_B)·a_kB = 0,
+
+with I(a; s) = ∫₀ˢ (cos θ, sin θ) du, θ = φ(u)·a (eqs. 1, 14-15), by the composite rule of
+``curves.py`` scaled to [0, s]; and one inequality row, the signed normal gap
+
+    g_c = σ (P_A − P_B)·N(Θ) ≥ required_c,    N(Θ) = (−sin Θ, cos Θ),
+
+the distance between the two points when P_A − P_B is normal to yarn B (the outer loop puts
+(s_A, s_B) on the closest points). A slot not in use gets the bound −∞.
+
+Derivatives (everything else in the NLP is handled by derivatives.py):
+- ∂I/∂a = s Σ_q w_q (−sin θ_q, cos θ_q) φ(s ξ_q)ᵀ;  λᵀ of the lifting rows adds
+  Σ_q s w_q (λ_x cos θ_q + λ_y sin θ_q) φ_q φ_qᵀ to loop k's coefficient block (the block the
+  bending energy and eq. (1) already fill: no new sparsity);
+- ∂g/∂P_A = σN, ∂g/∂P_B = −σN, ∂g/∂Θ = −σ (P_A − P_B)·T;  ∂²g/∂P_A∂Θ = −σT,
+  ∂²g/∂P_B∂Θ = σT, ∂²g/∂Θ² = −g  (T = (cos Θ, sin Θ)).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ...layout import Layout
+from ..model.basis import n_coeffs
+from ..model.contact.curves import Curves, unit_rule
+from .derivatives import _block_triu_sparsity, _triu_pairs, closed_form_derivatives
+from .full import FullNLP
+
+VARS = 5               # P_A (2), P_B (2), Θ per slot
+LIFT = 5               # lifting rows per slot
+
+
+@dataclass
+class ContactNLP:
+    """The full weft NLP of ``base`` with contact slots appended (variables, parameters, rows).
+
+    Variables: base x, then per slot (P_A, P_B, Θ). Parameters: base p, then s_A, s_B, σ of
+    every slot. Rows: base g, then the lifting rows (5 per slot), then the gap rows (1 per slot).
+    """
+
+    base: FullNLP
+    kA: np.ndarray
+    kB: np.ndarray
+    nlp: dict
+    nlpsol_options: dict
+    x: Layout
+    g: Layout
+    gap_rows: slice
+    model: str = "full"
+    extra_p: int = 0
+    jacobian: ca.Function | None = field(default=None, repr=False)
+
+    @property
+    def problem(self):
+        return self.base.problem
+
+    @property
+    def n_slots(self) -> int:
+        return len(self.kA)
+
+    @property
+    def n_variables(self) -> int:
+        return self.x.size
+
+    @property
+    def n_constraints(self) -> int:
+        return self.g.size
+
+    @property
+    def params(self):
+        return self.base.params
+
+    @property
+    def lbg(self) -> np.ndarray:
+        """Bounds with no slot in use (each solve passes its own, :meth:`bounds`)."""
+        return self.bounds(np.zeros(self.n_slots), np.zeros(self.n_slots, dtype=bool))[0]
+
+    @property
+    def ubg(self) -> np.ndarray:
+        return self.bounds(np.zeros(self.n_slots), np.zeros(self.n_slots, dtype=bool))[1]
+
+    def parameters(self, p_base: np.ndarray, sA: np.ndarray, sB: np.ndarray,
+                   sigma: np.ndarray) -> np.ndarray:
+        """The NLP's parameter vector."""
+        return np.concatenate([p_base, sA, sB, sigma])
+
+    def bounds(self, required: np.ndarray, used: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """lbg, ubg: the base rows' own bounds, equalities for the lifting rows, gap ≥ required
+        where a slot is used (no bound on an unused slot)."""
+        nb = self.base.n_constraints
+        lbg, ubg = np.zeros(self.n_constraints), np.zeros(self.n_constraints)
+        lbg[:nb], ubg[:nb] = self.base.lbg, self.base.ubg
+        lbg[self.gap_rows] = np.where(used, required, -np.inf)
+        ubg[self.gap_rows] = np.inf
+        return lbg, ubg
+
+    def lift(self, x_base: np.ndarray, sA: np.ndarray, sB: np.ndarray) -> np.ndarray:
+        """A full decision vector: base x and the slots' points and angles computed from it."""
+        pr = self.problem
+        curves = Curves.of(self.base.coefficients(x_base), self.base.starts(x_base), pr.L)
+        z = np.zeros((self.n_slots, VARS))
+        z[:, 0:2] = curves.points(self.kA, sA)
+        z[:, 2:4] = curves.points(self.kB, sB)
+        z[:, 4] = curves.angle(self.kB, sB)
+        return np.concatenate([x_base, z.ravel()])
+
+    def lift_multipliers(self, xval: np.ndarray, sigma: np.ndarray,
+                         lam_gap: np.ndarray) -> np.ndarray:
+        """Multipliers of the lifting rows that balance given gap multipliers (stationarity in
+        P_A, P_B, Θ): λ_A = −λσN, λ_B = λσN, λ_Θ = λσ(P_A − P_B)·T."""
+        z = np.asarray(xval)[self.base.n_variables:].reshape(-1, VARS)
+        n = np.stack([-np.sin(z[:, 4]), np.cos(z[:, 4])], axis=1)
+        t = np.stack([np.cos(z[:, 4]), np.sin(z[:, 4])], axis=1)
+        ls = (lam_gap * sigma)[:, None]
+        out = np.concatenate([-ls * n, ls * n, ls * np.sum((z[:, 0:2] - z[:, 2:4]) * t, 1,
+                                                           keepdims=True)], axis=1)
+        return out.ravel()
+
+    def gaps(self, xval: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """Signed normal gaps of every slot at a decision vector."""
+        z = np.asarray(xval)[self.base.n_variables:].reshape(-1, VARS)
+        n = np.stack([-np.sin(z[:, 4]), np.cos(z[:, 4])], axis=1)
+        return sigma * np.sum((z[:, 0:2] - z[:, 2:4]) * n, axis=1)
+
+
+def build_contact_nlp(base: FullNLP, kA: np.ndarray, kB: np.ndarray) -> ContactNLP:
+    """The base NLP with one contact slot per entry of (kA, kB), closed-form derivatives."""
+    if base.model != "full":
+        raise ValueError("contact is built on the full model")
+    pr = base.problem
+    kA, kB = np.asarray(kA, dtype=int), np.asarray(kB, dtype=int)
+    n, nx0, ng0, np0 = len(kA), base.n_variables, base.n_constraints, base.p.size
+    nc, N = n_coeffs(pr.t), pr.n_loops
+    x = ca.MX.sym("x", nx0 + VARS * n)
+    p = ca.MX.sym("p", np0 + 3 * n)
+    xb, pb = x[:nx0], p[:np0]
+    f_base = ca.Function("f_base", [base.nlp["x"], base.nlp["p"]], [base.nlp["f"]])
+    g_base = ca.Function("g_base", [base.nlp["x"], base.nlp["p"]], [base.nlp["g"]])
+    sA, sB, sigma = p[np0:np0 + n], p[np0 + n:np0 + 2 * n], p[np0 + 2 * n:]
+    geo = _Geometry(base, x, sA, sB, sigma, kA, kB)
+    g = ca.vertcat(g_base(xb, pb), geo.lift_rows, geo.gap)
+    xl = Layout()
+    for name, (_, _, shape) in base.x.blocks.items():
+        xl.add(name, *shape)
+    xl.add("contact", VARS, n)
+    gl = Layout()
+    for name, (_, _, shape) in base.g.blocks.items():
+        gl.add(name, *shape)
+    gl.add("contact_lift", LIFT, n)
+    gap_rows = gl.add("contact_gap", n, 1)
+    nlp = {"x": x, "p": p, "f": f_base(xb, pb), "g": g}
+    derivs = _derivatives(base, geo, x, p, g, nx0, ng0, n)
+    return ContactNLP(base, kA, kB, nlp, derivs, xl, gl, gap_rows, extra_p=3 * n,
+                      jacobian=derivs["jac_g"])
+
+
+class _Geometry:
+    """Symbolic pieces shared by the rows and their derivatives, vectorised over the points
+    (nodes × points matrices; measured 2x faster to evaluate than a small SX Function mapped
+    over the points)."""
+
+    def __init__(self, base: FullNLP, x: ca.MX, sA: ca.MX, sB: ca.MX, sigma: ca.MX,
+                 kA: np.ndarray, kB: np.ndarray) -> None:
+        pr = base.problem
+        n, nx0 = len(kA), base.n_variables
+        nc, N, L, t = n_coeffs(pr.t), pr.n_loops, pr.L, pr.t
+        A = ca.reshape(x[base.x.slice("coeffs")], nc, N)
+        X = ca.reshape(x[base.x.slice("starts")], 2, N)
+        z = ca.reshape(x[nx0:], VARS, n)
+        self.n, self.nc, self.kA, self.kB = n, nc, kA, kB
+        xi, w = unit_rule(t)
+        self.w = ca.DM(w)
+        self.sides = []
+        Q = len(xi)
+        for k, s in ((kA, sA), (kB, sB)):
+            srow = ca.transpose(s)
+            nodes = ca.mtimes(ca.DM(xi), srow)                         # Q × n
+            phis = _basis(nodes, L, t)                                 # nc matrices Q × n
+            Ak = A[:, k.tolist()]                                      # nc × n
+            theta = sum(phis[c] * ca.repmat(Ak[c, :], Q, 1) for c in range(nc))
+            cos, sin = ca.cos(theta), ca.sin(theta)
+            I = ca.vertcat(srow * ca.mtimes(self.w.T, cos), srow * ca.mtimes(self.w.T, sin))
+            ws = ca.repmat(self.w, 1, n) * ca.repmat(srow, Q, 1)        # s·w_q, Q × n
+            dIx = ca.vertcat(*[-ca.sum1(ws * sin * phis[c]) for c in range(nc)])
+            dIy = ca.vertcat(*[ca.sum1(ws * cos * phis[c]) for c in range(nc)])
+            self.sides.append((k, s, (ws, cos, sin, phis), I, dIx, dIy, X[:, k.tolist()]))
+        PA, PB, Th = z[0:2, :], z[2:4, :], z[4, :]
+        self.phiB = ca.vertcat(*_basis(ca.transpose(sB), L, t))          # nc × n
+        theta_B = ca.sum1(self.phiB * A[:, kB.tolist()])
+        lift = ca.vertcat(PA - self.sides[0][6] - self.sides[0][3],
+                          PB - self.sides[1][6] - self.sides[1][3], Th - theta_B)
+        self.lift_rows = ca.vec(lift)
+        self.T = ca.vertcat(ca.cos(Th), ca.sin(Th))
+        self.N = ca.vertcat(-ca.sin(Th), ca.cos(Th))
+        self.d = PA - PB
+        self.sigma = ca.transpose(sigma)
+        self.gap = ca.vec(self.sigma * ca.sum1(self.d * self.N))
+
+
+def _basis(u: ca.MX, L: float, t: int) -> list[ca.MX]:
+    """φ_c(u) of eq. (15) elementwise on a matrix u, one matrix per basis function; the
+    harmonics by the angle-addition recurrence (two trigonometric calls, not 2t)."""
+    c1, s1 = ca.cos(2 * np.pi * u / L), ca.sin(2 * np.pi * u / L)
+    sins, coss = [s1], [c1]
+    for _ in range(t - 1):
+        sins.append(sins[-1] * c1 + coss[-1] * s1)
+        coss.append(coss[-1] * c1 - sins[-2] * s1)
+    return sins + coss + [u, ca.MX.ones(u.shape)]
+
+
+def _derivatives(base: FullNLP, geo: _Geometry, x, p, g, nx0: int, ng0: int, n: int) -> dict:
+    """``jac_g`` and ``hess_lag`` of the whole NLP: the base parts from derivatives.py, the
+    contact parts in closed form (module docstring)."""
+    pr = base.problem
+    nc, N = geo.nc, pr.n_loops
+    nx, ngc = nx0 + VARS * n, LIFT * n + n
+    base_d = closed_form_derivatives(base)
+    xb, pb = x[:nx0], p[:base.p.size]
+    g_b, J_b = base_d["jac_g"](xb, pb)
+    J_c = _contact_jacobian(base, geo, nx0, nx)
+    J = ca.vertcat(ca.horzcat(J_b, ca.MX(ng0, nx - nx0)), J_c)
+    jac_g = ca.Function("nlp_jac_g", [x, p], [g, J], ["x", "p"], ["g", "jac_g_x"])
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng0 + ngc)
+    H_b = base_d["hess_lag"](xb, pb, lam_f, lam_g[:ng0])
+    H = ca.diagcat(H_b, ca.MX(nx - nx0, nx - nx0)) + _contact_hessian(
+        base, geo, lam_g[ng0:ng0 + LIFT * n], lam_g[ng0 + LIFT * n:], nx0, nx)
+    hess_lag = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [H],
+                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+    return {"jac_g": jac_g, "hess_lag": hess_lag}
+
+
+def _contact_jacobian(base: FullNLP, geo: _Geometry, nx0: int, nx: int) -> ca.MX:
+    """Rows of the contact block (lifting rows, then gap rows) by columns of x."""
+    n, nc = geo.n, geo.nc
+    coeff0, start0 = base.x.slice("coeffs").start, base.x.slice("starts").start
+    slot = np.arange(n)
+    rows, cols, vals = [], [], []
+
+    def put(r, c, v):
+        rows.append(np.asarray(r).ravel())
+        cols.append(np.asarray(c).ravel())
+        vals.append(v)
+
+    lift0 = LIFT * slot                       # first lifting row of each slot (vec of 5 × n)
+    for side, (k, s, _, _, dIx, dIy, _) in enumerate(geo.sides):
+        for d, dI in enumerate((dIx, dIy)):
+            r = lift0 + 2 * side + d
+            put(r, nx0 + VARS * slot + 2 * side + d, ca.DM.ones(1, n))           # +P
+            put(r, start0 + 2 * k + d, -ca.DM.ones(1, n))                        # −X_k
+            for c in range(nc):
+                put(r, coeff0 + nc * k + c, -dI[c, :])                           # −∂I/∂a
+    r = lift0 + 4
+    put(r, nx0 + VARS * slot + 4, ca.DM.ones(1, n))
+    for c in range(nc):
+        put(r, coeff0 + nc * geo.kB + c, -geo.phiB[c, :])
+    r = LIFT * n + slot
+    sig2 = ca.repmat(geo.sigma, 2, 1)
+    sN, sT = sig2 * geo.N, sig2 * geo.T
+    for d in range(2):
+        put(r, nx0 + VARS * slot + d, sN[d, :])
+        put(r, nx0 + VARS * slot + 2 + d, -sN[d, :])
+    put(r, nx0 + VARS * slot + 4, -ca.sum1(geo.d * sT))
+    return _assemble(rows, cols, vals, LIFT * n + n, nx)
+
+
+def _contact_hessian(base: FullNLP, geo: _Geometry, lam_lift: ca.MX, lam_gap: ca.MX,
+                     nx0: int, nx: int) -> ca.MX:
+    """Upper triangle of Σ λ·∇²(contact rows): loop coefficient blocks and the slots' 5 × 5."""
+    pr = base.problem
+    n, nc, N = geo.n, geo.nc, pr.n_loops
+    coeff0 = base.x.slice("coeffs").start
+    lam = ca.reshape(lam_lift, LIFT, n)
+    iu, ju = _triu_pairs(nc)
+    blocks = ca.MX(len(iu), N)
+    for side, (k, s, (ws, cos, sin, phis), *_rest) in enumerate(geo.sides):
+        Q = ws.shape[0]
+        lx, ly = lam[2 * side, :], lam[2 * side + 1, :]
+        omega = ws * (ca.repmat(lx, Q, 1) * cos + ca.repmat(ly, Q, 1) * sin)   # Q × n
+        per_point = ca.vertcat(*[ca.sum1(omega * phis[i] * phis[j]) for i, j in zip(iu, ju)])
+        blocks += ca.mtimes(per_point, _scatter(k, N))                 # sum points per loop
+    H_blocks = ca.MX(_block_triu_sparsity(N, nc, coeff0, nx), ca.vec(blocks))
+    slot = np.arange(n)
+    th = nx0 + VARS * slot + 4
+    lg = ca.transpose(lam_gap)
+    sT = ca.repmat(geo.sigma, 2, 1) * geo.T
+    rows = [nx0 + VARS * slot + d for d in range(4)] + [th]
+    vals = [-lg * sT[0, :], -lg * sT[1, :], lg * sT[0, :], lg * sT[1, :],
+            -lg * ca.transpose(ca.vec(geo.gap))]
+    H_gap = _assemble(rows, [th] * 5, vals, nx, nx)
+    return H_blocks + H_gap
+
+
+def _scatter(k: np.ndarray, N: int) -> ca.DM:
+    """The sparse n × N matrix adding each point's block into its loop's."""
+    sp = ca.Sparsity.triplet(len(k), N, np.arange(len(k)).tolist(), np.asarray(k).tolist())
+    return ca.DM(sp, 1.0)
+
+
+def _assemble(rows, cols, vals, nrow: int, ncol: int) -> ca.MX:
+    """A sparse MX from triplet blocks (rows, cols index arrays; vals 1 × len row vectors)."""
+    r = np.concatenate([np.asarray(a).ravel() for a in rows]).astype(int)
+    c = np.concatenate([np.asarray(a).ravel() for a in cols]).astype(int)
+    v = ca.vertcat(*[ca.vec(ca.MX(val) if isinstance(val, ca.DM) else val) for val in vals])
+    sp, mapping = ca.Sparsity.triplet(nrow, ncol, r.tolist(), c.tolist(), False)
+    if sp.nnz() != len(r):
+        raise ValueError("contact derivative entries overlap")
+    return ca.MX(sp, v[mapping])

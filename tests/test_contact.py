@@ -1,0 +1,236 @@
+"""Yarn contact (issue 19): closed forms, the envelope theorem with active contacts, derivatives
+against finite differences, the crossing counter on hand-made centrelines, and the refusals."""
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from knit_nlp.weft.api import solve
+from knit_nlp.weft.model.cases import diagonal_pull, unclamped
+from knit_nlp.weft.model.contact.crossings import find_crossings, judge
+from knit_nlp.weft.model.contact.curves import Curves
+from knit_nlp.weft.model.contact.natural import NaturalFabric
+from knit_nlp.weft.model.contact.pairs import Grid
+from knit_nlp.weft.model.parametrisation import Reduced
+from knit_nlp.weft.model.params import WeftParams
+from knit_nlp.weft.model.problem import Clamp, Load, Yarn, parse_problem
+from knit_nlp.weft.output.check import check
+from knit_nlp.weft.output.results import WeftResult
+from knit_nlp.weft.solving.contact.rounds import ContactSolver
+from knit_nlp.weft.solving.contact.solve import ContactRefused
+from knit_nlp.weft.solving.solve import SolveReport
+from knit_nlp.weft.transcription.contact import build_contact_nlp
+from knit_nlp.weft.transcription.full import build_nlp
+
+L = 10.0
+
+
+def rods(push: float, r: float = 0.2, c: float = 1.0):
+    """Rod A (course 1) clamped at its start along x; rod B (course 2) parallel above it, held
+    in x and angle at its start, free to move in y, pushed down at its middle (two straight
+    natural courses: no crossings, so the second course is added past the file reader, which
+    asks two courses for the 2 + 2 crossings of a knit)."""
+    doc = {"fabric": {"courses": 1, "wales": 1},
+           "loop": {"preset": "straight", "length": L, "harmonics": 3, "course_spacing": c},
+           "material": {"R_f": 1000.0},
+           "clamp": [{"loop": [1, 1], "point": "start", "position": [0.0, 0.0], "angle": 0.0}]}
+    pr = parse_problem(doc, "rods")
+    held = Clamp((2, 1), "start", 0.0, np.array([0.0, c]), (True, False), 0.0)
+    return dataclasses.replace(pr, courses=2, yarn=Yarn(r), name="rods",
+                               clamps=pr.clamps + (held,),
+                               loads=(Load((2, 1), L / 2, L / 2, np.array([0.0, -push])),))
+
+
+def squeezed(d: float, r: float | None = 0.15):
+    """One jersey loop between two rigid clamps holding its ends (and their angles), the right
+    one moved left by d: the loop's neck closes."""
+    doc = {"name": "squeeze", "fabric": {"courses": 1, "wales": 1},
+           "rigid_clamp": [{"points": [{"loop": [1, 1], "point": "start"}]},
+                           {"points": [{"loop": [1, 1], "point": "end"}], "translation": [-d, 0.0]}],
+           "clamp": [{"loop": [1, 1], "point": "start", "fix": [], "angle": 0.0},
+                     {"loop": [1, 1], "point": "end", "fix": [], "angle": 0.0}]}
+    if r:
+        doc["yarn"] = {"radius": r}
+    return parse_problem(doc, "squeeze")
+
+
+def test_straight_rods_stop_at_2r_and_carry_the_push():
+    """Closed form: B comes down on A and stops with its centreline 2r above A's; A's clamp
+    carries the whole push, and the contact forces (the gap rows' multipliers) add up to it
+    (B's only vertical forces are the load and the contacts)."""
+    push, r = 0.3, 0.2
+    res = solve(rods(push, r))
+    assert res.success
+    block = res.extra["contact"]
+    assert block["smallest_gap"] == pytest.approx(2 * r, rel=1e-6)
+    assert res.starts[1, 0, 1] == pytest.approx(2 * r, abs=1e-5)     # B's start, above A's
+    assert res.clamps[0].reaction[1] == pytest.approx(push, rel=1e-8)
+    assert sum(c["force"] for c in block["contacts"]) == pytest.approx(push, rel=2e-3)
+    assert check(res.to_json(), res.problem).ok
+
+
+def test_a_loop_pressed_between_rigid_clamps_keeps_its_legs_2r_apart():
+    """Without contact the squeezed loop's legs come within 0.4 x 2r of each other; with it no
+    gap is short, no crossing appears, and the clamps push far harder (the neck is jammed)."""
+    d, r = 0.5, 0.15
+    free, jammed = solve(squeezed(d, None)), solve(squeezed(d, r))
+    assert free.success and jammed.success
+    before, after = check(free.to_json(), squeezed(d, r)), check(jammed.to_json(), squeezed(d, r))
+    assert before.short_gaps and before.smallest_gap < 0.5 * 2 * r
+    assert after.ok and after.smallest_gap >= 2 * r * (1 - 1e-3)
+    assert jammed.extra["contact"]["active"] >= 1
+    assert jammed.rigid_clamps[0].force[0] > 10 * free.rigid_clamps[0].force[0] > 0
+
+
+def test_envelope_theorem_with_active_contacts():
+    """With the contacts active, the moving clamp's reaction along its motion is the derivative
+    of the stored energy by its translation (central differences of the contact NLP's minimum,
+    the same pairs, re-solved at translations d ± h)."""
+    d, h = 0.5, 1e-4
+    pr = squeezed(d)
+    base = build_nlp(pr)
+    contact = ContactSolver(base, pr.yarn.radius)
+    report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
+    p_at = WeftParams.natural(pr).vector()
+    run = contact.run(base.params.vector(), p_at, base.x0, 4, report)
+    used, lam = run.solved                          # the pairs of the last solve
+    assert run.report.success and (lam < -1e-3).any()               # a contact pushes
+
+    def energy(delta: float) -> float:
+        p = WeftParams.of(pr).with_(rigid={2: (-(d + delta), 0.0, 0.0)}).vector()
+        rep, _ = contact.solve_once(p, run.report.x, used, None, report, [], "fd")
+        assert rep.success
+        return float(sum(base.energy(rep.x[:base.n_variables], p)[:2]))
+
+    result = WeftResult(base, run.report, base.params, 0.0, 0.0)
+    dU = (energy(h) - energy(-h)) / (2 * h)
+    assert -result.rigid_clamps[1].force[0] == pytest.approx(dU, rel=1e-5)
+    assert dU > 0.1                                          # contact dominates (free: 0.03)
+
+
+def _random_contact_nlp(seed: int = 1, n: int = 6):
+    pr = parse_problem(diagonal_pull(3), "x")
+    base = build_nlp(pr)
+    rng = np.random.default_rng(seed)
+    kA, kB = rng.integers(0, pr.n_loops, n), rng.integers(0, pr.n_loops, n)
+    c = build_contact_nlp(base, kA, kB)
+    sA, sB = rng.uniform(0, L, n), rng.uniform(0, L, n)
+    x = c.lift(base.x0, sA, sB) + 0.01 * rng.normal(size=c.n_variables)
+    p = c.parameters(base.p0, sA, sB, rng.choice([-1.0, 1.0], n))
+    return c, x, p, rng
+
+
+def test_contact_derivatives_match_finite_differences():
+    """jac_g and hess_lag (closed form) against central differences of g and of ∇(λᵀg)."""
+    c, x, p, rng = _random_contact_nlp()
+    X, P = c.nlp["x"], c.nlp["p"]
+    g = ca.Function("g", [X, P], [c.nlp["g"]])
+    lam = rng.normal(size=c.n_constraints)
+    grad = ca.Function("gl", [X, P], [ca.gradient(ca.dot(ca.MX(lam), c.nlp["g"]), X)])
+    J = np.asarray(ca.densify(c.nlpsol_options["jac_g"](x, p)[1]))
+    H = np.asarray(ca.densify(c.nlpsol_options["hess_lag"](x, p, 0.0, lam)))
+    H = H + np.triu(H, 1).T
+    h = 1e-6
+    rows = c.g.slice("contact_lift").start
+    for k in rng.choice(np.arange(c.base.n_variables - 40, c.n_variables), 12, replace=False):
+        e = np.zeros(c.n_variables)
+        e[k] = h
+        fd = (np.asarray(g(x + e, p)) - np.asarray(g(x - e, p))).ravel() / (2 * h)
+        np.testing.assert_allclose(J[rows:, k], fd[rows:], atol=1e-7)
+        fd2 = (np.asarray(grad(x + e, p)) - np.asarray(grad(x - e, p))).ravel() / (2 * h)
+        np.testing.assert_allclose(H[:, k], fd2, atol=2e-6 * max(1.0, np.abs(fd2).max()))
+
+
+def _two_rods(a_angle: float, b_start, b_angle: float, b_curv: float = 0.0) -> Curves:
+    """Course 1: a straight loop from the origin at angle a_angle; course 2: a loop from
+    b_start at b_angle with constant curvature b_curv (coefficients of θ = a·φ(s): the linear
+    and constant slots)."""
+    coeffs = np.zeros((2, 1, 8))
+    coeffs[0, 0, 7] = a_angle
+    coeffs[1, 0, 6], coeffs[1, 0, 7] = b_curv, b_angle
+    starts = np.array([[[0.0, 0.0]], [b_start]], dtype=float)
+    return Curves.of(coeffs, starts, L)
+
+
+@pytest.mark.parametrize("curves, expected", [
+    (_two_rods(0.0, (5.0, -3.0), np.pi / 2), 1),                     # B crosses A once
+    (_two_rods(0.0, (2.0, 0.5), -0.6, 0.2), 2),                      # an arc dipping through A
+    # an arc of radius 10 whose lowest point (s = 5.025, between samples) touches A: tangent
+    (_two_rods(0.0, (5.0 - 10 * np.sin(0.5025), 10 * (1 - np.cos(0.5025))), -0.5025, 0.1), 0),
+    (_two_rods(0.0, (0.0, 0.5), 0.0), 0),                            # apart, parallel
+])
+def test_crossing_counter_on_hand_made_centrelines(curves, expected):
+    """Crossing, an arc passing through (two), touching (tangent: not a crossing), apart."""
+    found = find_crossings(curves, Grid(2, 1, L, 200))
+    assert len(found) == expected
+    assert all(found.kA == 0) and all(found.kB == 1)
+
+
+def test_crossing_judge_counts_against_the_natural_fabric():
+    """The natural jersey has exactly its designed crossings (4 per vertically neighbouring
+    pair of loops) and none new; the paper's diagonal pull has yarns passing through."""
+    pr = parse_problem(unclamped(4, 4), "x")
+    fab = NaturalFabric.of(pr, 0.15)
+    nat = Curves.of(np.broadcast_to(pr.natural.coeffs, (4, 4, 8)), pr.natural_starts(), L)
+    found = find_crossings(nat, Grid(4, 4, L, 100))
+    assert len(found) == 4 * 3 * 4
+    assert judge(fab, found, 4, 4).clean and judge(fab, found, 4, 4).lost == 0
+    assert fab.crossings((1, 0)) == 4 and fab.crossings((2, 0)) == 0 == fab.crossings((1, 1))
+    pull = solve(parse_problem(diagonal_pull(5), "x"))
+    verdict = judge(fab, find_crossings(Curves.of(pull.coefficients, pull.starts, L),
+                                        Grid(5, 5, L, 100)), 5, 5)
+    assert not verdict.clean
+
+
+def test_natural_gaps_of_the_jersey_preset():
+    """Thick yarn: the jersey's closest non-crossing pieces, two courses apart, are 0.352
+    apart (so any r above 0.176 = 0.0176 L makes them thick)."""
+    fab = NaturalFabric.of(parse_problem(unclamped(3, 3), "x"), 0.5)
+    gap = fab.table((2, 0)).natural_gap
+    assert float(gap.min()) == pytest.approx(0.352, abs=2e-3)
+    assert float(fab.table((0, 0)).natural_gap.min()) == pytest.approx(0.529, abs=2e-3)
+
+
+def test_the_reduced_model_is_refused_with_a_radius():
+    pr = dataclasses.replace(parse_problem(diagonal_pull(4), "x"), yarn=Yarn(0.2))
+    with pytest.raises(ContactRefused, match="reduced model has no yarn contact"):
+        solve(pr, Reduced())
+    with pytest.raises(ValueError):
+        solve(pr, warm_from_reduced=True)
+
+
+def test_warm_start_from_a_contact_result_reaches_the_next_load_step():
+    """calib's use: a load path as separate solves, each started from the last result."""
+    first = solve(squeezed(0.3))
+    second = solve(squeezed(0.5), start=first)
+    assert second.success and check(second.to_json(), squeezed(0.5)).ok
+    direct = solve(squeezed(0.5))
+    assert second.energy.total == pytest.approx(direct.energy.total, rel=1e-6)
+
+
+def test_lifted_contact_points_start_on_their_rows():
+    c, x, p, _ = _random_contact_nlp(seed=3)
+    x0 = c.lift(c.base.x0, p[c.base.p.size:c.base.p.size + c.n_slots],
+                p[c.base.p.size + c.n_slots:c.base.p.size + 2 * c.n_slots])
+    g = np.asarray(ca.Function("g", [c.nlp["x"], c.nlp["p"]], [c.nlp["g"]])(x0, p)).ravel()
+    assert np.abs(g[c.g.slice("contact_lift")]).max() < 1e-12
+
+
+def test_a_contact_solve_keeps_to_its_time_budget():
+    """[solver] max_time bounds the contact rounds too: out of time is reported, not hidden."""
+    pr = squeezed(0.5)
+    pr = dataclasses.replace(pr, solver=dataclasses.replace(pr.solver, max_time=0.05))
+    res = solve(pr)
+    assert not res.success and res.status == "Maximum_WallTime_Exceeded"
+
+
+def test_without_a_radius_nothing_changes():
+    """The paper's model: no contact block, the same solution as the same problem read with a
+    radius but solved without one (the contact study only starts where [yarn] is)."""
+    free = solve(squeezed(0.5, None))
+    assert "contact" not in free.to_json() and free.success
+    again = solve(dataclasses.replace(squeezed(0.5), yarn=None))
+    np.testing.assert_array_equal(free.x, again.x)
