@@ -48,7 +48,7 @@ class Study:
     ``warm``: points along a path start from the last one's solution; ``ship(doc, problem)``
     the document workers get; ``check(problem, doc, key, values)`` raises ``ValueError`` for a
     key a sweep cannot vary; ``changes(problem, [(key, values, value), ...])`` a point's
-    changes."""
+    changes; ``key_unit(problem, key)`` the unit of a key's values (the sweep picture's axis)."""
 
     prepare: Callable[[dict], Any]
     solve: Callable[..., tuple[dict, Any]]
@@ -57,6 +57,7 @@ class Study:
     ship: Callable[[dict, Any], dict]
     check: Callable[..., None]
     changes: Callable[..., dict]
+    key_unit: Callable[[Any, str], str]
 
 
 @dataclass(frozen=True)
@@ -102,7 +103,8 @@ MODELS: dict[str, Model] = {
         weft_commands.solve_options, weft_commands.save_options, ("full", "reduced"),
         weft_summary,
         Study(weft_study.prepare_point, weft_study.solve_point, weft_study.study_row, True,
-              lambda doc, problem: doc, weft_keys.check, weft_keys.changes),
+              lambda doc, problem: doc, weft_keys.check, weft_keys.changes,
+              weft_study.key_unit),
         weft_commands.COMMANDS),
     "jacquard": Model(
         "jacquard", parse_jacquard, solve_jacquard, ("solver",), None, None,
@@ -110,7 +112,7 @@ MODELS: dict[str, Model] = {
         jacquard_commands.save_options, ("jacquard",), jacquard_summary,
         Study(jacquard_study.prepare_point, jacquard_study.solve_point,
               jacquard_study.study_row, False, jacquard_study.shippable_doc,
-              jacquard_study.check, jacquard_study.changes)),
+              jacquard_study.check, jacquard_study.changes, jacquard_study.key_unit)),
 }
 
 

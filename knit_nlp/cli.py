@@ -161,8 +161,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     out = Path(args.out) / name
     rows = overview.table_rows(summary, keys)
     csv = overview.write_table(out / "sweep.csv", rows)
+    unit = MODELS[problem.model].study.key_unit
     png = overview.plot_overview(out / "sweep.png", summary, keys,
-                                 f"{problem.name}: {len(rows)} points")
+                                 f"{problem.name}: {len(rows)} points", problem.units,
+                                 {k: unit(problem, k) for k in keys})
     print_table([{**r, "point": f"{r['path']}.{r['index']}"} for r in rows],
                 [("point", "point", ""), *((k, k, "") for k in keys),
                  ("energy_total", "U total", ".6g"), ("iterations", "it", ""),

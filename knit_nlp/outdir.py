@@ -3,9 +3,10 @@ only once the input has been read and checked, so bad input writes nothing."""
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
-from .errors import ProblemError, quoted, shown
+from .errors import ArgumentError, ProblemError, quoted, shown
 
 
 def check_out(out: str) -> Path:
@@ -49,3 +50,12 @@ def prepare_out(out: str, name: str, kinds: tuple[str, ...]) -> Path:
                 raise ProblemError(out, "", "", f"{quoted(target.name)} exists and is not a "
                                    "file; results cannot be written there")
     return folder
+
+
+def output_name(flag: str, name: str) -> str:
+    """A name given for output files (``--name``): letters, digits, ``_ - . +``, not starting
+    with a dot, at most 100 characters, so it names files in ``--out`` and nowhere else."""
+    if not re.fullmatch(r"[A-Za-z0-9_+\-][A-Za-z0-9_.+\-]*", name) or len(name) > 100:
+        raise ArgumentError(f"{flag} {name}", "use letters, digits, '_', '-', '+' and '.' "
+                            "(not first), at most 100 characters")
+    return name

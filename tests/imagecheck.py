@@ -3,16 +3,26 @@
 ``SavedFigures`` (the ``saved_figures`` fixture) records, for every figure the code under test
 saves, each axes' data-to-pixel transform at the saved resolution, the axes' and legend's pixel
 boxes; the test then reads the PNG back (matplotlib.image.imread) and compares the pixels of a
-colour class with curves computed independently from the result files.
+colour class with curves computed independently from the result files. It also records what
+a reader needs to understand the picture (``Readability``: every text's box, every axis label,
+what each drawn artist is explained by, the view limits); ``check_explained`` asserts that
+every picture explains itself: axis labels with units, every marker in a legend, a colourbar
+or a caption, every text inside the image, nothing drawn outside the view.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib.image as mpimg
 import numpy as np
+from matplotlib.collections import Collection
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.quiver import QuiverKey
+from matplotlib.text import Text
 from scipy.integrate import cumulative_trapezoid
 from scipy.ndimage import binary_dilation
 from scipy.spatial import cKDTree
@@ -25,19 +35,142 @@ class SavedAxes:
     legend: np.ndarray | None      # the legend's box, if any
 
 
+@dataclass
+class ReadAxes:
+    """What a reader sees of one axes: its labels, view and the artists it draws."""
+
+    xlabel: str
+    ylabel: str
+    title: str
+    data: bool                                  # an axes with its axis on (not a colourbar)
+    xlim: tuple[float, float]
+    ylim: tuple[float, float]
+    labels: list[str]                           # the label of every drawn artist
+    unexplained: list[str]                      # drawn artists no legend/colourbar/caption names
+    outside: list[str]                          # drawn artists reaching outside the view
+
+
+@dataclass
+class Readability:
+    """Everything ``check_explained`` needs of one saved figure (recorded at save time)."""
+
+    size: tuple[float, float]                   # pixels
+    texts: list[tuple[str, np.ndarray]]         # (text, [x0, y0, x1, y1] pixels)
+    axes: list[ReadAxes] = field(default_factory=list)
+    legend: list[str] = field(default_factory=list)
+
+    @property
+    def all_text(self) -> str:
+        return "\n".join(t for t, _ in self.texts)
+
+
+def _drawn(ax) -> list:
+    """The artists an axes draws that need explaining: lines, collections and patches (not
+    images, texts, or the background)."""
+    out = [a for a in ax.lines if len(np.atleast_1d(a.get_xdata())) > 0]
+    out += list(ax.collections) + [a for a in ax.patches if a is not ax.patch]
+    return [a for a in out if a.get_visible()]
+
+
+def _outside(artist, ax) -> bool:
+    """Whether a line or collection reaches outside the axes' view (patches are clipped on
+    purpose and not checked)."""
+    (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
+    tol = 1e-6 * max(x1 - x0, y1 - y0)
+    if isinstance(artist, Line2D):
+        xy = np.column_stack([np.asarray(artist.get_xdata(), float),
+                              np.asarray(artist.get_ydata(), float)])
+    elif isinstance(artist, Collection) and artist.get_transform() == ax.transData:
+        box = artist.get_datalim(ax.transData)
+        if not np.isfinite(box.extents).all() or box.width == box.height == 0 and not len(artist.get_paths()):
+            return False
+        xy = box.get_points()
+    else:
+        return False
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    return bool(len(xy)) and bool(np.any((xy[:, 0] < x0 - tol) | (xy[:, 0] > x1 + tol)
+                                         | (xy[:, 1] < y0 - tol) | (xy[:, 1] > y1 + tol)))
+
+
+def read_figure(fig: Figure, renderer) -> Readability:
+    """The readability record of a drawn figure."""
+    legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend()]
+    legend = [t.get_text() for lg in legends for t in lg.get_texts()]
+    texts: list[Text] = list(fig.texts) + [t for lg in legends for t in lg.get_texts()]
+    if fig._suptitle is not None and fig._suptitle not in texts:
+        texts.append(fig._suptitle)
+    for ax in fig.axes:
+        texts += [ax.title, ax._left_title, ax._right_title, ax.xaxis.label, ax.yaxis.label]
+        texts += list(ax.texts)
+        texts += [a.text for a in ax.get_children() if isinstance(a, QuiverKey)]
+    shown = [(t.get_text(), np.array(t.get_window_extent(renderer).extents))
+             for t in texts if t.get_visible() and t.get_text().strip()]
+    captions = [t for t, _ in shown]
+    mappables = {id(ax._colorbar.mappable) for ax in fig.axes if hasattr(ax, "_colorbar")}
+    rec = Readability((fig.bbox.width, fig.bbox.height), shown, legend=legend)
+    for ax in fig.axes:
+        if hasattr(ax, "_colorbar"):
+            continue
+        drawn = _drawn(ax)
+        labels = [a.get_label() for a in drawn]
+        unexplained = [f"{type(a).__name__} {lab!r}" for a, lab in zip(drawn, labels)
+                       if id(a) not in mappables and not (
+                           lab and not lab.startswith("_")
+                           and (lab in legend or any(lab in c for c in captions)))]
+        outside = [f"{type(a).__name__} {a.get_label()!r}" for a in drawn if _outside(a, ax)]
+        rec.axes.append(ReadAxes(ax.get_xlabel(), ax.get_ylabel(), ax.get_title(), ax.axison,
+                                 ax.get_xlim(), ax.get_ylim(), labels, unexplained, outside))
+    return rec
+
+
+UNIT = re.compile(r"\[[^\]]+\]")
+
+
+def check_explained(rec: Readability, dimensionless: tuple[str, ...] = ()) -> Readability:
+    """A picture explains itself: every text lies inside the image (a title that does not fit
+    is clipped) and none is drawn over another, every axis with its axis on has x and y labels with a unit in brackets (or is
+    named in ``dimensionless``, e.g. "wale"), every drawn line, collection and patch is named
+    by a legend entry, a colourbar or a caption, and no line or collection reaches outside the
+    view (nothing cropped silently)."""
+    w, h = rec.size
+    clipped = [t for t, box in rec.texts
+               if box[0] < -1 or box[1] < -1 or box[2] > w + 1 or box[3] > h + 1]
+    assert not clipped, f"texts outside the {w:.0f} x {h:.0f} px image: {clipped}"
+    overlaps = [(a, b) for i, (a, p) in enumerate(rec.texts) for b, q in rec.texts[i + 1:]
+                if min(p[2], q[2]) - max(p[0], q[0]) > 1 and min(p[3], q[3]) - max(p[1], q[1]) > 1]
+    assert not overlaps, f"texts drawn over each other: {overlaps}"
+    for ax in rec.axes:
+        if ax.data:
+            for label in (ax.xlabel, ax.ylabel):
+                assert UNIT.search(label) or label in dimensionless, \
+                    f"axis label without a unit: {label!r} (axes {ax.title!r})"
+        assert not ax.unexplained, f"not in a legend, colourbar or caption: {ax.unexplained}"
+        assert not ax.outside, f"drawn outside the view: {ax.outside} (axes {ax.title!r})"
+    return rec
+
+
 class SavedFigures:
-    """Figures saved while the fixture is active, by file name."""
+    """Figures saved while the fixture is active, by file name (figures saved to a buffer,
+    e.g. GIF frames, in ``frames``)."""
 
     def __init__(self) -> None:
         self.axes: dict[str, list[SavedAxes]] = {}
+        self.read: dict[str, Readability] = {}
+        self.frames: list[Readability] = []
+
+    def explained(self, name: str, dimensionless: tuple[str, ...] = ()) -> Readability:
+        """``check_explained`` of the figure saved as ``name``."""
+        return check_explained(self.read[name], dimensionless)
 
     def install(self, monkeypatch) -> None:
         original = Figure.savefig
 
         def savefig(fig: Figure, fname, *args, **kwargs):
             name = _saved_name(fname)
-            if name is None:                                # a buffer (e.g. the SVG text)
-                return original(fig, fname, *args, **kwargs)
+            if name is None:                                # a buffer (the SVG text, GIF frames)
+                out = original(fig, fname, *args, **kwargs)
+                self.frames.append(read_figure(fig, fig.canvas.get_renderer()))
+                return out
             dpi = kwargs.get("dpi") or fig.dpi
             old = fig.dpi
             fig.set_dpi(dpi)
@@ -48,6 +181,7 @@ class SavedFigures:
                           None if ax.get_legend() is None else
                           np.array(ax.get_legend().get_window_extent(renderer).extents))
                 for ax in fig.axes if ax.get_label() != "<colorbar>"]
+            self.read[name] = read_figure(fig, renderer)
             fig.set_dpi(old)
             return original(fig, fname, *args, **kwargs)
         monkeypatch.setattr(Figure, "savefig", savefig)

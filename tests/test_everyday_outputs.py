@@ -83,7 +83,7 @@ def test_axes_and_keys_name_their_units(write_problem):
     r = solve(load_problem(write_problem('[units]\nlength = "mm"\nforce = "N"\n' + PULL)))
     fig, ax = solution_figure(r, r.natural_centrelines(), r.centrelines())
     labels = [a.get_ylabel() for a in fig.axes]
-    assert ax.get_xlabel() == "x [mm]" and ax.get_ylabel() == "y [mm]" and "course" in labels
+    assert ax.get_xlabel() == "x [mm]" and ax.get_ylabel() == "y [mm]" and "course (deformed loops)" in labels
     assert "N·mm" in ax.get_title()
     assert len(fig.legends) == 1
     legend = fig.legends[0]

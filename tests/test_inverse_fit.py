@@ -110,7 +110,7 @@ moment = 0.3
         zip([(j, s) for j in (1, 2, 3) for s in s_vals], pts)))
     assert main(["fit", str(path), "--observations", str(csv), "--params", "k_b", "R_f",
                  "--out", str(tmp_path)]) == 0
-    r = json.loads((tmp_path / "fit.json").read_text())
+    r = json.loads((tmp_path / "bend.fit.json").read_text())     # named after its case
     assert r["parameters"]["k_b"]["std_error"] is None
     assert r["parameters"]["R_f"]["value"] == pytest.approx(1.0, rel=1e-6)
     assert r["parameters"]["R_f"]["std_error"] is not None

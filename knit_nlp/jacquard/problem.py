@@ -18,6 +18,7 @@ from ..errors import ProblemError, quoted
 from ..limits import check_memory, jacquard_bytes
 from ..outcome import SolverOptions as BaseSolverOptions
 from ..tomlio import Table, load_toml, read_regular_file
+from ..units import DEFAULT_FORCE, Units
 
 SYMBOLS = {"#": "thick", "+": "thin", ".": "net"}
 STRUCTURES = ("thick", "thin", "net")
@@ -76,6 +77,8 @@ class JacquardProblem:
     """A validated double-jacquard problem (docs/jacquard.md)."""
 
     model: ClassVar[str] = "jacquard"
+    # lengths in mm; forces in whatever unit the stiffnesses are per mm (docs/jacquard.md)
+    units: ClassVar[Units] = Units("mm", DEFAULT_FORCE)
 
     name: str
     description: str

@@ -86,7 +86,16 @@ def solve_point(doc: dict[str, Any], changes: dict[str, Any], x0: np.ndarray | N
 
 def study_row(result: dict[str, Any]) -> dict[str, Any]:
     """The values a study summary keeps of a jacquard result JSON (``energy`` read as either
-    the Energy object or the plain number older results hold)."""
+    the Energy object or the plain number older results hold) and ``grips``: each pulled
+    edge's reaction, the total force its grip applies to the fabric."""
     return {"energy": Energy.from_json(result["energy"]).to_json(),
             "iterations": result.get("iterations") or result.get("steps"),
-            "residual_force": result["residual_force"]}
+            "residual_force": result["residual_force"],
+            "grips": {f"{q['edge']} edge": [float(v) for v in q["reaction"]]
+                      for q in result.get("pulls", [])}}
+
+
+def key_unit(problem: JacquardProblem, key: str) -> str:
+    """The unit of a sweep key's values: stiffnesses in force per mm, pretensions are ratios."""
+    return f"{problem.units.force}/{problem.units.length}" if ".stiffness" in key else "-"
+

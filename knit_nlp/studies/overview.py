@@ -1,6 +1,6 @@
 """What ``knit-nlp sweep`` writes besides ``summary.json``: one CSV row per point and one
-overview picture (energy, and where the rows carry it the largest clamp force, against the
-first key)."""
+overview picture (energy and, where the rows carry it, each grip's total force on the fabric,
+against the first key, in the problem's units)."""
 from __future__ import annotations
 
 import itertools
@@ -11,6 +11,11 @@ import numpy as np
 
 from ..figures import new_figure, save_figure
 from ..jsonio import write_csv
+from ..units import Units
+
+DPI = 100
+FAILED = "not converged or lost (drawn at 0)"
+STYLES, MARKERS = ("-", "--", ":", "-."), ("o", "s", "^", "D")
 
 
 def _cell(value: Any) -> Any:
@@ -50,10 +55,10 @@ def write_table(path: Path, rows: list[dict[str, Any]]) -> Path:
     return write_csv(path, [{k: r.get(k, "") for k in fields} for r in rows], fields)
 
 
-def largest_force(row: dict[str, Any]) -> float:
-    """The largest clamp reaction or rigid-clamp force magnitude of a row (NaN: none)."""
-    value = row.get("largest_force")
-    return np.nan if value is None else float(value)
+def grip_force(row: dict[str, Any], grip: str) -> float:
+    """The magnitude of a grip's total force on the fabric in a row (NaN: none there)."""
+    value = (row.get("grips") or {}).get(grip)
+    return np.nan if value is None else float(np.hypot(*value))
 
 
 def _abscissa(values: list[Any]) -> np.ndarray:
@@ -62,37 +67,53 @@ def _abscissa(values: list[Any]) -> np.ndarray:
     return arr if arr.ndim == 1 else np.linalg.norm(arr - arr[0], axis=1)
 
 
-def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], title: str) -> Path:
-    """Energy (and, where the rows carry it, the largest clamp force) against the first key,
-    one line per combination of the other keys; failed points as crosses on the axis."""
+def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], title: str,
+                  units: Units | None = None, key_units: dict[str, str] | None = None) -> Path:
+    """Energy and, where the rows carry grips, the magnitude of each grip's total force on the
+    fabric (a shorthand table's points summed: an edge clamp is one grip) against the first
+    key, one line per grip and combination of the other keys; points that did not converge
+    (or were lost) as crosses on the axis. ``units``: the problem's; ``key_units``: the unit
+    of each key's values."""
+    units, key_units = units or Units(), key_units or {}
     rows = summary["points"]
-    forces = any(r.get("largest_force") is not None for r in rows)
-    fig = new_figure(figsize=(11 if forces else 6, 4.3))
-    axes = fig.subplots(1, 2 if forces else 1, squeeze=False)
+    grips = list(dict.fromkeys(g for r in rows for g in (r.get("grips") or {})))
+    fig = new_figure(figsize=(11 if grips else 6.5, 4.8), dpi=DPI, layout="constrained")
+    axes = fig.subplots(1, 2 if grips else 1, squeeze=False)[0]
     x_key, others = keys[0], keys[1:]
     group = lambda r: tuple(str(r["label"][k]) for k in others)  # noqa: E731
-    for name, members in itertools.groupby(sorted(rows, key=group), key=group):
+    for combination, (name, members) in enumerate(itertools.groupby(sorted(rows, key=group),
+                                                                    key=group)):
         members = list(members)
+        colour = f"C{combination % 10}"     # one colour per combination of the other keys
         x = _abscissa([r["label"][x_key] for r in members])
         ok = np.array([bool(r["success"]) for r in members])
-        label = ", ".join(f"{k} = {v}" for k, v in zip(others, name)) or None
-        ys = [[r["energy"]["total"] if "energy" in r else np.nan for r in members]]
-        if forces:
-            ys.append([largest_force(r) for r in members])
-        for ax, y in zip(axes[0], ys):
-            order = np.argsort(x, kind="stable")
-            y = np.array(y, dtype=float)
-            line, = ax.plot(x[order][ok[order]], y[order][ok[order]], "o-", ms=4, label=label)
-            ax.plot(x[~ok], np.zeros((~ok).sum()), "x", color=line.get_color(), ms=9, mew=2)
+        order = np.argsort(x, kind="stable")
+        keep = order[ok[order]]
+        where = ", ".join(f"{k} = {v}" for k, v in zip(others, name))
+        series = [(axes[0], [r["energy"]["total"] if "energy" in r else np.nan for r in members],
+                   where or "stored energy", 0)]
+        series += [(axes[1], [grip_force(r, g) for r in members],
+                    f"{g}, {where}" if where else g, k) for k, g in enumerate(grips)]
+        for ax, y, label, style in series:     # one line style and marker per grip
+            ax.plot(x[keep], np.asarray(y, dtype=float)[keep], color=colour, label=label,
+                    ls=STYLES[style % len(STYLES)], marker=MARKERS[style % len(MARKERS)],
+                    ms=6 - style % len(MARKERS), mfc="none" if style else colour)
+            if (~ok).any():
+                ax.plot(x[~ok], np.zeros((~ok).sum()), "x", color=colour, ms=9, mew=2,
+                        label=FAILED)
     is_pair = isinstance(rows[0]["label"][x_key], list)
-    xlabel = f"{x_key} (distance from the first value)" if is_pair else x_key
-    axes[0, 0].set(xlabel=xlabel, ylabel="stored energy", title="energy")
-    if forces:
-        axes[0, 1].set(xlabel=xlabel, ylabel="|force|", title="largest clamp force on the fabric")
-    for ax in axes[0]:
+    unit = key_units.get(x_key, "")
+    xlabel = (f"{x_key}: distance from the first value" if is_pair else x_key) + \
+        (f" [{unit}]" if unit else "")
+    axes[0].set(xlabel=xlabel, ylabel=f"stored energy [{units.energy}]", title="energy")
+    if grips:
+        axes[1].set(xlabel=xlabel, ylabel=f"|total force of the grip on the fabric| [{units.force}]",
+                    title="each grip's total force (a table's points summed)")
+    for ax in axes:
         ax.grid(alpha=0.3)
-        if others:
-            ax.legend(fontsize=7)
-    fig.suptitle(f"{title} (x on the axis: not converged or lost)", fontsize=10)
-    fig.tight_layout()
-    return save_figure(fig, path, dpi=100)
+        ax.title.set_fontsize(10)
+        entries = dict(zip(*reversed(ax.get_legend_handles_labels())))    # label -> handle
+        if len(entries) > 1 or grips:
+            ax.legend(list(entries.values()), list(entries), fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    return save_figure(fig, path, dpi=DPI)

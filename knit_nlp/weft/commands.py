@@ -102,7 +102,7 @@ def run_control(args: Namespace) -> int:
 
 def run_fit(args: Namespace) -> int:
     return run.fit_files([resolve(p) for p in args.problems], Path(args.observations),
-                         args.params, Path(args.out))
+                         args.params, Path(args.out), args.name)
 
 
 def run_overlay(args: Namespace) -> int:
@@ -167,7 +167,10 @@ COMMANDS = (
     ("fit", "weft: fit material values to observed points",
      ((("problems",), {"nargs": "+", "metavar": "PROBLEM"}),
       (("--observations",), {"required": True, "metavar": "FILE.csv"}),
-      (("--params",), {"nargs": "+", "default": ["k_a", "k_b", "R_f"]}), OUT), run_fit),
+      (("--params",), {"nargs": "+", "default": ["k_a", "k_b", "R_f"]}),
+      (("--name",), {"default": None, "help": "output name: <name>.fit.json, .fit.png "
+                                              "(default: the load cases' names joined by +)"}),
+      OUT), run_fit),
     ("overlay", "weft: draw a result over a photograph",
      ((("result",), {"metavar": "RESULT.json"}), (("image",), {"metavar": "IMAGE"}),
       (("--match",), {"action": "append", "default": [], "metavar": "C,W,POINT=PX,PY"}),

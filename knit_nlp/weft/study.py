@@ -172,15 +172,37 @@ def solve_point(built: WeftStudy | AdaptiveStudy, changes: dict[str, Any],
 
 def study_row(result: dict[str, Any]) -> dict[str, Any]:
     """The values a study summary keeps of a weft result JSON: energy, iterations, each
-    clamp's and rigid clamp's force, the largest of them."""
+    clamp's and rigid clamp's force, the largest of them, and ``grips``: the total force on the
+    fabric of each grip (the clamps one shorthand table made summed, by the table's name; a
+    single clamp as ``clamp N``; ``rigid_clamp[N]``)."""
     forces = [c["reaction"] for c in result["clamps"]] + [r["force"] for r in
                                                           result["rigid_clamps"]]
+    grips: dict[str, list[float]] = {}
+    for q, c in enumerate(result["clamps"], start=1):
+        name = c.get("group") or f"clamp {q}"
+        grips[name] = (np.add(grips[name], c["reaction"]) if name in grips
+                       else np.asarray(c["reaction"], dtype=float))
+    grips.update({f"rigid_clamp[{q}]": r["force"]
+                  for q, r in enumerate(result["rigid_clamps"], start=1)})
     return {"energy": result["energy"], "iterations": result["iterations"],
             "clamps": [{"loop": c["loop"], "point": c["point"], "position": c["position"],
                         "reaction": c["reaction"]} for c in result["clamps"]],
             "rigid_clamps": [{"force": r["force"], "moment": r["moment"]}
                              for r in result["rigid_clamps"]],
+            "grips": {k: [float(v) for v in f] for k, f in grips.items()},
             "largest_force": float(max(np.linalg.norm(f) for f in forces)) if forces else None}
+
+
+def key_unit(problem: WeftProblem, key: str) -> str:
+    """The unit of a sweep key's values (``knit-nlp sweep``'s picture): lengths for positions,
+    displacements and translations, the problem's force for loads, k_a and k_b in force per
+    length, R_f and moments in force × length (R_f × length), angles in rad."""
+    u = problem.units
+    field = key.split(".")[-2] if key.endswith((".x", ".y")) else key.split(".")[-1]
+    return {"k_a": f"{u.force}/{u.length}", "k_b": f"{u.force}/{u.length}",
+            "R_f": f"{u.force}·{u.length}²", "position": u.length, "displacement": u.length,
+            "translation": u.length, "force": u.force, "moment": u.energy,
+            "angle": "rad", "rotation": "rad"}.get(field, "")
 
 
 def animate_points(gif: Path, problem: WeftProblem,

@@ -105,17 +105,22 @@ class ControlResult(Outcome):
         return control_json(self)
 
     def save(self, out_dir: Path | str) -> list[Path]:
-        """``DIR/<problem>.control.json`` and the picture ``.control.png`` (start and achieved
-        loops, goals, the actuated clamps' travel)."""
+        """``DIR/<problem>.control.json`` and the picture ``.control.png`` (the equilibrium at
+        the answer with its grips and forces, the start shape, goals, the actuated clamps'
+        travel)."""
         out, name, result = Path(out_dir), self.problem.name, self.to_json()
         js = write_json(out / f"{name}.control.json", result)
         wnlp = self.ctl.eq.wnlp
         goals = np.array([g["goal"] for g in result["goals"]]).reshape(-1, 2)
         reached = np.array([g["achieved"] for g in result["goals"]]).reshape(-1, 2)
         travel = [(self.start.u[k:k + 2], self.state.u[k:k + 2]) for k in _clamp_offsets(self.ctl.cp)]
-        png = plot_control(out / f"{name}.control.png", natural_centrelines(self.problem),
-                           wnlp.centrelines(self.start.x), wnlp.centrelines(self.state.x),
-                           goals, reached, travel,
+        openings = [(pair, "opening " + "–".join(f"{q['point']} {tuple(q['loop'])}"
+                                                  for q in o["points"])
+                     + f" at least {o['at_least']:.4g}: achieved {o['achieved']:.4g}")
+                    for pair, o in zip(self.ctl.opening_points(self.state.x), result["openings"])]
+        png = plot_control(out / f"{name}.control.png", self.equilibrium,
+                           natural_centrelines(self.problem), wnlp.centrelines(self.start.x),
+                           wnlp.centrelines(self.state.x), goals, reached, travel, openings,
                            f"{name}: {result['status']}, objective {result['objective']:.3g}, "
                            f"{'stable' if result['stable'] else 'NOT STABLE'}")
         return [js, png]
@@ -166,6 +171,12 @@ class Controller:
 
     def goal_positions(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(self._goals(x)[0]).reshape(2, -1, order="F")
+
+    def opening_points(self, x: np.ndarray) -> np.ndarray:
+        """Each opening's two points at x, (openings, 2, 2) (the picture draws them)."""
+        if not self.cp.openings:
+            return np.zeros((0, 2, 2))
+        return np.asarray(self._open(x)[0]).reshape(2, -1, order="F").T.reshape(-1, 2, 2)
 
     def opening_distances(self, x: np.ndarray) -> np.ndarray:
         P = np.asarray(self._open(x)[0]).reshape(2, -1, order="F")

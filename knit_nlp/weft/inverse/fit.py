@@ -14,6 +14,7 @@ direction, or when its standard error exceeds the value.
 """
 from __future__ import annotations
 
+import hashlib
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,8 +25,11 @@ import numpy as np
 
 from ...jsonio import write_json
 from ...outcome import Energy, Outcome
-from ..model.params import MATERIAL
+from ..model.centrelines import natural_centrelines
+from ..model.params import MATERIAL, WeftParams
 from ..model.problem import WeftProblem
+from ..output.results import WeftResult
+from ..solving.solve import SolveReport
 from .equilibrium import Equilibrium
 from .observations import Observation
 from .plot import plot_fit
@@ -57,7 +61,7 @@ class FitResult(Outcome):
     """The fitted material values as a result (the contract of :mod:`knit_nlp.outcome`:
     ``nit`` the Levenberg–Marquardt iterations, ``energy`` the load cases' stored energies
     summed at the fitted values), its JSON (``to_json``, the contract's ``fit.json`` plus
-    ``warnings``) and files (``save``: ``fit.json``, ``fit.png``)."""
+    ``warnings``) and files (``save``: ``<name>.fit.json``, ``<name>.fit.png``)."""
 
     success: bool
     status: str
@@ -75,22 +79,52 @@ class FitResult(Outcome):
     energy: Energy = Energy(float("nan"), float("nan"))
     files: dict[str, str] = field(default_factory=dict)   # case -> its problem file (JSON)
 
+    name: str = ""                     # the output name (default: fit_name of the cases)
+
     def _name(self) -> str:
-        return "fit"
+        return self.name or fit_name([c.name for c in self.cases])
 
     def to_json(self) -> dict[str, Any]:
         return fit_json(self)
 
     def save(self, out_dir: Path | str) -> list[Path]:
-        """``DIR/fit.json`` and ``DIR/fit.png`` (per case: fitted loops, observed and fitted
-        points)."""
-        out, result = Path(out_dir), self.to_json()
-        js = write_json(out / "fit.json", result)
-        panels = [(c.name, c.eq.wnlp.centrelines(c.x), c.observed, self.fitted[c.name])
+        """``DIR/<name>.fit.json`` and ``DIR/<name>.fit.png`` (per case: the natural and the
+        fitted equilibrium with its grips, observed and fitted points); ``name`` defaults to
+        :func:`fit_name` of the load cases, so fits of other cases never overwrite these."""
+        out, result, name = Path(out_dir), self.to_json(), self._name()
+        js = write_json(out / f"{name}.fit.json", result)
+        panels = [(c.name, self.case_result(c), natural_centrelines(c.eq.problem),
+                   c.eq.wnlp.centrelines(c.x), c.observed, self.fitted[c.name])
                   for c in self.cases if c.x is not None]
-        title = (f"fit: {result['status']}, rms residual {result['rms_residual']:.3g}"
-                 if result["rms_residual"] is not None else "fit")
-        return [js, plot_fit(out / "fit.png", panels, title)]
+        title = (f"fit of {', '.join(self.names)}: {result['status']}, rms residual "
+                 f"{result['rms_residual']:.3g} {panels[0][1].problem.units.length}"
+                 if result["rms_residual"] is not None and panels else f"fit: {result['status']}")
+        return [js, plot_fit(out / f"{name}.fit.png", panels, title)]
+
+    def case_result(self, c: _Case) -> WeftResult:
+        """A load case's equilibrium at the fitted values, as a solve's result (its clamps and
+        reactions, for the picture)."""
+        wnlp = c.eq.wnlp
+        p = wnlp.p0.copy()
+        for n, v in zip(self.names, self.values):
+            wnlp.p.put(p, n, v)
+        report = SolveReport(True, "Solve_Succeeded", c.x, c.lam, float("nan"), 0, 0.0)
+        return WeftResult(wnlp, report, WeftParams.from_vector(c.eq.problem, p), c.eq.build_s,
+                          c.eq.solver.violation(c.x, p))
+
+
+NAME_CHARS = 60       # a fit's default name joins its cases' names up to this length
+
+
+def fit_name(cases: Sequence[str]) -> str:
+    """The default output name of a fit: its load cases' names joined by "+" (in the order
+    given), or, when that is longer than NAME_CHARS, the first case's name, how many more and
+    a short hash of them all, so two fits of different cases never share a name."""
+    joined = "+".join(cases)
+    if len(joined) <= NAME_CHARS:
+        return joined or "fit"
+    digest = hashlib.sha256("\0".join(cases).encode()).hexdigest()[:8]
+    return f"{cases[0][:NAME_CHARS - 20]}+{len(cases) - 1}_more_{digest}"
 
 
 class Fitter:
@@ -232,7 +266,7 @@ def fit(problems: Sequence[WeftProblem], observations: Sequence[Observation],
 
 
 def fit_json(ans: FitResult) -> dict[str, Any]:
-    """The contract's ``fit.json`` (plus ``message``, ``energy``, ``warnings`` and, when known,
+    """The contract's ``fit.json`` (written as ``<name>.fit.json``; plus ``message``, ``energy``, ``warnings`` and, when known,
     ``cases_files``)."""
     res = {k: np.linalg.norm(r, axis=1) for k, r in ans.residuals.items()}
     allres = np.concatenate(list(res.values())) if res else np.zeros(0)

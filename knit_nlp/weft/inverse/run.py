@@ -10,12 +10,13 @@ import numpy as np
 
 from ...errors import ProblemError
 from ...jsonio import write_json
+from ...outdir import output_name
 from ...problems import resolve
 from ...tomlio import load_toml, read_regular_file
 from ..model.params import MATERIAL
 from ..model.problem import parse_problem
 from .control import control
-from .fit import fit
+from .fit import fit, fit_name
 from .observations import load_observations
 from .overlay import load_result, overlay, parse_match, point_reader
 from .plot import plot_on_image
@@ -46,8 +47,13 @@ def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
     return 0 if ans.success else 1
 
 
-def fit_files(paths: list[Path], observations: Path, params: list[str], out: Path) -> int:
-    """``knit-nlp fit``: write ``fit.json`` and ``fit.png``; exit 0 when the fit converged."""
+def fit_files(paths: list[Path], observations: Path, params: list[str], out: Path,
+              name: str | None = None) -> int:
+    """``knit-nlp fit``: write ``<name>.fit.json`` and ``.fit.png`` (``name``: ``--name``, by
+    default the load cases' names joined by "+", ``fit.fit_name``); exit 0 when the fit
+    converged."""
+    if name is not None:
+        output_name("--name", name)
     if not params or len(set(params)) != len(params) or any(n not in MATERIAL for n in params):
         raise ProblemError("--params", "", " ".join(params), f"choose distinct values among {', '.join(MATERIAL)}")
     problems = {}
@@ -61,7 +67,8 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     if missing:
         raise ProblemError(observations, "", "case", f"no observations of case {missing[0]!r}")
     ans = fit(list(problems.values()), obs, params)
-    ans.files = {name: str(path) for name, path in zip(problems, paths)}
+    ans.files = {case: str(path) for case, path in zip(problems, paths)}
+    ans.name = fit_name(list(problems)) if name is None else name
     js, png = ans.save(out)
     result = ans.to_json()
     print(f"fit: {result['status']} in {result['iterations']} iterations, "
@@ -77,7 +84,9 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
 
 def overlay_file(result_path: Path, image: Path, matches: list[str], observations: Path | None,
                  problem: Path | None, out: Path) -> int:
-    """``knit-nlp overlay``: write ``<result stem>.overlay.png`` (and ``.overlay.json``)."""
+    """``knit-nlp overlay``: write ``<result stem>.<image stem>.overlay.png`` (and
+    ``.overlay.json``), so overlays of one result on several photographs do not overwrite
+    each other."""
 
     shape = load_result(result_path)
     problem = problem or _problem_of(shape.result, result_path)
@@ -91,16 +100,19 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
     except (OSError, ValueError, SyntaxError) as err:
         raise ProblemError(image, "", "", f"cannot read the image ({err})") from None
     ans = overlay(shape, parsed, obs)
-    stem = result_path.name.removesuffix(".json")
+    stem = overlay_name(result_path, image)
+    t = ans.transform
+    caption = (f"{shape.result.get('problem', '')}: similarity scale {t.scale:.4g} px/unit, "
+               f"rotation {np.degrees(t.rotation):.3f} deg; largest match residual "
+               f"{max(ans.residuals_px, default=0.0):.3g} px")
     png = plot_on_image(out / f"{stem}.overlay.png", picture, ans.lines_px,
                         np.array([m.pixel for m in parsed]), ans.transform.to_pixels(ans.model_points),
-                        ans.observed_px)
+                        ans.observed_px, caption)
     info = {"result": str(result_path), "image": str(image), "transform": ans.transform.as_dict(),
             "matches": [{"loop": list(m.loop), "point": m.point, "pixel": m.pixel.tolist(),
                          "residual_px": float(r)} for m, r in zip(parsed, ans.residuals_px)],
             "observed_rms_model_units": ans.observed_rms}
     js = write_json(out / f"{stem}.overlay.json", info)
-    t = ans.transform
     print(f"similarity: scale {t.scale:.6g} px/unit, rotation {np.degrees(t.rotation):.4f} deg, "
           f"shift ({t.b.real:.3f}, {-t.b.imag:.3f}) px")
     for m, r in zip(parsed, ans.residuals_px):
@@ -109,6 +121,12 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
         print(f"  observed vs computed: RMS {ans.observed_rms:.4g} model units over {len(obs)} points")
     print(f"  wrote {png}, {js}")
     return 0
+
+
+def overlay_name(result_path: Path, image: Path) -> str:
+    """``<result stem>.<image stem>``: the name of an overlay's files (``.overlay.png``,
+    ``.overlay.json``)."""
+    return f"{result_path.name.removesuffix('.json')}.{image.stem}"
 
 
 def _problem_of(result: dict, result_path: Path) -> Path:

@@ -1,12 +1,14 @@
 """Pictures of weft-knit solutions that explain themselves: axes in the problem's units, a
 course key (or a displacement colourbar), grips drawn as they hold (a point clamp as a square,
-the clamps of one course/wale/edge shorthand and a rigid clamp as a bar, a moved clamp's target
-as a cross), reactions and loads as arrows on one scale with a reference arrow, legends outside
-the fabric; full-versus-reduced overlays; force against displacement along a loading path; and
+the clamps of one course/wale/edge shorthand and a rigid clamp as a bar whose legend entry gives
+the grip's total force, a moved clamp's target as a cross), reactions and loads as arrows on one
+scale with a reference arrow, one legend outside the fabric built from what is drawn (a new
+labelled artist joins it by itself); full-versus-reduced overlays; force against displacement along a loading path; and
 GIF animations of a loading path (matplotlib's PillowWriter)."""
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -17,7 +19,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
 from ...atomic import temporary_path
-from ...figures import new_figure, save_figure
+from ...figures import fit_titles, legend_below, new_figure, save_figure, settle_layout
 from ...units import Units
 from .reactions import SolvedFabric
 from .yarn import draw_yarn
@@ -26,6 +28,7 @@ DPI = 110
 COLOURINGS = ("course", "displacement")
 REACTION, LOAD, GRIP = "crimson", "royalblue", "black"
 ARROW_FRACTION = 0.15          # the largest arrow is this fraction of the fabric's extent
+KEY_WIDTH = 0.3               # the fraction of the width under the picture kept for the reference arrow
 NEGLIGIBLE = 1e-6              # arrows below this fraction of the largest (or below tol) are not drawn
 
 
@@ -72,66 +75,116 @@ def drawn_arrows(result: SolvedFabric) -> list[tuple[np.ndarray, np.ndarray, str
     return [a for a in arrows if np.hypot(*a[1]) > floor]
 
 
-def _grip_bars(result: SolvedFabric) -> tuple[list[np.ndarray], np.ndarray]:
-    """Bars (polylines through the held points) of shorthand clamp groups and rigid clamps, and
-    the positions of the remaining single point clamps."""
-    groups: dict[str, list[np.ndarray]] = defaultdict(list)
+def _grip_bars(result: SolvedFabric) -> tuple[list[tuple[str, np.ndarray, str]], np.ndarray]:
+    """(name, polyline through the held points, legend label with the grip's total force) of
+    every shorthand clamp table and rigid clamp, and the positions of the single point
+    clamps."""
+    units = result.problem.units
+    groups: dict[str, list] = defaultdict(list)
     singles = []
     for c in result.clamps:
-        (groups[c.group].append(c.position) if c.group else singles.append(c.position))
-    bars = [np.array(ps) for ps in groups.values()] + [rc.positions for rc in result.rigid_clamps]
+        (groups[c.group].append(c) if c.group else singles.append(c.position))
+    bars = []
+    for name, members in groups.items():
+        total = np.sum([c.reaction for c in members], axis=0)
+        bars.append((name, np.array([c.position for c in members]),
+                     f"{name} ({len(members)} points): total force "
+                     f"{_pair(total)} {units.force}"))
+    for rc in result.rigid_clamps:
+        bars.append((f"rigid_clamp[{rc.number}]", rc.positions,
+                     f"rigid_clamp[{rc.number}] ({len(rc.positions)} points): total force "
+                     f"{_pair(rc.force)} {units.force}, moment {rc.moment:.4g} {units.energy}"))
     return bars, np.array(singles).reshape(-1, 2)
+
+
+def _pair(v: np.ndarray) -> str:
+    """A force as "(x, y)" to four significant digits (negligible components as 0)."""
+    scale = max(float(np.abs(v).max()), 1e-300)
+    return "(" + ", ".join(f"{(0.0 if abs(c) < 1e-9 * scale else c):.4g}" for c in v) + ")"
+
+
+def draw_solution(ax: Axes, result: SolvedFabric, natural: np.ndarray, deformed: np.ndarray,
+                  colour: str | None = "course", forces: bool = True, yarn: bool = False) -> Any:
+    """Draw a solution into ``ax``: natural loops grey, deformed loops coloured by course, by
+    displacement magnitude or (``colour`` None) in one colour, the grips (each shorthand table
+    and rigid clamp a bar whose legend entry gives its total force), targets and, with
+    ``forces``, the force arrows. Every artist is labelled for the figure's legend. Returns
+    the colour-mapped collection (None for one colour) and the arrows' scale (None: none).
+    With ``yarn`` the yarn is drawn with its thickness and the active contacts marked."""
+    pts = np.concatenate([natural.reshape(-1, 2), deformed.reshape(-1, 2)])
+    size = float(np.max(pts.max(axis=0) - pts.min(axis=0)))
+    ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0,
+                                     label="natural", zorder=1))
+    mapped = None
+    if colour == "displacement":
+        mag = np.linalg.norm(deformed - natural, axis=-1)
+        mapped = LineCollection(_segments(deformed), array=0.5 * (mag[..., :-1] + mag[..., 1:]).ravel(),
+                                cmap="viridis", linewidths=1.8, zorder=2)
+        ax.add_collection(mapped)
+    elif colour == "course":
+        m = len(deformed)
+        mapped = LineCollection(course_lines(deformed), array=np.arange(1, m + 1), cmap="viridis",
+                                linewidths=1.8, zorder=2)
+        mapped.set_clim(0.5, m + 0.5)
+        ax.add_collection(mapped)
+    else:
+        ax.add_collection(LineCollection(course_lines(deformed), colors="tab:blue",
+                                         linewidths=1.4, zorder=2, label="equilibrium"))
+    if yarn:
+        draw_yarn(ax, result, deformed)
+    _draw_grips(ax, result)
+    scale = _draw_forces(ax, result, size) if forces else None
+    ax.autoscale()
+    ax.set_aspect("equal")
+    ax.margins(0.03)
+    units = result.problem.units
+    ax.set_xlabel(f"x [{units.length}]")
+    ax.set_ylabel(f"y [{units.length}]")
+    return mapped, scale
 
 
 def solution_figure(result: SolvedFabric, natural: np.ndarray, deformed: np.ndarray,
                     colour: str = "course", yarn: bool = False) -> tuple[Figure, Axes]:
-    """The solution picture (not saved): natural loops grey, deformed loops coloured by course
-    or by displacement magnitude, grips, targets and force arrows; with ``yarn`` the yarn with
-    its thickness and the active contacts (``yarn.draw_yarn``)."""
+    """The solution picture (not saved): :func:`draw_solution` with its colour key, the
+    reference arrow under the picture, a title and the legend below the axes; with ``yarn`` the
+    yarn with its thickness and the active contacts (``yarn.draw_yarn``)."""
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}; got {colour!r}")
     units = result.problem.units
     pts = np.concatenate([natural.reshape(-1, 2), deformed.reshape(-1, 2)])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    size = float(np.max(hi - lo))
-    fig, ax = _figure(hi - lo)
-    ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0,
-                                     label="natural", zorder=1))
-    if colour == "displacement":
-        mag = np.linalg.norm(deformed - natural, axis=-1)
-        lc = LineCollection(_segments(deformed), array=0.5 * (mag[..., :-1] + mag[..., 1:]).ravel(),
-                            cmap="viridis", linewidths=1.8, zorder=2)
-        ax.add_collection(lc)
-        fig.colorbar(lc, ax=ax, label=f"displacement [{units.length}]", shrink=0.8)
-    else:
-        m = len(deformed)
-        lc = LineCollection(course_lines(deformed), array=np.arange(1, m + 1), cmap="viridis",
-                            linewidths=1.8, zorder=2)
-        lc.set_clim(0.5, m + 0.5)
-        ax.add_collection(lc)
-        bar = fig.colorbar(lc, ax=ax, label="course", shrink=0.8)
-        bar.set_ticks(np.unique(np.linspace(1, m, min(m, 10)).round().astype(int)))
-    if yarn:
-        draw_yarn(ax, result, deformed)
-    _draw_grips(ax, result)
-    _draw_forces(ax, result, size)
-    ax.autoscale()
-    ax.set_aspect("equal")
-    ax.margins(0.03)
-    ax.set_xlabel(f"x [{units.length}]")
-    ax.set_ylabel(f"y [{units.length}]")
+    fig, ax = _figure(pts.max(axis=0) - pts.min(axis=0))
+    mapped, forces = draw_solution(ax, result, natural, deformed, colour, yarn=yarn)
+    colour_key(fig, ax, mapped, colour, len(deformed), units)
+    reference_arrow(ax, forces, units)
     ax.set_title(f"{result.problem.name} ({result.model}): stored energy "
                  f"{result.energy.total:.4g} {units.energy}, "
                  f"{'converged' if result.success else 'NOT CONVERGED'}", fontsize=10)
-    fig.legend(loc="outside lower left", ncol=3, fontsize=8, frameon=False)
+    legend_below(fig, reserve=KEY_WIDTH if forces else 0.0)
+    settle_layout(fig)
     return fig, ax
+
+
+def colour_key(fig: Figure, ax: Axes, mapped: Any, colour: str | None, courses: int,
+               units: Units) -> None:
+    """The colourbar of :func:`draw_solution`'s coloured loops (nothing for one colour)."""
+    if mapped is None:
+        return
+    if colour == "displacement":
+        fig.colorbar(mapped, ax=ax, label=f"displacement [{units.length}]", shrink=0.8)
+        return
+    bar = fig.colorbar(mapped, ax=ax, label="course (deformed loops)", shrink=0.8)
+    bar.set_ticks(np.unique(np.linspace(1, courses, min(courses, 10)).round().astype(int)))
 
 
 def _draw_grips(ax: Axes, result: SolvedFabric) -> None:
     bars, singles = _grip_bars(result)
-    for k, bar in enumerate(bars):
+    for name, bar, label in bars:
         ax.plot(bar[:, 0], bar[:, 1], "-", color=GRIP, lw=4, alpha=0.6, solid_capstyle="butt",
-                zorder=3, label="line grip" if k == 0 else None)
+                zorder=3, label=label)
+        if len(bars) > 1:               # which bar is which: its table's name beside it
+            ax.annotate(name, bar[len(bar) // 2], fontsize=7, ha="center", va="center",
+                        zorder=7, bbox={"boxstyle": "round,pad=0.15", "fc": "white",
+                                        "ec": "none", "alpha": 0.8})
     if len(singles):
         ax.plot(singles[:, 0], singles[:, 1], "s", color=GRIP, ms=6, zorder=4,
                 label="point clamp")
@@ -150,10 +203,21 @@ def _draw_grips(ax: Axes, result: SolvedFabric) -> None:
             ax.plot(tg[:, 0], tg[:, 1], marker, color=GRIP, ms=12, mew=2, zorder=5, label=label)
 
 
-def _draw_forces(ax: Axes, result: SolvedFabric, size: float) -> None:
+@dataclass(frozen=True)
+class ForceScale:
+    """The arrows' scale (data length per force unit), the largest force drawn and a quiver
+    to hang the reference arrow on."""
+
+    quiver: Any
+    scale: float
+    largest: float
+
+
+def _draw_forces(ax: Axes, result: SolvedFabric, size: float) -> ForceScale | None:
+    """The reaction and load arrows on one scale (None: no arrow is drawn)."""
     arrows = drawn_arrows(result)
     if not arrows:
-        return
+        return None
     largest = max(float(np.hypot(*f)) for _, f, _ in arrows)
     scale = ARROW_FRACTION * size / largest
     q = None
@@ -164,10 +228,19 @@ def _draw_forces(ax: Axes, result: SolvedFabric, size: float) -> None:
         p, f = np.array([a for a, _ in sel]), np.array([b for _, b in sel])
         q = ax.quiver(p[:, 0], p[:, 1], f[:, 0] * scale, f[:, 1] * scale, angles="xy",
                       scale_units="xy", scale=1, color=colour, width=0.005, zorder=6,
-                      label="clamp reaction" if kind == "reaction" else "load")
+                      label="force of each clamp on the fabric" if kind == "reaction"
+                      else "load")
         ax.update_datalim(p + f * scale)                 # keep the arrow tips in view
-    ref = round_reference(largest)
-    ax.quiverkey(q, 0.72, 0.035, ref * scale, f"{ref:g} {result.problem.units.force}",
+    return ForceScale(q, scale, largest)
+
+
+def reference_arrow(ax: Axes, forces: ForceScale | None, units: Units) -> None:
+    """The reference arrow of the force scale, under the picture (nothing without arrows)."""
+    if forces is None:
+        return
+    ref = round_reference(forces.largest)
+    ax.quiverkey(forces.quiver, 1.0 - KEY_WIDTH + 0.02, 0.035, ref * forces.scale,
+                 f"{ref:g} {units.force}",
                  labelpos="E", coordinates="figure", color="0.2", fontproperties={"size": 8})
 
 
@@ -185,13 +258,15 @@ def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndar
     pts = np.concatenate([natural.reshape(-1, 2)] + [d.reshape(-1, 2) for _, d in frames])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     fig, ax = _figure(hi - lo, width=6.0)
-    ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0))
+    ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0,
+                                     label="natural"))
     m = len(natural)
     lc = LineCollection(course_lines(frames[0][1]), array=np.arange(1, m + 1), cmap="viridis",
                         linewidths=1.6)
     lc.set_clim(0.5, m + 0.5)
     ax.add_collection(lc)
-    fig.colorbar(lc, ax=ax, label="course", shrink=0.8)
+    fig.colorbar(lc, ax=ax, label="course (deformed loops)", shrink=0.8)
+    legend_below(fig)
     pad = 0.03 * (hi - lo).max()
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
@@ -204,6 +279,7 @@ def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndar
             for title, lines in frames:
                 lc.set_segments(course_lines(lines))
                 ax.set_title(title, fontsize=9)
+                fit_titles(fig)
                 writer.grab_frame()
     return path
 
@@ -235,10 +311,12 @@ def plot_overlay(path: Path, full: np.ndarray, reduced: np.ndarray, title: str,
     units = units or Units()
     pts = np.concatenate([full.reshape(-1, 2), reduced.reshape(-1, 2)])
     fig, ax = _figure(pts.max(axis=0) - pts.min(axis=0))
-    ax.add_collection(LineCollection(course_lines(full), colors="k", linewidths=0.8))
+    ax.add_collection(LineCollection(course_lines(full), colors="k", linewidths=0.8,
+                                     label="full model"))
     err = np.linalg.norm(full - reduced, axis=-1)
     lc = LineCollection(_segments(reduced), array=0.5 * (err[..., :-1] + err[..., 1:]).ravel(),
-                        cmap="plasma", linewidths=2.0)
+                        cmap="plasma", linewidths=2.0,
+                        label="reduced model, coloured by its distance to the full one")
     ax.add_collection(lc)
     fig.colorbar(lc, ax=ax, label=f"distance full - reduced [{units.length}]", shrink=0.8)
     ax.autoscale()
@@ -247,4 +325,5 @@ def plot_overlay(path: Path, full: np.ndarray, reduced: np.ndarray, title: str,
     ax.set_xlabel(f"x [{units.length}]")
     ax.set_ylabel(f"y [{units.length}]")
     ax.set_title(title, fontsize=10)
+    legend_below(fig, max_columns=2)
     return save_figure(fig, path, dpi=DPI)
