@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Union
+from typing import TYPE_CHECKING, Any, Callable, Union
 
 from .errors import ProblemError, quoted
 from .jacquard import commands as jacquard_commands, study as jacquard_study
@@ -27,12 +27,14 @@ from .problems import resolve
 from .tomlio import load_toml
 from .weft import commands as weft_commands, keys as weft_keys, study as weft_study
 from .weft.api import compare as compare_weft, solve as solve_weft
-from .weft.inverse.calibration import CalibrationResult, CalibrationSpec, calibrate as calibrate_weft
 from .weft.model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .weft.model.problem import WeftProblem, parse_problem as parse_weft
 from .weft.output.comparison import Comparison
 from .weft.output.results import WeftResult
 from .weft.output.summary import compare_summary, solve_summary as weft_summary
+
+if TYPE_CHECKING:
+    from .weft.inverse.calibration import CalibrationResult, CalibrationSpec
 
 Problem = Union[WeftProblem, JacquardProblem]
 Result = Union[WeftResult, JacquardResult]
@@ -181,5 +183,8 @@ def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:
     calibration spec (a path, a shipped spec's name such as ``real_fabric/acrylic_fit_x``, or
     a loaded :class:`~knit_nlp.weft.inverse.calibration.CalibrationSpec`) in, a typed
     :class:`~knit_nlp.weft.inverse.calibration.CalibrationResult` out (``knit-nlp calibrate``;
-    docs/real_fabric.md)."""
+    docs/real_fabric.md). The calibration's modules are imported here, when it runs: they load
+    scipy (optimize, sparse, interpolate), 1.5-2 s of the front door's import under load that
+    solving never needs."""
+    from .weft.inverse.calibration import calibrate as calibrate_weft
     return calibrate_weft(spec_or_path)

@@ -11,7 +11,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
-import matplotlib.image as mpimg
 import numpy as np
 
 from ..errors import ProblemError, quoted
@@ -165,6 +164,7 @@ def _load_png(path: Path, table: Table, key: str, shape: tuple[int, int]) -> np.
     if size != (m, n):
         raise table.error(key, f"design image is {size[0]} x {size[1]} pixels; [fabric] "
                           f"declares {m} wales x {n} courses (one pixel per cell)")
+    import matplotlib.image as mpimg      # heavy (0.7-1.4 s with Pillow): only for PNG designs
     try:
         pixels = np.asarray(mpimg.imread(io.BytesIO(data), format="png"))
     except (OSError, ValueError, SyntaxError, EOFError) as err:  # Pillow's errors

@@ -17,8 +17,6 @@ from ..errors import ProblemError, quoted
 from ..outdir import prepare_out
 from ..problems import resolve
 from ..tomlio import load_toml
-from .inverse.calibration import command as calibration
-from .inverse import run
 from .inverse.spec import has_control_keys, strip_control_keys
 from .model.problem import MAX_CONTINUATION, WeftProblem, parse_problem
 from .output.check import SAMPLES, check, load_result_json, write_check
@@ -95,17 +93,24 @@ def save_options(args: Namespace) -> dict[str, Any]:
             "yarn": args.yarn}
 
 
+# The inverse problems' commands import their modules when they run: those load scipy
+# (optimize, sparse, interpolate: 1.5-2 s of a loaded machine's 3.8 s CLI import, measured with
+# ``python -X importtime -c "import knit_nlp.cli"``), which ``knit-nlp solve`` never needs.
+
 def run_control(args: Namespace) -> int:
+    from .inverse import run
     path = resolve(args.problem)
     return run.control_file(path, load_toml(path), Path(args.out))
 
 
 def run_fit(args: Namespace) -> int:
+    from .inverse import run
     return run.fit_files([resolve(p) for p in args.problems], Path(args.observations),
                          args.params, Path(args.out), args.name)
 
 
 def run_overlay(args: Namespace) -> int:
+    from .inverse import run
     return run.overlay_file(Path(args.result), Path(args.image), args.match,
                             Path(args.observations) if args.observations else None,
                             resolve(args.problem) if args.problem else None, Path(args.out))
@@ -159,6 +164,11 @@ def _problem_of(result: Any, result_path: Path, given: Path | None) -> WeftProbl
     return parse_problem(strip_control_keys(doc), given)
 
 
+def run_calibrate(args: Namespace) -> int:
+    from .inverse.calibration import command
+    return command.run(args)
+
+
 OUT = (("--out",), {"default": "results", "help": "output folder (default: results)"})
 # (name, help, arguments (names, argparse keywords), run)
 COMMANDS = (
@@ -184,7 +194,7 @@ COMMANDS = (
                            "[calibrate] table, or one under the named problems' folder, e.g. "
                            "real_fabric/acrylic_fit_x"}), OUT,
       (("--force",), {"action": "store_true",
-                      "help": "overwrite results of another spec in --out"})), calibration.run),
+                      "help": "overwrite results of another spec in --out"})), run_calibrate),
     ("check", "weft: count yarns passing through each other (crossings not in the natural "
      "fabric) and gaps below 2r in a result",
      ((("result",), {"metavar": "RESULT.json"}),

@@ -30,7 +30,7 @@ from ..model.params import WeftParams
 from ..transcription.factory import transcribe
 from ..transcription.protocol import WeftNLP
 from .starts import (STARTS, coarse_chain, needs_perturbation, perturbed_starts, prolong,
-                     rigid_start)
+                     prolong_multipliers, rigid_start)
 
 DEFAULT_START = "multilevel"    # measured: docs/measurements.md
 # a cold solve of the coarsest fabric in at most this many iterations marks a pull the natural
@@ -38,6 +38,14 @@ DEFAULT_START = "multilevel"    # measured: docs/measurements.md
 # 100 x 100, where the coarse solves cost more than they save; diagonal pulls 9 on 8 x 8 and
 # 13-39 on larger fabrics)
 EASY_ITERATIONS = 6
+# IPOPT options by transcription (``WeftNLP.model``), measured (docs/measurements.md, "IPOPT and
+# the KKT systems"). Full model: its first Newton systems from a multilevel start have the
+# wrong inertia (33-63 negative curvature directions, 100 x 100 diagonal pull) until the
+# Hessian is regularised by delta_w = 1, which IPOPT reaches from its default first trial 1e-4
+# in three factorisations (1e-4, 1e-2, 1); starting the trials at 1 reaches the same delta_w,
+# hence the same iterates, in one: 14 -> 12 factorisations of the KKT system.
+MODEL_IPOPT: dict[str, dict] = {"full": {"first_hessian_perturbation": 1.0}, "reduced": {}}
+WARM = {"warm_start_init_point": "yes"}     # start from given multipliers (``once(..., lam_g0=...)``)
 
 
 @dataclass
@@ -77,7 +85,8 @@ class WeftSolver:
         # time and the KKT systems here are well scaled without them
         options = {**ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
                                    max_wall_time=opts.max_time, mumps_scaling=0,
-                                   mumps_permuting_scaling=0, **(ipopt or {})),
+                                   mumps_permuting_scaling=0, **MODEL_IPOPT.get(wnlp.model, {}),
+                                   **(ipopt or {})),
                    **wnlp.nlpsol_options}
         self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints) if verbose else None
         if self.progress is not None:
@@ -249,21 +258,31 @@ def multilevel_start(wnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
                      ) -> np.ndarray | None:
     """Solve the pull on the coarsest fabric of :func:`coarse_chain` from its natural state; if
     that took more than EASY_ITERATIONS (the pull is hard for a cold start), prolong the
-    solution level by level (each level solved from the prolonged start) up to this fabric.
+    solution level by level up to this fabric. Each coarser level after the first starts from
+    the prolonged loops *and multipliers* (``starts.prolong_multipliers``; a failed warm solve
+    is repeated as usual, IPOPT estimating them); this fabric's solve starts from the loops
+    only: with the prolonged multipliers the 100 x 100 diagonal pull's first Newton step was
+    4 x longer and ended in another minimum (557.13 against 547.20), with IPOPT's least-squares
+    estimate and its regularised first steps in the usual one (docs/measurements.md).
     None (start natural) where no coarser problem is defined, the probe was easy or a coarse
     solve failed. Every coarse solve is appended to ``log``, coarsest first."""
     chain = coarse_chain(wnlp.problem, WeftParams.from_vector(wnlp.problem, p))
-    x, prev = None, None
+    x, lam, prev = None, None, None
     for level, cp in enumerate(reversed(chain)):
         nlp = transcribe(cp, Full())
-        x0 = None if prev is None else prolong(prev, x, nlp)
-        rep = solve(nlp, WeftSolver(nlp), x0=x0, start="natural")
+        if prev is None:
+            rep = solve(nlp, WeftSolver(nlp), start="natural")
+        else:
+            x0 = prolong(prev, x, nlp)
+            rep = WeftSolver(nlp, ipopt=WARM).once(nlp.p0, x0, lam_g0=prolong_multipliers(prev, lam, nlp))
+            if not rep.success:
+                rep = _combined(solve(nlp, WeftSolver(nlp), x0=x0), [rep], [])
         if log is not None:
             log.append(f"multilevel {cp.courses}x{cp.wales}: {rep.status} ({rep.iterations} it, "
                        f"{rep.solve_s:.2f} s)")
         if not rep.success or (level == 0 and rep.iterations <= EASY_ITERATIONS):
             return None
-        x, prev = rep.x, nlp
+        x, lam, prev = rep.x, rep.lam_g, nlp
     return None if prev is None else prolong(prev, x, wnlp)
 
 
