@@ -254,7 +254,7 @@ def test_prolonged_multipliers_approximate_the_fine_ones_and_save_iterations():
         bound = (0.15 if name.startswith(("clamp", "lift_special")) else
                  0.7 if name == "continuity" else 0.4)
         assert rel < bound, name
-    warm = WeftSolver(fine, ipopt=solving.WARM).once(fine.p0, x0, lam)
+    warm = WeftSolver(fine, ipopt=solving.WARM).once(fine.p0, x0, lam_g0=lam)
     assert warm.success and warm.iterations < cold.iterations
     assert abs(warm.objective - cold.objective) < 1e-9 * cold.objective
     assert np.max(np.abs(fine.coefficients(warm.x) - fine.coefficients(cold.x))) < 1e-6

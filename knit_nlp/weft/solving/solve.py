@@ -85,8 +85,8 @@ class WeftSolver:
         # time and the KKT systems here are well scaled without them
         options = {**ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
                                    max_wall_time=opts.max_time, mumps_scaling=0,
-                                   mumps_permuting_scaling=0, **MODEL_IPOPT.get(wnlp.model, {}),
-                                   **(ipopt or {})),
+                                   mumps_permuting_scaling=0,
+                                   **{**MODEL_IPOPT.get(wnlp.model, {}), **(ipopt or {})}),
                    **wnlp.nlpsol_options}
         self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints) if verbose else None
         if self.progress is not None:
