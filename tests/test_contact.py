@@ -234,3 +234,30 @@ def test_without_a_radius_nothing_changes():
     assert "contact" not in free.to_json() and free.success
     again = solve(dataclasses.replace(squeezed(0.5), yarn=None))
     np.testing.assert_array_equal(free.x, again.x)
+
+
+def test_a_failed_step_after_a_widened_search_reports_the_solved_pairs(monkeypatch):
+    """Load steps that fail after one success widen the search (new pairs) and give up: the run
+    must report the pairs of its last solved step with their multipliers, not the newer search
+    (they differed in length: an IndexError in the result's contact block at 10 x 10)."""
+    pr = squeezed(0.5)
+    base = build_nlp(pr)
+    contact = ContactSolver(base, pr.yarn.radius)
+    report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
+    real_step, real_pairs, solved = contact.step, contact.pairs, []
+
+    def step(*args, **kwargs):              # the first step is solved, every later one fails
+        out = real_step(*args, **kwargs) if not solved else None
+        solved.append(out)
+        return out
+
+    def pairs(x):                           # a search after the first step finds one pair fewer
+        found = real_pairs(x)
+        return found.select(np.arange(len(found)) > 0) if solved else found
+
+    monkeypatch.setattr(contact, "step", step)
+    monkeypatch.setattr(contact, "pairs", pairs)
+    run = contact.run(base.params.vector(), WeftParams.natural(pr).vector(), base.x0, 2, report,
+                      max_halvings=1)
+    assert solved[0] is not None and not run.report.success
+    assert len(run.pairs) == len(run.lam_gap) == len(solved[0][1])

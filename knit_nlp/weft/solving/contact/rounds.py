@@ -230,6 +230,7 @@ class ContactSolver:
         rounds: list[Round] = []
         x, tau, dtau, halvings = x_start, 0.0, 1.0 / steps, 0
         pairs, lam, warm = self.pairs(x), None, None
+        solved = pairs                 # the pairs of the last solved step (lam's pairs)
         while tau < 1.0:
             if time.perf_counter() >= self.deadline:
                 report.success, report.status = False, OUT_OF_TIME
@@ -251,14 +252,17 @@ class ContactSolver:
                 dtau /= 2
                 continue
             x, pairs, warm, lam = out
+            solved = pairs
             tau, halvings, self.reach = nxt, 0, REACH * self.base.problem.L
             report.success, report.status = True, "Solve_Succeeded"
             report.continuation_steps += 1
             report.path.append((tau, x, report.lam_g))
             dtau = min(1.0, dtau * 1.5)
+        # a failed step may have widened the reach and found more pairs since: report the
+        # pairs of the last solved step with their multipliers
         if lam is None:
-            lam = np.zeros(len(pairs))
-        return ContactRun(report, pairs, lam, rounds,
+            lam = np.zeros(len(solved))
+        return ContactRun(report, solved, lam, rounds,
                           0 if self.cnlp is None else self.cnlp.n_variables,
                           0 if self.cnlp is None else self.cnlp.n_constraints,
                           None if warm is None else (warm[1], warm[2]))
