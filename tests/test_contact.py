@@ -196,7 +196,7 @@ def test_natural_gaps_of_the_jersey_preset():
 
 def test_the_reduced_model_is_refused_with_a_radius():
     pr = dataclasses.replace(parse_problem(diagonal_pull(4), "x"), yarn=Yarn(0.2))
-    with pytest.raises(ContactRefused, match="reduced model has no yarn contact"):
+    with pytest.raises(ContactRefused, match="reduced model: no yarn contact yet"):
         solve(pr, Reduced())
     with pytest.raises(ValueError):
         solve(pr, warm_from_reduced=True)

@@ -101,7 +101,7 @@ def test_the_reduced_model_with_a_radius_is_refused_with_a_reason(write_problem,
     assert main(["solve", str(path), "--reduced", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "[yarn] radius" in err or "yarn.radius" in err or "radius" in err
-    assert "reduced model has no yarn contact" in err and err.count("\n") == 1
+    assert "reduced model: no yarn contact yet" in err and err.count("\n") == 1
 
 
 @pytest.mark.parametrize("radius, words", [(0.0, "positive"), (-0.1, "positive"),
@@ -171,5 +171,21 @@ def test_control_and_fit_with_a_radius_are_refused_with_a_reason(tmp_path, capsy
     path.write_text(resolve("place_stitch").read_text() + "\n" + YARN)
     assert main(["control", str(path), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert "control and fit has no yarn contact yet" in err and err.count("\n") == 1
+    assert "control, fit and calibrate: no yarn contact yet" in err and err.count("\n") == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_calibrate_with_a_radius_is_refused_with_a_reason(tmp_path, capsys):
+    """Calibration solves through the same equilibrium as control and fit: with a yarn radius it
+    refuses in one line (exit 2) rather than fitting the paper's model under a contact label."""
+    import shutil
+    from knit_nlp.weft.inverse.calibration.spec import spec_path
+    spec = spec_path("real_fabric/acrylic_fit_x")
+    for csv in spec.parent.glob("*.csv"):
+        shutil.copy(csv, tmp_path / csv.name)
+    path = tmp_path / "acrylic_contact.toml"
+    path.write_text(spec.read_text() + "\n[yarn]\nradius = 0.74\n")
+    assert main(["calibrate", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "control, fit and calibrate: no yarn contact yet" in err and err.count("\n") == 1
+    assert not any((tmp_path / "o").glob("**/*.*"))        # no result written

@@ -64,7 +64,7 @@ class Equilibrium:
     def __init__(self, problem: WeftProblem) -> None:
         if problem.yarn is not None:
             # the sensitivities would need the active contacts as equality rows of K
-            raise refuse(problem, "control and fit", "their implicit-function gradients do not yet "
+            raise refuse(problem, "control, fit and calibrate", "their implicit-function gradients do not yet "
                          "hold the active contacts; solve the problem at chosen targets with "
                          "knit-nlp solve or sweep")
         t0 = time.perf_counter()

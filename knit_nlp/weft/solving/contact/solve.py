@@ -40,7 +40,7 @@ REDUCED_WHY = ("its loops are interpolated from representatives and contact pair
 def refuse(problem: WeftProblem, what: str, why: str = REDUCED_WHY) -> ContactRefused:
     """The refusal of ``what`` for a problem with a yarn radius, naming ``[yarn] radius``,
     saying why and what to do instead."""
-    return ContactRefused(problem.source, "yarn", "radius", f"{what} has no yarn contact yet: "
+    return ContactRefused(problem.source, "yarn", "radius", f"{what}: no yarn contact yet: "
                           f"{why}, or remove [yarn] for the paper's model")
 
 
