@@ -190,3 +190,62 @@ def test_an_old_jacquard_result_with_a_number_for_energy_is_still_read(tmp_path,
     assert main(["overlay", str(js), str(js), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "NPZ" in err
+
+
+def _grips():
+    """hold_top_pull_corner: clamp[1] is the top edge (8 points), clamp[2] the corner."""
+    return knit_nlp.load_problem(PROBLEMS / "hold_top_pull_corner.toml")
+
+
+def test_a_sweep_key_addresses_the_files_table_not_a_point_of_a_shorthand():
+    """clamp[2] is the file's second [[clamp]] table (the pulled corner, the 9th point after the
+    top edge expands to 8), not the second point of the held edge."""
+    pr = _grips()
+    got = changes(pr, [("clamp[2].displacement.x", (1.0,), 1.0)])
+    assert list(got["targets"]) == ["9"]
+    corner = pr.clamps[8]
+    assert corner.loop == (1, 8) and not corner.expanded
+    assert got["targets"]["9"][0] == pytest.approx(pr.natural_position(corner.loop, corner.s)[0]
+                                                   + 1.0)
+    assert got["targets"]["9"][1] == pytest.approx(corner.target[1])
+
+
+def test_a_sweep_key_into_a_shorthand_table_moves_every_point_it_made():
+    pr = _grips()
+    got = changes(pr, [("clamp[1].displacement.y", (2.0,), 2.0)])
+    assert sorted(got["targets"], key=int) == [str(q) for q in range(1, 9)]
+    for q in range(8):
+        c = pr.clamps[q]
+        want = pr.natural_position(c.loop, c.s) + [0.0, 2.0]
+        np.testing.assert_allclose(got["targets"][str(q + 1)], want)
+
+
+def test_sweep_tables_are_counted_as_the_file_counts_them():
+    pr = _grips()
+    with pytest.raises(ValueError, match=r"clamp\[3\] does not exist: the problem file has 2 "):
+        changes(pr, [("clamp[3].displacement.x", (1.0,), 1.0)])
+    with pytest.raises(ValueError, match=r"grips 8 points.*displacement instead"):
+        changes(pr, [("clamp[1].position.x", (1.0,), 1.0)])
+
+
+def test_a_sweep_of_the_pulled_corner_solves_the_file_with_that_pull(tmp_path):
+    """End to end: the sweep point with the corner's x displacement d equals a solve of the file
+    with the corner table's direction/distance replaced by displacement [d, dy]."""
+    pr = _grips()
+    corner = pr.clamps[8]
+    dy = float(corner.target[1] - pr.natural_position(corner.loop, corner.s)[1])
+    text = (PROBLEMS / "hold_top_pull_corner.toml").read_text()
+    text = text.replace("courses = 8", "courses = 4").replace("wales = 8", "wales = 4")
+    text = text[:text.index("loop = [1, 8]")] + (
+        f'loop = [1, 4]\npoint = "end"\ndisplacement = [1.0, {dy!r}]\n')
+    small = tmp_path / "hold_top_pull_corner.toml"
+    small.write_text(text)
+    doc = load_toml(small)
+    assert main(["sweep", str(small), "--path", "clamp[2].displacement.x=0:1:2",
+                 "--workers", "1", "--out", str(tmp_path / "out")]) == 0
+    rows = _rows(tmp_path / "out", "sweep_hold_top_pull_corner")
+    alone = knit_nlp.solve(parse_problem(doc, small))
+    assert rows[-1]["success"] and alone.success
+    assert rows[-1]["energy"]["total"] == pytest.approx(alone.energy.total, rel=1e-6)
+    np.testing.assert_allclose(rows[-1]["clamps"][-1]["reaction"], alone.clamps[-1].reaction,
+                               atol=1e-7)
