@@ -93,3 +93,42 @@ def test_bad_fit_params_and_overlay_matches_exit_2(write_problem, tmp_path, caps
     assert main(["overlay", str(tmp_path / "p.full.json"), str(img), "--problem", str(path),
                  "--match", "1,1,start=10", "--match", "2,2,H=5,5"]) == 2
     assert "expected C,W,POINT=PX,PY" in capsys.readouterr().err
+
+
+EDGE_FIRST = """
+[fabric]
+courses = 3
+wales = 3
+[[clamp]]
+edge = "top"
+point = "head"
+displacement = [0.0, 0.0]
+{edge_actuated}
+[[clamp]]
+loop = [1, 3]
+point = "end"
+displacement = [0.0, 0.0]
+{corner_actuated}
+[[goal]]
+loop = [1, 2]
+point = "H"
+displacement = [0.2, 0.0]
+"""
+
+
+def test_an_actuated_clamp_after_an_edge_shorthand_is_the_files_table(write_problem):
+    """The first [[clamp]] is an edge (3 points): the actuated second table is the corner (the
+    4th point), and the control JSON names it clamp 2, the file's table."""
+    from knit_nlp.weft.inverse.spec import load_control
+    cp = load_control(write_problem(EDGE_FIRST.format(edge_actuated="",
+                                                      corner_actuated="actuated = true")))
+    (a,) = cp.actuated
+    assert cp.problem.clamps[a.index].loop == (1, 3) and a.table == 2
+
+
+def test_actuating_a_whole_edge_clamp_is_refused_with_what_to_do(write_problem, capsys):
+    path = write_problem(EDGE_FIRST.format(edge_actuated="actuated = true", corner_actuated=""))
+    assert main(["control", str(path), "--out", str(path.parent / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "[clamp[1]] actuated: grips 3 points" in err and "[[rigid_clamp]]" in err
+    assert len(err.splitlines()) == 1 and not (path.parent / "o").exists()

@@ -310,8 +310,8 @@ def control_json(ans: ControlResult) -> dict[str, Any]:
     for a in cp.actuated:
         v = ctl_u[k:k + a.size]
         k += a.size
-        actuated.append({"clamp": a.index + 1, "target": v.tolist()} if a.kind == "clamp" else
-                        {"rigid_clamp": a.index + 1, "translation": v[:2].tolist(), "rotation": float(v[2])})
+        actuated.append({"clamp": a.table, "target": v.tolist()} if a.kind == "clamp" else
+                        {"rigid_clamp": a.table, "translation": v[:2].tolist(), "rotation": float(v[2])})
     achieved = ctl.goal_positions(ans.state.x)
     goals = []
     for q, g in enumerate(cp.goals):

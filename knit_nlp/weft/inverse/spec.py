@@ -26,13 +26,16 @@ TOP_KEYS = ("goal", "opening", "control")
 class Actuated:
     """One actuated clamp (2 unknowns: the target) or rigid clamp (3: translation, rotation).
 
-    ``index`` is 0-based among ``[[clamp]]`` (kind "clamp") or ``[[rigid_clamp]]`` (kind "rigid");
-    ``lower``/``upper`` bound each unknown (±inf when not given)."""
+    ``index`` is 0-based among the problem's clamp points (kind "clamp") or rigid clamps (kind
+    "rigid"); ``table`` the file's table number, from 1 (what results and messages name: a
+    course, wale or edge shorthand makes several points from one table); ``lower``/``upper``
+    bound each unknown (±inf when not given)."""
 
     kind: str
     index: int
     lower: np.ndarray
     upper: np.ndarray
+    table: int = 0
 
     @property
     def size(self) -> int:
@@ -150,11 +153,16 @@ def _read_actuated_clamp(tab: Table, k: int, pr: WeftProblem) -> Actuated | None
         if tab.has("bounds"):
             raise tab.error("bounds", "bounds apply to an actuated clamp only (actuated = true)")
         return None
-    clamp = pr.clamps[k]
+    made = [q for q, c in enumerate(pr.clamps) if c.table == tab.name]
+    if len(made) != 1:
+        raise tab.error("actuated", f"grips {len(made)} points (a course, wale or edge); an "
+                        "actuated clamp moves one point: to move a whole course, wale or edge, "
+                        "make it a [[rigid_clamp]] with actuated = true")
+    clamp = pr.clamps[made[0]]
     if not all(clamp.fix):
         raise tab.error("actuated", "an actuated clamp must hold both x and y (fix = [\"x\", \"y\"])")
     lo, hi = _box(tab, "bounds", clamp.target)
-    return Actuated("clamp", k, lo, hi)
+    return Actuated("clamp", made[0], lo, hi, k + 1)
 
 
 def _read_actuated_rigid(tab: Table, k: int, pr: WeftProblem) -> Actuated | None:
@@ -171,7 +179,7 @@ def _read_actuated_rigid(tab: Table, k: int, pr: WeftProblem) -> Actuated | None
             raise tab.error("rotation_bounds", "must be [min, max] around the start rotation")
     else:
         lo_r, hi_r = -np.inf, np.inf
-    return Actuated("rigid", k, np.r_[lo_t, lo_r], np.r_[hi_t, hi_r])
+    return Actuated("rigid", k, np.r_[lo_t, lo_r], np.r_[hi_t, hi_r], k + 1)
 
 
 def _read_goal(tab: Table, points: _PointReader, pr: WeftProblem) -> Goal:
