@@ -92,8 +92,9 @@ def test_the_readme_runs_as_written_and_keeps_its_promises(tmp_path, monkeypatch
     held = [c for c in doc["clamps"] if c.get("group") == "clamp[1]"]
     assert len(held) == 8 and all(c["loop"][0] == 8 and c["point"] == "head" for c in held)
     pulled = doc["clamps"][-1]
+    assert pulled["table"] == "clamp[2]"  # the file's second table, not "clamp 9"
     rows = list(csv.DictReader((res / "hold_top_pull_corner.full.path.csv").open()))
-    pull = [row for row in rows if row["grip"] == "clamp 9"]
+    pull = [row for row in rows if row["grip"] == "clamp[2]"]
     last = pull[-1]
     assert abs(float(last["distance"]) - 5.0) < 1e-9
     np.testing.assert_allclose([float(last["displacement_x"]), float(last["displacement_y"])],

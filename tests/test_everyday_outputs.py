@@ -131,7 +131,7 @@ def _work_error(tmp_path, steps: int) -> tuple[float, list[dict]]:
     assert main(["solve", "hold_top_pull_corner", "--continuation", str(steps), "--out",
                  str(out)]) == 0
     rows = list(csv.DictReader((out / "hold_top_pull_corner.full.path.csv").open()))
-    pull = [r for r in rows if r["grip"] == "clamp 9"]
+    pull = [r for r in rows if r["grip"] == "clamp[2]"]
     d = np.array([float(r["distance"]) for r in pull])
     f = np.array([float(r["force_along_pull"]) for r in pull])
     energy = json.loads((out / "hold_top_pull_corner.full.json").read_text())["energy"]["total"]

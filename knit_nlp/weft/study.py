@@ -174,12 +174,13 @@ def study_row(result: dict[str, Any]) -> dict[str, Any]:
     """The values a study summary keeps of a weft result JSON: energy, iterations, each
     clamp's and rigid clamp's force, the largest of them, and ``grips``: the total force on the
     fabric of each grip (the clamps one shorthand table made summed, by the table's name; a
-    single clamp as ``clamp N``; ``rigid_clamp[N]``)."""
+    single clamp by its table, ``clamp[N]``, or as ``clamp N`` when built in Python;
+    ``rigid_clamp[N]``)."""
     forces = [c["reaction"] for c in result["clamps"]] + [r["force"] for r in
                                                           result["rigid_clamps"]]
     grips: dict[str, list[float]] = {}
     for q, c in enumerate(result["clamps"], start=1):
-        name = c.get("group") or f"clamp {q}"
+        name = c.get("group") or c.get("table") or f"clamp {q}"
         grips[name] = (np.add(grips[name], c["reaction"]) if name in grips
                        else np.asarray(c["reaction"], dtype=float))
     grips.update({f"rigid_clamp[{q}]": r["force"]

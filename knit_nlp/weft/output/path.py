@@ -26,7 +26,7 @@ def _grips(r: SolvedFabric) -> dict[str, tuple[int, np.ndarray, np.ndarray]]:
     members: dict[str, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
     for c in r.clamps:
         moved = c.target - r.problem.natural_position(c.loop, r.problem.clamps[c.number - 1].s)
-        members[c.group or f"clamp {c.number}"].append((moved, c.reaction))
+        members[c.group or c.grip].append((moved, c.reaction))
     out = {name: (len(ms), np.mean([m for m, _ in ms], axis=0), np.sum([f for _, f in ms], axis=0))
            for name, ms in members.items()}
     for rc in r.rigid_clamps:

@@ -31,11 +31,19 @@ class ClampReaction:
     angle: float | None = None
     reaction_moment: float | None = None
     group: str | None = None         # the file's table when a shorthand made this clamp
+    table: str = ""                  # the file's table ("clamp[2]"), "" when built in Python
+
+    @property
+    def grip(self) -> str:
+        """The name users know this clamp's grip by: its file table, else ``clamp N``."""
+        return self.table or f"clamp {self.number}"
 
     def to_json(self) -> dict[str, Any]:
         out = {"loop": list(self.loop), "point": self.point, "position": self.position.tolist(),
                "reaction": self.reaction.tolist(), "target": self.target.tolist(),
                "fix": list(self.fix)}
+        if self.table:
+            out["table"] = self.table
         if self.angle is not None:
             out.update(angle=self.angle, reaction_moment=self.reaction_moment)
         if self.group:

@@ -118,7 +118,8 @@ class WeftResult(Outcome):
             out.append(ClampReaction(q + 1, c.loop, c.point, pc[:, sp].copy(),
                                      self.params.targets[q].copy(),
                                      tuple(d for d, f in zip("xy", c.fix) if f), force,
-                                     angle, moment, c.table if c.expanded else None))
+                                     angle, moment, c.table if c.expanded else None,
+                                     c.table))
         return out
 
     @cached_property

@@ -26,7 +26,7 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
         if c.group:
             groups.setdefault(c.group, []).append(c)
             continue
-        lines.append(f"  clamp {c.number} {list(c.loop)} {c.point}: reaction "
+        lines.append(f"  {c.grip} {list(c.loop)} {c.point}: reaction "
                      f"({c.reaction[0]:.4g}, {c.reaction[1]:.4g}) [{u.force}]")
     for group, cs in groups.items():
         f = sum(c.reaction for c in cs)
