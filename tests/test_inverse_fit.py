@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from knit_nlp.cli import main
-from knit_nlp.weft.inverse.fit import Fitter
+from knit_nlp.weft.inverse.fit import Fitter, FitOptions, weak_values
 from knit_nlp.weft.inverse.observations import Observation
 from knit_nlp.weft.model.problem import load_problem
 
@@ -116,3 +116,34 @@ moment = 0.3
     assert r["parameters"]["R_f"]["std_error"] is not None
     assert any("k_b" in w for w in r["warnings"])
     assert "warning: k_b" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("params", [["k_a", "k_b", "R_f"], ["k_b", "R_f"]])
+def test_one_observed_point_leaves_every_value_undetermined(write_problem, tmp_path, capsys, params):
+    """Two observed coordinates for three values (JᵀJ has a null direction) or for two (an
+    exact fit): no degree of freedom is left for σ², so no value may be reported with a
+    standard error (it was a tiny one from a faked degree of freedom, with exit 0)."""
+    path = write_problem("name = \"one\"\n[fabric]\ncourses = 3\nwales = 3\n" + GUESS
+                         + CASES["pull_x"].replace("[4, 1]", "[3, 1]").replace("[2, 4]", "[2, 3]"),
+                         "one.toml")
+    pr = load_problem(path)
+    fitter = Fitter([pr], [Observation("one", (2, 2), "H", pr.crossings.s["H"], np.zeros(2))])
+    (x, y), = _truth_points(fitter)["one"]
+    csv = tmp_path / "obs.csv"
+    csv.write_text(f"case,course,wale,point,x,y\none,2,2,H,{x:.12f},{y:.12f}\n")
+    assert main(["fit", str(path), "--observations", str(csv), "--params", *params,
+                 "--out", str(tmp_path)]) == 0
+    r = json.loads((tmp_path / "one.fit.json").read_text())
+    assert r["n_observations"] == 1 and list(r["parameters"]) == params
+    assert all(p["std_error"] is None for p in r["parameters"].values()), r["parameters"]
+    assert all(any(w.startswith(f"{n} is not determined") for w in r["warnings"]) for n in params)
+    out = capsys.readouterr().out
+    assert out.count("undetermined") == len(params) and "±" not in out
+
+
+def test_the_null_direction_of_a_short_jacobian_is_weak_whatever_the_condition_limit():
+    """Two residuals, three values: (1, 1, −1) is a null direction of JᵀJ even when rounding
+    leaves its eigenvalue above the largest over ``condition_limit``."""
+    lax = FitOptions(condition_limit=1e300)
+    assert weak_values(np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]), lax) == {0, 1, 2}
+    assert weak_values(np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]), lax) == set()
