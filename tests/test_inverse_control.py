@@ -86,6 +86,7 @@ translation = [0.5, 0.3]
 rotation = 0.1
 actuated = true
 """
+    text += "[control]\ntravel_weight = 0.5\n"            # its rows √w·(u − u₀) too
     ctl = Controller(load_control(write_problem(text, f"g_{kind}.toml")))
     u = ctl.u0 + (np.array([1.5, 0.8]) if kind == "clamp" else np.array([0.2, -0.1, 0.05]))
     rep = ctl.equilibrium(u)
@@ -99,6 +100,44 @@ actuated = true
         plus, minus = (ctl.equilibrium(u + sgn * e, x0=rep.x) for sgn in (1, -1))
         fd = (ctl._residual(u + e, plus.x) - ctl._residual(u - e, minus.x)) / (2 * h)
         assert np.linalg.norm(Jr[:, k] - fd) <= 1e-5 * np.linalg.norm(fd)
+
+
+def _goal_jacobian(ctl: Controller, u: np.ndarray, x: np.ndarray, h: float = 1e-4) -> np.ndarray:
+    """dP/du of the goal point by central differences of forward solves (not the code's
+    sensitivities)."""
+    cols = []
+    for e in h * np.eye(len(u)):
+        plus, minus = (ctl.equilibrium(u + sgn * e, x0=x) for sgn in (1, -1))
+        assert plus.success and minus.success
+        cols.append((ctl.goal_positions(plus.x)[:, 0] - ctl.goal_positions(minus.x)[:, 0]) / (2 * h))
+    return np.column_stack(cols)
+
+
+@pytest.mark.parametrize("w", [1.0, 100.0])
+def test_travel_weight_gives_the_stationary_compromise(write_problem, w):
+    """Objective |P(u) − goal|² + w·|u − u₀|², goal reached at u = (13, 14) with w = 0. Its
+    optimum satisfies, in closed form, w·(u − u₀) = −Jᵀ(P(u) − goal) (J = dP/du there, by
+    finite differences of forward solves): the travel is the goal's pull over the weight, a
+    compromise strictly short of (13, 14). For large w the pull is linear near u₀ and the
+    answer is u₀ + (AᵀA + w·I)⁻¹Aᵀ(goal − P(u₀)), A = dP/du at u₀. A travel Jacobian of the
+    wrong sign stops elsewhere (first Gauss–Newton step or beyond), off the first relation."""
+    known = np.array([13.0, 14.0])
+    goal, _ = _forward_point(write_problem, known)
+    path = write_problem(FABRIC.format(bounds="", gx=goal[0], gy=goal[1])
+                         + f"[control]\ntravel_weight = {w}\n", "travel.toml")
+    ans = control(load_control(path))
+    assert ans.success and ans.status == "Converged", ans.status
+    ctl, u, x = ans.ctl, ans.state.u, ans.state.x
+    travel = u - ctl.u0
+    assert 0.0 < np.linalg.norm(travel) < np.linalg.norm(known - ctl.u0)
+    pull = -_goal_jacobian(ctl, u, x).T @ (ctl.goal_positions(x)[:, 0] - goal)
+    assert np.linalg.norm(w * travel - pull) <= 1e-6 * np.linalg.norm(w * travel)
+    if w >= 100.0:
+        start = ctl.equilibrium(ctl.u0)
+        A = _goal_jacobian(ctl, ctl.u0, start.x)
+        linear = np.linalg.solve(A.T @ A + w * np.eye(2),
+                                 A.T @ (goal - ctl.goal_positions(start.x)[:, 0]))
+        assert np.linalg.norm(travel - linear) <= 0.01 * np.linalg.norm(travel)
 
 
 def test_stability_tells_the_first_euler_mode_from_the_second(tmp_path):

@@ -1,12 +1,13 @@
-"""Identification: exact recovery from noise-free data, honest standard errors under noise, and
-an undetermined value flagged as such."""
+"""Identification: exact recovery from noise-free data, standard errors whose coverage under
+noise is the nominal 68 %, and values the data cannot determine flagged as such (never a tiny
+standard error)."""
 import json
 
 import numpy as np
 import pytest
 
 from knit_nlp.cli import main
-from knit_nlp.weft.inverse.fit import Fitter
+from knit_nlp.weft.inverse.fit import Fitter, FitOptions, weak_values
 from knit_nlp.weft.inverse.observations import Observation
 from knit_nlp.weft.model.problem import load_problem
 
@@ -62,21 +63,34 @@ def test_noise_free_data_give_the_true_values(write_problem):
     assert not ans.warnings and all(s is not None for s in ans.std_errors)
 
 
-def test_truth_within_three_standard_errors_in_most_seeds(write_problem):
+NOISE = 0.02          # σ of the Gaussian noise on every observed coordinate (model units)
+REPLICAS = 40         # noisy data sets of one truth: 120 estimates, ~7 s
+
+
+def test_one_standard_error_covers_the_truth_in_about_68_percent_of_replicas(write_problem):
+    """Coverage: over noisy replicas of a known truth (96 coordinates, 93 degrees of freedom)
+    about 68 % of the estimates lie within one reported standard error, and the errors'
+    spread matches the reported one. Binomial spread of the share is ±0.04, so the band
+    0.55–0.82 holds for any seeds; an σ² not divided by the degrees of freedom reports errors
+    √93 ≈ 9.6 times too large (share ~1.0, spread ratio ~0.1)."""
     problems = _cases(write_problem)
     fitter = Fitter(problems, _observations(problems))
     truth = _truth_points(fitter)
-    inside = 0
-    for seed in range(20):
+    errors, reported = [], []
+    for seed in range(REPLICAS):
         rng = np.random.default_rng(seed)
         for c in fitter.cases:
-            c.observed = truth[c.name] + rng.normal(0.0, 0.02, truth[c.name].shape)
+            c.observed = truth[c.name] + rng.normal(0.0, NOISE, truth[c.name].shape)
             c.x = c.lam = None
         ans = fitter.run()
-        assert ans.success, ans.status
-        inside += all(s is not None and abs(v - TRUTH[n]) <= 3 * s
-                      for n, v, s in zip(ans.names, ans.values, ans.std_errors))
-    assert inside >= 18
+        assert ans.success and not ans.warnings, (ans.status, ans.warnings)
+        errors.append([v - TRUTH[n] for n, v in zip(ans.names, ans.values)])
+        reported.append(ans.std_errors)
+    errors, reported = np.abs(errors), np.array(reported, dtype=float)
+    share = float(np.mean(errors <= reported))
+    assert 0.55 <= share <= 0.82, share
+    spread = np.sqrt(np.mean(errors ** 2, axis=0)) / np.mean(reported, axis=0)
+    assert np.all((spread > 0.7) & (spread < 1.4)), spread
 
 
 def test_a_value_the_loads_do_not_excite_is_flagged(write_problem, tmp_path, capsys):
@@ -116,3 +130,34 @@ moment = 0.3
     assert r["parameters"]["R_f"]["std_error"] is not None
     assert any("k_b" in w for w in r["warnings"])
     assert "warning: k_b" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("params", [["k_a", "k_b", "R_f"], ["k_b", "R_f"]])
+def test_one_observed_point_leaves_every_value_undetermined(write_problem, tmp_path, capsys, params):
+    """Two observed coordinates for three values (JᵀJ has a null direction) or for two (an
+    exact fit): no degree of freedom is left for σ², so no value may be reported with a
+    standard error (it was a tiny one from a faked degree of freedom, with exit 0)."""
+    path = write_problem("name = \"one\"\n[fabric]\ncourses = 3\nwales = 3\n" + GUESS
+                         + CASES["pull_x"].replace("[4, 1]", "[3, 1]").replace("[2, 4]", "[2, 3]"),
+                         "one.toml")
+    pr = load_problem(path)
+    fitter = Fitter([pr], [Observation("one", (2, 2), "H", pr.crossings.s["H"], np.zeros(2))])
+    (x, y), = _truth_points(fitter)["one"]
+    csv = tmp_path / "obs.csv"
+    csv.write_text(f"case,course,wale,point,x,y\none,2,2,H,{x:.12f},{y:.12f}\n")
+    assert main(["fit", str(path), "--observations", str(csv), "--params", *params,
+                 "--out", str(tmp_path)]) == 0
+    r = json.loads((tmp_path / "one.fit.json").read_text())
+    assert r["n_observations"] == 1 and list(r["parameters"]) == params
+    assert all(p["std_error"] is None for p in r["parameters"].values()), r["parameters"]
+    assert all(any(w.startswith(f"{n} is not determined") for w in r["warnings"]) for n in params)
+    out = capsys.readouterr().out
+    assert out.count("undetermined") == len(params) and "±" not in out
+
+
+def test_the_null_direction_of_a_short_jacobian_is_weak_whatever_the_condition_limit():
+    """Two residuals, three values: (1, 1, −1) is a null direction of JᵀJ even when rounding
+    leaves its eigenvalue above the largest over ``condition_limit``."""
+    lax = FitOptions(condition_limit=1e300)
+    assert weak_values(np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]), lax) == {0, 1, 2}
+    assert weak_values(np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]), lax) == set()

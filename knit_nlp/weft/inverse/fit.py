@@ -10,7 +10,9 @@ by its own built IPOPT instance, warm-started from the linear prediction.
 Standard errors: σ²(JᵀJ)⁻¹ with σ² = |r|²/(N − k), J in the values themselves. A value is
 reported undetermined (``std_error`` None and a warning) when JᵀJ (in log θ, so scale-free)
 has relative condition above ``condition_limit`` and the value takes part in the weak
-direction, or when its standard error exceeds the value.
+direction (with fewer residuals than values JᵀJ is singular, so some always do), or when its
+standard error exceeds the value. With N ≤ k residuals σ² cannot be estimated and no value
+gets a standard error (never a number from a faked degree of freedom).
 """
 from __future__ import annotations
 
@@ -231,20 +233,16 @@ class Fitter:
         return Energy(spring + bending, spring, bending, work)
 
     def _std_errors(self, v: np.ndarray) -> tuple[list[float | None], list[str]]:
-        """σ²(JᵀJ)⁻¹ over the determined values; the others None, with a warning each."""
+        """σ²(JᵀJ)⁻¹ over the determined values; the others None, with a warning each. With
+        no more residuals than values σ² cannot be estimated: every standard error is None."""
         Jv, _ = self.jacobian(v)
         r = self.residual()
-        J = Jv * v
-        A = J.T @ J
-        w, V = np.linalg.eigh(A)
-        weak = w <= max(w.max(), 1e-300) / self.opts.condition_limit
-        undetermined = set(np.nonzero(np.any(np.abs(V[:, weak]) > self.opts.weak_share, axis=1))[0])
-        dof = max(len(r) - len(v), 1)
-        sigma2 = float(r @ r) / dof
+        undetermined = weak_values(Jv * v, self.opts)
+        dof = len(r) - len(v)
         keep = [k for k in range(len(v)) if k not in undetermined]
         std: list[float | None] = [None] * len(v)
-        if keep:
-            cov = sigma2 * np.linalg.inv(Jv[:, keep].T @ Jv[:, keep])
+        if keep and dof > 0:
+            cov = float(r @ r) / dof * np.linalg.inv(Jv[:, keep].T @ Jv[:, keep])
             for q, k in enumerate(keep):
                 std[k] = float(np.sqrt(max(cov[q, q], 0.0)))
         warnings = []
@@ -252,11 +250,26 @@ class Fitter:
             if k in undetermined:
                 warnings.append(f"{name} is not determined by the data (JᵀJ is singular to "
                                 f"relative condition {self.opts.condition_limit:g} in its direction)")
+            elif dof <= 0:
+                warnings.append(f"{name} is not determined by the data ({len(r)} observed "
+                                f"coordinates for {len(v)} values leave no degree of freedom "
+                                f"to estimate its error; observe more points)")
             elif std[k] is not None and std[k] > v[k]:
                 warnings.append(f"{name} is not determined by the data (standard error "
                                 f"{std[k]:.3g} exceeds the value {v[k]:.3g})")
                 std[k] = None
         return std, warnings
+
+
+def weak_values(J: np.ndarray, opts: FitOptions) -> set[int]:
+    """Columns of J (residuals by values, in log θ) taking part, with a component above
+    ``weak_share``, in a weak direction of JᵀJ: an eigenvalue below the largest over
+    ``condition_limit``, or one of its null directions (JᵀJ has rank at most the number of
+    rows of J, whatever the rounding of its eigenvalues)."""
+    w, V = np.linalg.eigh(J.T @ J)                           # ascending
+    weak = w <= max(w.max(initial=0.0), 1e-300) / opts.condition_limit
+    weak[:max(J.shape[1] - J.shape[0], 0)] = True            # fewer residuals than values
+    return set(np.nonzero(np.any(np.abs(V[:, weak]) > opts.weak_share, axis=1))[0])
 
 
 def fit(problems: Sequence[WeftProblem], observations: Sequence[Observation],
