@@ -169,13 +169,14 @@ def solve(problem_or_name: Problem | str | Path, *, reduced: bool | Parametrisat
     return model.solve(problem, **given)
 
 
-def compare(problem_or_name: WeftProblem | str | Path) -> Comparison:
-    """Full and reduced models of a weft problem side by side (:class:`Comparison`)."""
+def compare(problem_or_name: WeftProblem | str | Path, *, warm: bool = False) -> Comparison:
+    """Full and reduced models of a weft problem side by side (:class:`Comparison`), with a
+    verdict; ``warm``: also solve the full model started from the reduced answer."""
     problem = _problem(problem_or_name)
     model = MODELS[problem.model]
     if model.compare is None:
         raise ValueError(f"compare is for weft problems; {problem.name!r} is a {model.name} problem")
-    return model.compare(problem)
+    return model.compare(problem, warm=warm)
 
 
 def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:

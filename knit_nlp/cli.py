@@ -60,6 +60,9 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", default="results")
     compare.add_argument("--force", action="store_true",
                          help="overwrite results of another problem in --out")
+    compare.add_argument("--warm", action="store_true",
+                         help="also solve the full model started from the reduced answer "
+                              "(finds another local minimum; costs about one more full solve)")
     compare.set_defaults(run=_cmd_compare)
     sub.add_parser("list", help="list the named problems").set_defaults(run=_cmd_list)
     _sweep_parser(sub)
@@ -142,7 +145,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                            f"problems; it is for {', '.join(m.name for m in MODELS.values() if m.compare)}")
     out = prepare_out(args.out, problem.name, ("compare",))
     check_overwrite(out.glob(f"{problem.name}.*.json"), path, args.force)
-    cmp = model.compare(problem)
+    cmp = model.compare(problem, warm=args.warm)
     print(model.compare_summary(cmp, cmp.save(out)))
     return 0 if cmp.success else 1
 

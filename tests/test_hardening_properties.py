@@ -194,7 +194,7 @@ def _stub(model):
     from knit_nlp.api import MODELS
     real = MODELS[model]
     return replace(real, solve=lambda problem, **options: _Solved(),
-                   compare=None if real.compare is None else lambda problem: _Solved(),
+                   compare=None if real.compare is None else lambda problem, **options: _Solved(),
                    summary=lambda result, paths: "solved",
                    compare_summary=lambda cmp, paths: "compared")
 

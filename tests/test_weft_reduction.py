@@ -98,7 +98,7 @@ def test_compare_writes_counts_energies_distances_and_warm_start(write_problem, 
     from knit_nlp.cli import main
     from imagecheck import check_overlay_picture
     path = _pull(write_problem, name="cmp.toml")
-    assert main(["compare", str(path), "--out", str(tmp_path)]) == 0
+    assert main(["compare", str(path), "--out", str(tmp_path), "--warm"]) == 0
     r = json.loads((tmp_path / "cmp.compare.json").read_text())
     full, red, warm = (r["models"][k] for k in ("full", "reduced", "full_warm_from_reduced"))
     assert full["n_parameters"] == 4 * 5 * 8 + 8 and red["n_parameters"] == 4 * 6 + 4 + 8

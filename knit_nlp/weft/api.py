@@ -86,9 +86,14 @@ def _warm_from_reduced(problem: WeftProblem, params: WeftParams | None,
     return red, full
 
 
-def compare(problem: WeftProblem, samples: int = SAMPLES) -> Comparison:
-    """Solve the full model, the reduced one (the file's representatives, or the corners) and
-    the full one warm-started from the reduced."""
+def compare(problem: WeftProblem, samples: int = SAMPLES, *, warm: bool = False) -> Comparison:
+    """Solve the full model and the reduced one (the file's representatives, or the corners);
+    ``warm``: also the full one warm-started from the reduced (another local minimum shows as a
+    different energy; it costs about as much as the full solve, so it is off by default)."""
+    if not isinstance(warm, bool):
+        raise ValueError(f"warm must be True or False; got {quoted(warm)}")
     full = solve(problem, Full())
-    red, warm = _warm_from_reduced(problem, None, None)
-    return Comparison(full, red, warm, samples)
+    if warm:
+        red, warm_full = _warm_from_reduced(problem, None, None)
+        return Comparison(full, red, warm_full, samples)
+    return Comparison(full, solve(problem, problem.reduction or Reduced()), None, samples)

@@ -14,15 +14,49 @@ from ..model.centrelines import SAMPLES
 from .plot import plot_overlay
 from .results import WeftResult
 
+RMS_LOOPS_OK = 0.1
+"""Largest RMS centreline distance, in loop lengths L, at which the reduced model is good enough.
+A tenth of the yarn length of one loop is a fraction of a loop's width: every loop is in its
+place and of its shape in the overlay picture. The case that asked for a verdict differed by
+2-4 L (23 mm): whole loops out of place, which the reduced grid's interpolation cannot follow."""
+
+ENERGY_REL_OK = 0.05
+"""Largest relative energy difference |E_reduced / E_full - 1| at which the reduced model is good
+enough. The reduced model has fewer degrees of freedom, so its energy is an upper bound: the
+excess is how much stiffer the interpolation makes the fabric. 5 % is about the repeatability of
+a fabric tensile test, so a smaller excess is below what a measurement could tell apart."""
+
+
+def _energy_ratio(reduced: float, full: float) -> float:
+    """E_reduced / E_full; 1 when both are zero (nothing stored), infinite when only the full
+    energy is zero."""
+    if full == 0:
+        return 1.0 if reduced == 0 else float("inf")
+    return reduced / full
+
+
+def verdict(rms: float, loop_length: float, ratio: float, unit: str = "") -> tuple[bool, str]:
+    """(reduced is good enough, the line saying so) from the RMS centreline distance, the loop
+    length L (same unit) and E_reduced / E_full: good when rms <= :data:`RMS_LOOPS_OK` L and
+    |ratio - 1| <= :data:`ENERGY_REL_OK`."""
+    loops, excess = rms / loop_length, abs(ratio - 1)
+    limits = f"limits {RMS_LOOPS_OK:g} L and {ENERGY_REL_OK * 100:g} %"
+    if loops <= RMS_LOOPS_OK and excess <= ENERGY_REL_OK:
+        return True, (f"verdict: the reduced model is within {loops:.2g} loop lengths RMS and "
+                      f"{excess * 100:.2g} % energy of the full model ({limits})")
+    distance = f"{rms:.3g} {unit}".rstrip()
+    return False, (f"verdict: use the full model (reduced differs by {distance} RMS = "
+                   f"{loops:.2g} loop lengths, energy {ratio:.3g}x; {limits})")
+
 
 @dataclass(repr=False)
 class Comparison:
-    """Full and reduced models of one problem side by side, and the full model warm-started
-    from the reduced; distances between corresponding centreline points."""
+    """Full and reduced models of one problem side by side, and (when asked for) the full model
+    warm-started from the reduced; distances between corresponding centreline points."""
 
     full: WeftResult
     reduced: WeftResult
-    full_warm_from_reduced: WeftResult
+    full_warm_from_reduced: WeftResult | None = None
     samples: int = SAMPLES
 
     @cached_property
@@ -51,12 +85,50 @@ class Comparison:
         return cost(self.full) / cost(self.reduced)
 
     @property
+    def energy_ratio(self) -> float:
+        """Reduced over full stored energy."""
+        return _energy_ratio(self.reduced.energy.total, self.full.energy.total)
+
+    @property
+    def reduced_ok(self) -> bool | None:
+        """Whether the reduced model is good enough (:func:`verdict`); None when the full or
+        the reduced solve did not converge."""
+        return self._verdict[0]
+
+    @property
+    def verdict(self) -> str:
+        """One line: use the full model, or the reduced one is within the limits."""
+        return self._verdict[1]
+
+    @cached_property
+    def _verdict(self) -> tuple[bool | None, str]:
+        failed = [k for k in ("full", "reduced") if not self.models()[k].success]
+        if failed:
+            return None, f"verdict: none (the {' and '.join(failed)} model did not converge)"
+        pr = self.full.problem
+        return verdict(self.distance_rms, pr.L, self.energy_ratio, pr.units.length)
+
+    @property
+    def representatives(self) -> dict[str, Any] | None:
+        """The reduced model's grid: representative ``courses`` and ``wales`` (and ``asked``
+        when the clamped ones were added), as in its result JSON."""
+        return self.reduced.representatives()
+
+    @property
     def success(self) -> bool:
         return all(r.success for r in self.models().values())
 
     def models(self) -> dict[str, WeftResult]:
+        """The models solved: full, reduced and, when asked for, full_warm_from_reduced."""
+        warm = self.full_warm_from_reduced
         return {"full": self.full, "reduced": self.reduced,
-                "full_warm_from_reduced": self.full_warm_from_reduced}
+                **({"full_warm_from_reduced": warm} if warm is not None else {})}
+
+    def _warm_json(self) -> dict[str, Any] | None:
+        warm = self.full_warm_from_reduced
+        if warm is None:
+            return None
+        return {"energy_minus_full": warm.energy.total - self.full.energy.total}
 
     def __repr__(self) -> str:
         return (f"Comparison({self.full.problem.name!r}: energy full {self.full.energy.total:.6g},"
@@ -73,7 +145,17 @@ class Comparison:
                            for name, r in self.models().items()},
                 "distance": {"max": self.distance_max, "rms": self.distance_rms,
                              "samples_per_loop": self.samples},
-                "energy_gap": self.energy_gap, "speedup_reduced": self.speedup_reduced,
+                "energy_gap": self.energy_gap, "energy_ratio": self.energy_ratio,
+                "speedup_reduced": self.speedup_reduced,
+                "representatives": self.representatives,
+                "fabric": {"courses": self.full.problem.courses,
+                           "wales": self.full.problem.wales},
+                "loop_length": self.full.problem.L,
+                "verdict": {"reduced_ok": self.reduced_ok, "text": self.verdict,
+                            "rms_loop_lengths": self.distance_rms / self.full.problem.L,
+                            "limits": {"rms_loop_lengths": RMS_LOOPS_OK,
+                                       "energy_relative": ENERGY_REL_OK}},
+                "warm": self._warm_json(),
                 **({"adaptive": {**self.reduced.extra["adaptive"], "true_rms": self.distance_rms}}
                    if "adaptive" in self.reduced.extra else {})}
 

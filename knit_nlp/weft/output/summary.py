@@ -64,11 +64,21 @@ def compare_summary(cmp: Comparison, paths: list[Path]) -> str:
         lines.append(f"  {key:<24} {r.status:<18} params {r.nlp.n_parameters:>6}  energy "
                      f"{r.energy.total:.6g} {r.problem.units.energy}  iterations {r.iterations:>4}  build+solve "
                      f"{r.build_s + r.report.solve_s:.3f} s")
+    pr = cmp.full.problem
+    reps = cmp.representatives
+    if reps is not None:
+        asked = f" (asked {_grid(reps['asked'])})" if "asked" in reps else ""
+        lines.append(f"  reduced grid: {_grid(reps)}{asked} of {pr.courses} courses x "
+                     f"{pr.wales} wales")
     lines.append(f"  centreline distance: max {cmp.distance_max:.4g}, rms {cmp.distance_rms:.4g} "
-                 f"[{cmp.full.problem.units.length}]")
+                 f"[{pr.units.length}] = {cmp.distance_rms / pr.L:.3g} loop lengths L "
+                 f"(L = {pr.L:.4g})")
     speed = cmp.speedup_reduced
     pace = f"{speed:.1f}x faster" if speed >= 1 else f"{1 / speed:.1f}x slower"
     lines.append(f"  reduced is {pace} than full (build + solve); energy gap (reduced - full) "
-                 f"{cmp.energy_gap:.4g}")
+                 f"{cmp.energy_gap:.4g}, ratio {cmp.energy_ratio:.4g}")
+    if cmp.full_warm_from_reduced is None:
+        lines.append("  full model warm-started from the reduced: not solved (--warm solves it)")
+    lines.append("  " + cmp.verdict)
     lines.append("  wrote " + ", ".join(str(p) for p in paths))
     return "\n".join(lines)
