@@ -1,25 +1,40 @@
 """IPOPT's progress on one updating line of stderr, through CasADi's ``iteration_callback``.
 
-Installed only when asked for (``--verbose``): a quiet solve has no callback at all.
+With ``--verbose`` every iterate is shown. Otherwise the line stays silent for the first
+:data:`QUIET_FOR` seconds (a quick solve prints nothing), then is refreshed at most once a
+second, so no solve runs silently for long; once half the ``[solver] max_time`` budget is
+spent it says so once, naming the budget, so a user whose solve is heading for its time limit
+knows before it gets there.
 """
 from __future__ import annotations
 
 import sys
+import time
 from typing import TextIO
 
 import casadi as ca
 import numpy as np
+
+QUIET_FOR = 3.0    # seconds a solve runs before its progress line appears (without --verbose)
 
 
 class IterationLine(ca.Callback):
     """Called by ``nlpsol`` after every IPOPT iteration with the current iterate; rewrites one
     line: iterates so far (each solve's first is its start), objective, largest constraint residual."""
 
-    def __init__(self, nx: int, ng: int, stream: TextIO | None = None) -> None:
+    def __init__(self, nx: int, ng: int, stream: TextIO | None = None, *,
+                 quiet_for: float = 0.0, budget: float = float("inf")) -> None:
         ca.Callback.__init__(self)
         self.nx, self.ng, self.count = nx, ng, 0
         self.stream = stream or sys.stderr
+        self.quiet_for, self.budget = quiet_for, budget
+        self.start()
         self.construct("iteration_line", {})
+
+    def start(self) -> None:
+        """Restart the clock (a new solve, or a new ``max_time`` budget)."""
+        self.t0 = self.shown_at = time.perf_counter()
+        self.warned, self.written = False, False
 
     def get_n_in(self) -> int:
         return ca.nlpsol_n_out()
@@ -45,15 +60,27 @@ class IterationLine(ca.Callback):
 
     def eval(self, arg: list[ca.DM]) -> list[int]:
         self.count += 1
+        now = time.perf_counter()
+        if now - self.t0 < self.quiet_for or (self.quiet_for and now - self.shown_at < 1.0):
+            return [0]
+        self.shown_at = now
+        if not self.warned and now - self.t0 > self.budget / 2:
+            self.warned = True
+            self.stream.write(f"{chr(13) if self.written else ''}  warning: this solve has used "
+                              f"{now - self.t0:.0f} s, half its [solver] max_time of "
+                              f"{self.budget:g} s; it may end without converging (exit 1)\n")
         g = np.asarray(arg[2]).ravel()
         viol = float(np.max(np.abs(g))) if g.size else 0.0
         self.stream.write(f"\r  IPOPT iterate {self.count:5d}  objective "
-                          f"{float(arg[1]):.10g}  max |g| {viol:.2e}  ")
+                          f"{float(arg[1]):.10g}  max |g| {viol:.2e}  "
+                          f"{now - self.t0:.0f} s  ")
         self.stream.flush()
+        self.written = True
         return [0]
 
     def done(self) -> None:
-        """End the updating line."""
-        if self.count:
+        """End the updating line (if anything was written)."""
+        if self.written:
             self.stream.write("\n")
             self.stream.flush()
+            self.written = False

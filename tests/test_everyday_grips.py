@@ -79,7 +79,8 @@ def test_direction_degrees_vector_and_loads(write_problem):
     np.testing.assert_allclose(clamp("90.0"), [0.0, 3.0], atol=1e-12)
     np.testing.assert_allclose(clamp("150"), 3 * np.array([-np.sqrt(3) / 2, 0.5]), atol=1e-12)
     np.testing.assert_allclose(clamp("[3.0, -4.0]"), [1.8, -2.4], atol=1e-12)
-    pr = load_problem(write_problem(FABRIC + '[[load]]\nedge = "bottom"\npoint = "head"\n'
+    held = '[[clamp]]\nedge = "top"\npoint = "head"\ndisplacement = [0, 0]\n'  # to pull against
+    pr = load_problem(write_problem(FABRIC + held + '[[load]]\nedge = "bottom"\npoint = "head"\n'
                                     'direction = [0, -1]\nmagnitude = 0.2\n'))
     assert len(pr.loads) == 4
     for ld in pr.loads:

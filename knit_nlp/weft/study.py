@@ -39,7 +39,7 @@ class WeftStudy:
     """A weft problem's NLP, built once and re-solved for many parameter values."""
 
     def __init__(self, problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
-                 verbose: bool = False) -> None:
+                 verbose: bool | None = False) -> None:
         t0 = time.perf_counter()
         self.problem = problem
         self.nlp = transcribe(problem, parametrisation)
@@ -82,7 +82,7 @@ class ContactStudy(WeftStudy):
     solutions, reactions and loading paths read as without contact) and the contact NLP grown
     with the pairs the solves meet (``solving.contact``); results carry ``extra["contact"]``."""
 
-    def __init__(self, problem: WeftProblem, *, verbose: bool = False) -> None:
+    def __init__(self, problem: WeftProblem, *, verbose: bool | None = False) -> None:
         super().__init__(problem, Full(), verbose=verbose)
         self.contact = ContactSolver(self.nlp, problem.yarn.radius)
         self.block: dict[str, Any] = {}
@@ -140,7 +140,7 @@ class AdaptiveStudy:
 
 
 def study(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
-          verbose: bool = False) -> WeftStudy | AdaptiveStudy:
+          verbose: bool | None = False) -> WeftStudy | AdaptiveStudy:
     """How ``problem`` is solved in ``parametrisation`` (None: the file's own): a fixed
     transcription built once, the adaptive strategy, or the full model with yarn contact
     (``[yarn] radius``; the reduced models refuse it, :func:`refuse`)."""
@@ -158,7 +158,7 @@ def study(problem: WeftProblem, parametrisation: Parametrisation | None = None, 
 def prepare_point(doc: dict[str, Any]) -> WeftStudy | AdaptiveStudy:
     """What a study worker builds once per document: the document's problem in its own
     parametrisation (``knit_nlp.studies`` keeps it for the points that follow)."""
-    return study(parse_problem(doc, f"<study {doc.get('name', '')}>"))
+    return study(parse_problem(doc, f"<study {doc.get('name', '')}>"), verbose=None)
 
 
 def solve_point(built: WeftStudy | AdaptiveStudy, changes: dict[str, Any],

@@ -18,6 +18,7 @@ from ...tomlio import Table, finite_number, load_toml
 from ...outcome import SolverOptions as BaseSolverOptions
 from ...units import Units, read_units
 from .basis import n_coeffs
+from .reach import out_of_reach, unheld_force
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
 from .parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
@@ -56,6 +57,7 @@ class Clamp:
     angle: float | None = None
     table: str = ""                  # the file's table, e.g. "clamp[3]"
     expanded: bool = False           # one of several clamps a course/wale/edge shorthand made
+    key: str = "position"            # the table's key that gave the target (for messages)
 
 
 @dataclass(frozen=True)
@@ -188,8 +190,21 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
     units = read_units(top.table("units"))
     yarn = _read_yarn(top.table("yarn"), natural) if top.has("yarn") else None
     top.finish()
-    return WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
-                       clamps, loads, rigid, reduction, solver, str(source), units, yarn)
+    pr = WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
+                     clamps, loads, rigid, reduction, solver, str(source), units, yarn)
+    _check_reach(pr)
+    return pr
+
+
+def _check_reach(pr: WeftProblem) -> None:
+    """Refuse grips no configuration satisfies (:mod:`.reach`): targets of one course farther
+    apart than its yarn, a net load along a coordinate nothing holds."""
+    targets = np.array([c.target for c in pr.clamps]).reshape(-1, 2)
+    rigid = np.array([[*r.translation, r.rotation] for r in pr.rigid_clamps]).reshape(-1, 3)
+    forces = np.array([ld.force for ld in pr.loads]).reshape(-1, 2)
+    found = out_of_reach(pr, targets, rigid) or unheld_force(pr, forces)
+    if found:
+        raise ProblemError(pr.source, *found)
 
 
 def _read_yarn(tab: Table, natural: NaturalLoop) -> Yarn:
@@ -359,7 +374,8 @@ def _read_clamp(tab: Table, points: _PointReader, starts: np.ndarray) -> list[Cl
     return [Clamp(loop, label, s,
                   position if position is not None
                   else starts[loop[0] - 1, loop[1] - 1] + natural + move,
-                  ("x" in fix, "y" in fix), angle, tab.name, not tab.has("loop")) for loop in loops]
+                  ("x" in fix, "y" in fix), angle, tab.name, not tab.has("loop"),
+                  "distance" if pull is not None else (given or ["fix"])[0]) for loop in loops]
 
 
 def _read_rigid(tab: Table, points: _PointReader, starts: np.ndarray) -> RigidClamp:

@@ -24,7 +24,7 @@ import numpy as np
 
 from ...ipopt import ipopt_options, succeeded
 from ...outcome import OUT_OF_TIME
-from ...progress import IterationLine
+from ...progress import QUIET_FOR, IterationLine
 from ..model.parametrisation import Full, Reduced
 from ..model.params import WeftParams
 from ..transcription.factory import transcribe
@@ -77,7 +77,8 @@ class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
-                 print_level: int = 0, verbose: bool = False, ipopt: dict | None = None) -> None:
+                 print_level: int = 0, verbose: bool | None = False,
+                 ipopt: dict | None = None) -> None:
         opts = wnlp.problem.solver
         self.wnlp = wnlp
         t0 = time.perf_counter()
@@ -88,7 +89,11 @@ class WeftSolver:
                                    mumps_permuting_scaling=0,
                                    **{**MODEL_IPOPT.get(wnlp.model, {}), **(ipopt or {})}),
                    **wnlp.nlpsol_options}
-        self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints) if verbose else None
+        # verbose: every iterate; False: a progress line once a solve outlasts QUIET_FOR;
+        # None: never (a study's workers, whose runner keeps its own progress line)
+        self.progress = None if verbose is None else IterationLine(
+            wnlp.n_variables, wnlp.n_constraints, quiet_for=0.0 if verbose else QUIET_FOR,
+            budget=opts.max_time)
         if self.progress is not None:
             options["iteration_callback"] = self.progress
         self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, options)
@@ -100,6 +105,8 @@ class WeftSolver:
         """Start the wall-clock budget ``[solver] max_time`` shared by the solves that follow
         (each IPOPT call also stops itself at ``max_wall_time`` = max_time)."""
         self.deadline = time.perf_counter() + self.wnlp.problem.solver.max_time
+        if getattr(self, "progress", None) is not None:
+            self.progress.start()
 
     def once(self, p: np.ndarray, x0: np.ndarray, *, lbg: np.ndarray | None = None,
              ubg: np.ndarray | None = None, lam_g0: np.ndarray | None = None) -> SolveReport:
