@@ -1,6 +1,6 @@
 """Every code block of the README and of docs/ runs as written (docs/design.md, "Documentation
 that runs"): ``python`` blocks in order in one namespace per page, ``sh`` blocks as ``knit-nlp``
-command lines through the CLI (exit 0), ``toml`` and ``json`` blocks parsed (``toml problem``: a
+command lines through the CLI (exit 0), ``toml``, ``json`` and ``csv`` blocks parsed (``toml problem``: a
 complete problem file, through the problem reader). ``console`` and ``text`` blocks are shown,
 not run. Each page runs in its own scratch folder (``problems/`` linked in, so the pages' paths
 work), and the README's promises about its outputs are checked."""
@@ -21,7 +21,7 @@ from knit_nlp.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-KINDS = {"python", "sh", "toml", "json", "console", "text"}
+KINDS = {"python", "sh", "toml", "json", "csv", "console", "text"}
 FENCE = re.compile(r"^```([^\n`]*)\n(.*?)^```\s*$", re.S | re.M)
 
 
@@ -60,6 +60,8 @@ def run_page(page: Path, folder: Path, capsys) -> tuple[dict, str]:
                 assert knit_nlp.parse_problem(doc, folder / "problems" / "doc.toml")
         elif kind == "json":
             json.loads(body)
+        elif kind == "csv":      # read by their own reader in test_inverse_files_doc.py
+            assert list(csv.reader(body.splitlines())), page.name
         printed.append(capsys.readouterr().out)
     return namespace, "".join(printed)
 
