@@ -62,3 +62,24 @@ def test_a_model_that_is_not_a_string_is_one_line(write_problem, tmp_path, capsy
     path = write_problem(f"model = {value}\n" + GOOD, "a.toml")
     refused(capsys, ["solve", str(path), "--out", str(tmp_path / "out")],
             "a.toml: (top level) model: must be one of 'weft', 'jacquard'")
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["solve", "jacquard_stripe", "--reduced"],
+     ["knit-nlp: --reduced: applies to weft problems only", "is a jacquard problem: drop "
+      "--reduced (jacquard flags: --solver, --svg)"]),
+    (["solve", "wada_fig7", "--solver", "static", "--svg"],
+     ["knit-nlp: --solver --svg: apply to jacquard problems only", "drop --solver --svg"]),
+    (["solve", "wada_fig7", "--reduced", "--warm-from-reduced"],
+     ["knit-nlp: --warm-from-reduced: starts the full model", "add --full"]),
+    (["solve", "wada_fig7", "--animate"],
+     ["knit-nlp: --animate: draws a loading path", "add --continuation N"]),
+    (["fit", "wada_fig7", "--observations", "x.csv", "--params", "k_a", "k_c"],
+     ["knit-nlp: --params k_c: unknown parameter 'k_c'; use k_a, k_b, R_f"]),
+    (["fit", "wada_fig7", "--observations", "x.csv", "--params", "k_a", "k_a"],
+     ["knit-nlp: --params k_a: given twice; give each of k_a, k_b, R_f at most once"]),
+])
+def test_flag_messages_say_what_to_do_without_top_level(tmp_path, capsys, argv, words):
+    err = refused(capsys, [*argv, "--out", str(tmp_path / "out")], *words)
+    assert "(top level)" not in err
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
