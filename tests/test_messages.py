@@ -1,10 +1,15 @@
 """Messages that say what to fix (issue 21 items 6 and 7): bad input is one line on stderr
 naming the file (or flag), table and key, with what to do, and exit code 2."""
+import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from knit_nlp.cli import main
+from knit_nlp.weft.inverse.fit import Fitter
+from knit_nlp.weft.inverse.observations import Observation
+from knit_nlp.weft.model.problem import load_problem
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
 
@@ -83,3 +88,60 @@ def test_flag_messages_say_what_to_do_without_top_level(tmp_path, capsys, argv, 
     err = refused(capsys, [*argv, "--out", str(tmp_path / "out")], *words)
     assert "(top level)" not in err
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+DISPLACED = """name = "disp"
+[fabric]
+courses = 3
+wales = 3
+[material]
+k_a = 1.5
+k_b = 0.02
+R_f = 0.7
+[[clamp]]
+loop = [1, 1]
+point = "start"
+position = [0.0, 0.0]
+[[clamp]]
+loop = [3, 3]
+point = "end"
+displacement = [1.0, 0.5]
+"""
+
+
+def _observed(path: Path, csv: Path, values: list[float]) -> None:
+    """Noise-free observations of every H point of ``path`` solved at ``values``."""
+    problem = load_problem(path)
+    obs = [Observation(problem.name, (i, j), "H", problem.crossings.s["H"], np.zeros(2))
+           for i in (1, 2, 3) for j in (1, 2, 3)]
+    fitter = Fitter([problem], obs)
+    fitter.solve_cases(np.array(values))
+    rows = [f"{problem.name},{o.loop[0]},{o.loop[1]},H,{x:.12f},{y:.12f}\n"
+            for o, (x, y) in zip(obs, fitter.positions(fitter.cases[0]))]
+    csv.write_text("case,course,wale,point,x,y\n" + "".join(rows))
+
+
+def test_a_displacement_only_fit_says_only_ratios_can_be_identified(write_problem, tmp_path,
+                                                                     capsys):
+    """No force anywhere: scaling k_a, k_b, R_f together changes no equilibrium, so the
+    warning says what to do (add a force, or fit fewer values)."""
+    path = write_problem(DISPLACED, "disp.toml")
+    _observed(path, tmp_path / "obs.csv", [1.0, 0.01, 1.0])
+    assert main(["fit", str(path), "--observations", str(tmp_path / "obs.csv"),
+                 "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    hint = ("only ratios can be identified with displacement-only clamps: add a force or fit "
+            "ratios with --params")
+    assert out.count(hint) == 3, out
+    assert json.loads((tmp_path / "out" / "disp.fit.json").read_text())["warnings"][0].count(hint)
+
+
+def test_a_fit_of_ratios_with_displacement_only_clamps_is_determined(write_problem, tmp_path,
+                                                                      capsys):
+    path = write_problem(DISPLACED, "disp.toml")
+    _observed(path, tmp_path / "obs.csv", [1.0, 0.01, 0.7])
+    assert main(["fit", str(path), "--observations", str(tmp_path / "obs.csv"),
+                 "--params", "k_a", "k_b", "--out", str(tmp_path / "out")]) == 0
+    r = json.loads((tmp_path / "out" / "disp.fit.json").read_text())
+    assert "only ratios" not in capsys.readouterr().out and not r["warnings"]
+    assert r["parameters"]["k_b"]["value"] == pytest.approx(0.01, rel=1e-5)
