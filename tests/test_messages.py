@@ -145,3 +145,38 @@ def test_a_fit_of_ratios_with_displacement_only_clamps_is_determined(write_probl
     r = json.loads((tmp_path / "out" / "disp.fit.json").read_text())
     assert "only ratios" not in capsys.readouterr().out and not r["warnings"]
     assert r["parameters"]["k_b"]["value"] == pytest.approx(0.01, rel=1e-5)
+
+
+FAR = """
+[fabric]
+courses = 4
+wales = 4
+[[clamp]]
+loop = [1, 1]
+point = "start"
+position = [0.0, 0.0]
+[[clamp]]
+loop = [4, 4]
+point = "H"
+displacement = [0.0, 0.0]
+actuated = true
+bounds = [[0.0, 16.0], [0.0, 30.0]]
+[[goal]]
+loop = [3, 2]
+point = "B"
+position = [100.0, 7.0]
+"""
+
+
+def test_a_control_on_its_bounds_says_so_in_readable_lines(write_problem, tmp_path, capsys):
+    """A goal beyond reach: the gripper stops on x <= 16. The summary and the JSON message
+    name the unknown on its bound; no line prints a Python dict."""
+    path = write_problem(FAR, "far.toml")
+    assert main(["control", str(path), "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    assert "{" not in out and "'" not in out, out
+    assert "  actuated clamp[2]: target (16, " in out
+    assert "on a bound: clamp[2] target x = 16 (upper bound): widen its bounds" in out
+    assert "target y" not in out
+    r = json.loads((tmp_path / "out" / "far.control.json").read_text())
+    assert "stopped on a bound: clamp[2] target x = 16 (upper bound)" in r["message"]

@@ -101,9 +101,14 @@ def save_options(args: Namespace) -> dict[str, Any]:
 # ``python -X importtime -c "import knit_nlp.cli"``), which ``knit-nlp solve`` never needs.
 
 def run_control(args: Namespace) -> int:
-    from .inverse import run
+    """``knit-nlp control``: write ``<problem>.control.json`` and ``.png`` and print readable
+    lines (``control_summary``); exit 0 only for a converged, stable, forward-checked answer."""
+    from .inverse.control import control, control_summary
+    from .inverse.spec import parse_control
     path = resolve(args.problem)
-    return run.control_file(path, load_toml(path), Path(args.out))
+    ans = control(parse_control(path, load_toml(path)))
+    print(control_summary(ans, ans.save(Path(args.out))))
+    return 0 if ans.success else 1
 
 
 def check_params(params: list[str]) -> None:
