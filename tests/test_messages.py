@@ -5,7 +5,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
+from knit_nlp.api import load_problem as load_any
 from knit_nlp.cli import main
 from knit_nlp.weft.inverse.fit import Fitter
 from knit_nlp.weft.inverse.observations import Observation
@@ -180,3 +182,56 @@ def test_a_control_on_its_bounds_says_so_in_readable_lines(write_problem, tmp_pa
     assert "target y" not in out
     r = json.loads((tmp_path / "out" / "far.control.json").read_text())
     assert "stopped on a bound: clamp[2] target x = 16 (upper bound)" in r["message"]
+
+
+JACQUARD = """name = "tiny"
+model = "jacquard"
+[fabric]
+wales = 6
+courses = 6
+dz = 10.0
+dh = 8.0
+[fall_plate]
+design_image = "fp.png"
+[inlay]
+design = \"\"\"
+..+###
+.+####
++#####
+###+..
+##+...
+#+....
+\"\"\"
+"""
+FALL_PLATE = ["##+...", "#+....", "+.....", "...++#", "..+###", ".+####"]
+GREY = {"#": 0, "+": 128, ".": 255}
+
+
+def _design_png(path: Path, mode: str, transparency: object) -> None:
+    """The fall-plate design as an 8-bit grey (L) or RGB PNG with a ``tRNS`` chunk."""
+    grey = np.array([[GREY[c] for c in row] for row in FALL_PLATE], dtype=np.uint8)
+    pixels = grey if mode == "L" else np.repeat(grey[:, :, None], 3, axis=2)
+    Image.fromarray(pixels, mode).save(path, transparency=transparency)
+
+
+@pytest.mark.parametrize("mode, transparency", [("L", 255), ("RGB", (0, 0, 0)), ("L", 128)])
+def test_a_png_whose_trns_chunk_hides_a_cell_is_refused(tmp_path, capsys, mode, transparency):
+    _design_png(tmp_path / "fp.png", mode, transparency)
+    (tmp_path / "tiny.toml").write_text(JACQUARD)
+    first = next((x, y) for y, row in enumerate(FALL_PLATE) for x, c in enumerate(row)
+                 if GREY[c] == (transparency if mode == "L" else 0))
+    refused(capsys, ["solve", str(tmp_path / "tiny.toml"), "--out", str(tmp_path / "out")],
+            "tiny.toml: [fall_plate] design_image:", "fp.png",
+            f"pixel (x={first[0]}, y={first[1]} from the top left) has alpha 0 < 1",
+            "flatten the image")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_png_whose_trns_colour_is_unused_is_accepted(tmp_path):
+    _design_png(tmp_path / "fp.png", "L", 77)
+    (tmp_path / "tiny.toml").write_text(JACQUARD)
+    text = JACQUARD.replace('design_image = "fp.png"',
+                            'design = """\n' + "\n".join(FALL_PLATE) + '\n"""')
+    (tmp_path / "text.toml").write_text(text)
+    image, plain = load_any(tmp_path / "tiny.toml"), load_any(tmp_path / "text.toml")
+    assert np.array_equal(image.systems[0].codes, plain.systems[0].codes)
