@@ -238,14 +238,17 @@ class Table:
     def table(self, key: str, required: bool = False) -> "Table":
         value = self._raw(key, _MISSING if required else {}, "table")
         if not isinstance(value, dict):
-            raise self.error(key, f"expected a table, got {type_name(value)}")
+            got = (f"an array of tables ([[{key}]]): write [{key}]" if _kind(value) == "table"
+                   else type_name(value))
+            raise self.error(key, f"expected a table, got {got}")
         return Table(value, self.file, key if not self.name else f"{self.name}.{key}")
 
     def tables(self, key: str) -> list["Table"]:
         """An array of tables (``[[key]]``); messages name them ``key[1]``, ``key[2]``..."""
         value = self._raw(key, [])
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise self.error(key, "expected an array of tables ([[%s]])" % key)
+            hint = f": write [[{key}]], not [{key}]" if isinstance(value, dict) else ""
+            raise self.error(key, f"expected an array of tables ([[{key}]]){hint}")
         return [Table(v, self.file, f"{key}[{k + 1}]") for k, v in enumerate(value)]
 
     def allow(self, *keys: str) -> None:

@@ -235,3 +235,18 @@ def test_a_png_whose_trns_colour_is_unused_is_accepted(tmp_path):
     (tmp_path / "text.toml").write_text(text)
     image, plain = load_any(tmp_path / "tiny.toml"), load_any(tmp_path / "text.toml")
     assert np.array_equal(image.systems[0].codes, plain.systems[0].codes)
+
+
+ONE_CLAMP = "[fabric]\ncourses = 2\nwales = 3\n[clamp]\nloop = [1, 1]\nposition = [0.0, 0.0]\n"
+
+
+@pytest.mark.parametrize("text, words", [
+    (GOOD.replace("[fabric]", "[[fabric]]"),
+     "(top level) fabric: expected a table, got an array of tables ([[fabric]]): write [fabric]"),
+    (ONE_CLAMP,
+     "(top level) clamp: expected an array of tables ([[clamp]]): write [[clamp]], not [clamp]"),
+])
+def test_single_and_double_brackets_swapped_say_which_to_write(write_problem, tmp_path, capsys,
+                                                               text, words):
+    refused(capsys, ["solve", str(write_problem(text, "a.toml")), "--out",
+                     str(tmp_path / "out")], words)
