@@ -135,13 +135,14 @@ class ControlResult(Outcome):
         return [js, png]
 
 
-UNKNOWNS = {"clamp": ("target x", "target y"),
-            "rigid": ("translation x", "translation y", "rotation")}
+# per kind of actuated clamp: its file table and the names of its unknowns
+KINDS = {"clamp": ("clamp", ("target x", "target y")),
+         "rigid": ("rigid_clamp", ("translation x", "translation y", "rotation"))}
 
 
 def _label(a: Actuated) -> str:
     """How a file names an actuated clamp's table: ``clamp[2]``, ``rigid_clamp[1]``."""
-    return f"{'clamp' if a.kind == 'clamp' else 'rigid_clamp'}[{a.table}]"
+    return f"{KINDS[a.kind][0]}[{a.table}]"
 
 
 def at_bounds(ans: ControlResult, rtol: float = 1e-8) -> list[str]:
@@ -149,7 +150,7 @@ def at_bounds(ans: ControlResult, rtol: float = 1e-8) -> list[str]:
     (upper bound)``."""
     out, k = [], 0
     for a in ans.ctl.cp.actuated:
-        for d, name in enumerate(UNKNOWNS[a.kind]):
+        for d, name in enumerate(KINDS[a.kind][1]):
             u = float(ans.state.u[k + d])
             for side, b in (("lower", a.lower[d]), ("upper", a.upper[d])):
                 if np.isfinite(b) and abs(u - b) <= rtol * (1.0 + abs(b)):
@@ -170,7 +171,7 @@ def control_summary(ans: ControlResult, paths: list[Path]) -> str:
         lines.append(f"  actuated {_label(a)}: {where}")
     lines += [f"  on a bound: {b}: widen its bounds to let it move further" for b in at_bounds(ans)]
     for g in r["goals"]:
-        lines.append(f"  goal {_label_loop(g['loop'])} {g['point']}: goal {_xy(g['goal'])}, "
+        lines.append(f"  goal {_xy(g['loop'])} {g['point']}: goal {_xy(g['goal'])}, "
                      f"achieved {_xy(g['achieved'])}, misfit {g['misfit']:.3g}")
     for o in r["openings"]:
         lines.append(f"  opening at least {o['at_least']:.4g}: achieved {o['achieved']:.4g}")
@@ -183,11 +184,8 @@ def control_summary(ans: ControlResult, paths: list[Path]) -> str:
 
 
 def _xy(v: list[float]) -> str:
+    """``(16, 14.3232)``: numbers to 6 significant digits."""
     return "(" + ", ".join(f"{c:.6g}" for c in v) + ")"
-
-
-def _label_loop(loop: list[int]) -> str:
-    return f"({loop[0]}, {loop[1]})"
 
 
 def _clamp_offsets(cp: ControlProblem) -> list[int]:
