@@ -24,7 +24,7 @@ from .jacquard.problem import JacquardProblem, parse_problem as parse_jacquard
 from .jacquard.result import JacquardResult
 from .jacquard.summary import solve_summary as jacquard_summary
 from .problems import resolve
-from .tomlio import load_toml
+from .tomlio import load_toml, type_name
 from .weft import commands as weft_commands, keys as weft_keys, study as weft_study
 from .weft.api import compare as compare_weft, solve as solve_weft
 from .weft.model.parametrisation import Adaptive, Full, Parametrisation, Reduced
@@ -121,9 +121,10 @@ MODELS: dict[str, Model] = {
 def model_of(doc: dict[str, Any], source: str | Path = "<document>") -> Model:
     """The entry of the model a document names (``model``, default ``weft``)."""
     name = doc.get("model", DEFAULT_MODEL)
-    if name not in MODELS:
-        raise ProblemError(source, "", "model", f"must be one of {', '.join(map(repr, MODELS))};"
-                           f" got {quoted(name)}")
+    if not isinstance(name, str) or name not in MODELS:
+        got = quoted(name) if isinstance(name, str) else f"{type_name(name)} {quoted(name)}"
+        raise ProblemError(source, "", "model", f"must be one of {', '.join(map(repr, MODELS))}"
+                           f" (a string, e.g. model = \"{DEFAULT_MODEL}\"); got {got}")
     return MODELS[name]
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import __version__
 from .api import MODELS, Model, load_problem, model_of
-from .errors import ProblemError, shown
+from .errors import ArgumentError, ProblemError, shown
 from .problems import named_problems, resolve
 from .outdir import check_out, prepare_out
 from .provenance import check_overwrite
@@ -124,8 +124,11 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     problem = model.parse(model.document(doc, path), path)
     wrong = _foreign_flags(args, model)
     if wrong:
-        raise ProblemError(path, "", "model", f"{'/'.join(f for f, _ in wrong)} apply to "
-                           f"{wrong[0][1]} problems only; this is a {model.name} problem")
+        flags = " ".join(f for f, _ in wrong)
+        own = ", ".join(names[0] for names, _, _ in model.flags)
+        raise ArgumentError(flags, f"{'applies' if len(wrong) == 1 else 'apply'} to "
+                            f"{wrong[0][1]} problems only, and {shown(path, 200)} is a "
+                            f"{model.name} problem: drop {flags} ({model.name} flags: {own})")
     options = model.solve_options(args, problem, path)
     out = prepare_out(args.out, problem.name, model.outputs)
     check_overwrite(out.glob(f"{problem.name}.*.json"), path, args.force)

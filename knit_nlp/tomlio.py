@@ -5,6 +5,7 @@ value's type, and rejects keys nobody asked for. Nothing in a problem file is ev
 """
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import re
@@ -64,7 +65,7 @@ def finite_number(value: Any, limit: float = MAX_MAGNITUDE) -> float:
     """``value`` as a float if it is a (non-boolean) finite number with |value| <= ``limit``;
     else ``ValueError`` with the one-line reason (also used to check Python API arguments)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"expected a number, got {_type_name(value)}")
+        raise ValueError(f"expected a number, got {type_name(value)}")
     if isinstance(value, int) and abs(value) > limit:     # before float(): no OverflowError
         raise ValueError(f"must have magnitude <= {limit:g}; got an integer of "
                          f"{len(str(abs(value)))} digits")
@@ -92,7 +93,7 @@ def derived_stem(path: Path | str) -> str:
     return text[:100]
 
 
-def _type_name(value: Any) -> str:
+def type_name(value: Any) -> str:
     return {bool: "boolean", int: "integer", float: "number", str: "string",
             list: "array", dict: "table"}.get(type(value), type(value).__name__)
 
@@ -107,20 +108,32 @@ class Table:
     def __init__(self, data: dict[str, Any], file: Path | str, name: str) -> None:
         self.data, self.file, self.name = data, str(file), name
         self._read: set[str] = set()
+        self._known: set[str] = set()       # keys asked for (read or tested with ``has``)
 
     def error(self, key: str, message: str) -> ProblemError:
         return ProblemError(self.file, self.name, key, message)
 
     def has(self, key: str) -> bool:
+        self._known.add(key)
         return key in self.data
 
-    def _raw(self, key: str, default: Any) -> Any:
+    def _raw(self, key: str, default: Any, kind: str = "key") -> Any:
         self._read.add(key)
+        self._known.add(key)
         if key not in self.data:
             if default is _MISSING:
-                raise self.error(key, "missing required key")
+                raise self.error(key, f"missing required {kind}{self._found_instead(key)}")
             return default
         return self.data[key]
+
+    def _found_instead(self, key: str) -> str:
+        """`` (found unknown table 'fabirc': misspelt?)`` when a key not asked for looks like
+        the missing ``key``; else ``""``."""
+        unasked = [k for k in self.data if k not in self._known]
+        close = difflib.get_close_matches(key, unasked, n=1, cutoff=0.6)
+        if not close:
+            return ""
+        return f" (found unknown {_kind(self.data[close[0]])} {quoted(close[0])}: misspelt?)"
 
     def integer(self, key: str, default: Any = _MISSING, minimum: int | None = None,
                 maximum: int = MAX_INTEGER) -> int:
@@ -128,7 +141,7 @@ class Table:
         if value is default and key not in self.data:
             return value
         if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(key, f"expected an integer, got {_type_name(value)}")
+            raise self.error(key, f"expected an integer, got {type_name(value)}")
         if minimum is not None and value < minimum:
             raise self.error(key, f"must be >= {minimum}, got {value}")
         if value > maximum:
@@ -140,7 +153,7 @@ class Table:
         if value is default and key not in self.data:
             return value
         if not isinstance(value, bool):
-            raise self.error(key, f"expected true or false, got {_type_name(value)}")
+            raise self.error(key, f"expected true or false, got {type_name(value)}")
         return value
 
     def number(self, key: str, default: Any = _MISSING, *, positive: bool = False,
@@ -166,7 +179,7 @@ class Table:
         if value is default and key not in self.data:
             return value
         if not isinstance(value, str):
-            raise self.error(key, f"expected a string, got {_type_name(value)}")
+            raise self.error(key, f"expected a string, got {type_name(value)}")
         if choices is not None and value not in choices:
             raise self.error(key, f"must be one of {', '.join(sorted(choices))}; got {quoted(value)}")
         return value
@@ -188,7 +201,7 @@ class Table:
         if value is default and key not in self.data:
             return value
         if not isinstance(value, list):
-            raise self.error(key, f"expected an array of numbers, got {_type_name(value)}")
+            raise self.error(key, f"expected an array of numbers, got {type_name(value)}")
         if length is not None and len(value) != length:
             raise self.error(key, f"expected {length} numbers, got {len(value)}")
         return [self._as_float(key, v) for v in value]
@@ -223,16 +236,19 @@ class Table:
         return self._raw(key, default)
 
     def table(self, key: str, required: bool = False) -> "Table":
-        value = self._raw(key, _MISSING if required else {})
+        value = self._raw(key, _MISSING if required else {}, "table")
         if not isinstance(value, dict):
-            raise self.error(key, f"expected a table, got {_type_name(value)}")
+            got = (f"an array of tables ([[{key}]]): write [{key}]" if _kind(value) == "table"
+                   else type_name(value))
+            raise self.error(key, f"expected a table, got {got}")
         return Table(value, self.file, key if not self.name else f"{self.name}.{key}")
 
     def tables(self, key: str) -> list["Table"]:
         """An array of tables (``[[key]]``); messages name them ``key[1]``, ``key[2]``..."""
         value = self._raw(key, [])
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise self.error(key, "expected an array of tables ([[%s]])" % key)
+            hint = f": write [[{key}]], not [{key}]" if isinstance(value, dict) else ""
+            raise self.error(key, f"expected an array of tables ([[{key}]]){hint}")
         return [Table(v, self.file, f"{key}[{k + 1}]") for k, v in enumerate(value)]
 
     def allow(self, *keys: str) -> None:
@@ -243,7 +259,24 @@ class Table:
                 raise self.error(key, f"unknown key (allowed: {', '.join(keys)})")
 
     def finish(self) -> None:
-        """Reject keys that were never read (the contract: unknown keys are an error)."""
+        """Reject keys that were never read (the contract: unknown keys are an error), naming
+        the nearest known key and the keys allowed here."""
         for key in self.data:
             if key not in self._read:
-                raise self.error(key, "unknown key")
+                raise self.error(key, self._unknown(key))
+
+    def _unknown(self, key: str) -> str:
+        """``unknown table (misspelt 'fabric'?; allowed: ...)`` for a key nobody asked for."""
+        known = sorted(self._known - set(self.data)) or sorted(self._known)
+        close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
+        hint = f"misspelt {quoted(close[0])}?; " if close else ""
+        allowed = f"allowed: {', '.join(sorted(self._known))}" if self._known else "no keys allowed here"
+        return f"unknown {_kind(self.data[key])} ({hint}{allowed})"
+
+
+def _kind(value: Any) -> str:
+    """How a message calls a file's entry: a ``table`` (``[x]``, ``[[x]]``) or a ``key``."""
+    if isinstance(value, dict) or (isinstance(value, list) and value
+                                   and all(isinstance(v, dict) for v in value)):
+        return "table"
+    return "key"

@@ -150,6 +150,36 @@ def png_size(data: bytes) -> tuple[int, int] | None:
     return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
 
 
+def png_transparent_key(data: bytes) -> np.ndarray | None:
+    """The colour a greyscale or RGB PNG's ``tRNS`` chunk makes fully transparent, as samples
+    in [0, 1] (one for grey, three for RGB), or None when it has none. (A palette image's
+    ``tRNS`` is decoded into an alpha channel by the reader; this is the case it ignores.)"""
+    depth, colour_type = data[24], data[25]
+    if colour_type not in (0, 2):
+        return None
+    offset = 8
+    while offset + 8 <= len(data):
+        length = int.from_bytes(data[offset:offset + 4], "big")
+        kind = data[offset + 4:offset + 8]
+        if kind in (b"IDAT", b"IEND"):
+            return None
+        if kind == b"tRNS":
+            body = data[offset + 8:offset + 8 + length]
+            samples = [int.from_bytes(body[k:k + 2], "big") for k in range(0, len(body) - 1, 2)]
+            return np.array(samples, dtype=np.float64) / (2 ** depth - 1)
+        offset += 12 + length
+    return None
+
+
+def _with_alpha(pixels: np.ndarray, key: np.ndarray, depth: int) -> np.ndarray:
+    """RGBA pixels, alpha 0 where a pixel has the ``tRNS`` colour ``key`` (to within half a
+    step of the image's bit depth), 1 elsewhere."""
+    rgb = pixels[:, :, None] if pixels.ndim == 2 else pixels[:, :, :3]
+    clear = np.all(np.abs(rgb - key[:rgb.shape[2]]) < 0.5 / (2 ** depth - 1), axis=2)
+    colour = np.repeat(rgb, 3, axis=2) if rgb.shape[2] == 1 else rgb
+    return np.concatenate([colour, np.where(clear, 0.0, 1.0)[:, :, None]], axis=2)
+
+
 def _load_png(path: Path, table: Table, key: str, shape: tuple[int, int]) -> np.ndarray:
     """The pixels of a PNG file as floats in [0, 1], shape (rows, cols) or (rows, cols, 3|4).
 
@@ -172,11 +202,14 @@ def _load_png(path: Path, table: Table, key: str, shape: tuple[int, int]) -> np.
                           f"({quoted(err)})") from None
     if np.issubdtype(pixels.dtype, np.integer):
         pixels = pixels / np.iinfo(pixels.dtype).max
-    return pixels.astype(np.float64)
+    pixels = pixels.astype(np.float64)
+    clear = png_transparent_key(data)
+    return pixels if clear is None else _with_alpha(pixels, clear, data[24])
 
 
-def _opaque_colours(pixels: np.ndarray, table: Table, key: str) -> np.ndarray:
-    """Greyscale or RGB(A) pixels as RGB rows x cols x 3; any pixel with alpha < 1 is an error."""
+def _opaque_colours(pixels: np.ndarray, table: Table, key: str, path: Path) -> np.ndarray:
+    """Greyscale or RGB(A) pixels as RGB rows x cols x 3; any pixel with alpha < 1 (an alpha
+    channel's, or a ``tRNS`` chunk's transparent colour) is an error naming the file."""
     if pixels.ndim == 2:
         return np.repeat(pixels[:, :, None], 3, axis=2)
     if pixels.ndim != 3 or pixels.shape[2] not in (3, 4):
@@ -186,8 +219,10 @@ def _opaque_colours(pixels: np.ndarray, table: Table, key: str) -> np.ndarray:
         see_through = np.argwhere(pixels[:, :, 3] < 1.0)
         if len(see_through):
             row, col = see_through[0]
-            raise table.error(key, f"pixel (x={col}, y={row} from the top left) has alpha "
-                              f"{pixels[row, col, 3]:.3g} < 1: a transparent cell is ambiguous")
+            raise table.error(key, f"design image {quoted(path, 200)}: pixel (x={col}, y={row} "
+                              f"from the top left) has alpha {pixels[row, col, 3]:.3g} < 1 (a "
+                              "transparent cell is ambiguous): flatten the image (save it "
+                              "without transparency)")
     return pixels[:, :, :3]
 
 
@@ -201,7 +236,7 @@ def read_design_image(path: Path, table: Table, key: str, shape: tuple[int, int]
     missing, unreadable or non-PNG file, any pixel with alpha < 1, more than three distinct
     colours.
     """
-    rgb = _opaque_colours(_load_png(path, table, key, shape), table, key)
+    rgb = _opaque_colours(_load_png(path, table, key, shape), table, key, path)
     n_colours = len(np.unique(rgb.reshape(-1, 3), axis=0))
     if n_colours > 3:
         raise table.error(key, f"design image {quoted(path)} has {n_colours} distinct colours; use at "

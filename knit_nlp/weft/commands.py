@@ -13,11 +13,12 @@ from argparse import ArgumentTypeError, Namespace
 from pathlib import Path
 from typing import Any
 
-from ..errors import ProblemError, quoted
+from ..errors import ArgumentError, ProblemError, quoted, shown
 from ..outdir import prepare_out
 from ..problems import resolve
 from ..tomlio import load_toml
 from .inverse.spec import has_control_keys, strip_control_keys
+from .model.params import MATERIAL
 from .model.problem import MAX_CONTINUATION, WeftProblem, parse_problem
 from .output.check import SAMPLES, check, load_result_json, write_check
 from .output.export import EXPORTS
@@ -74,9 +75,11 @@ def solve_options(args: Namespace, problem: WeftProblem, path: Path) -> dict[str
     """``knit_nlp.solve`` options from the flags; a combination that cannot work is a
     ProblemError (exit 2)."""
     if args.warm_from_reduced and (args.reduced or (not args.full and problem.reduction)):
-        raise ProblemError(path, "", "", "--warm-from-reduced starts the full model: add --full")
+        raise ArgumentError("--warm-from-reduced", f"starts the full model, and {shown(path, 200)} "
+                            "solves the reduced one: add --full (not --reduced)")
     if args.animate and not (args.continuation or problem.solver.continuation):
-        raise ProblemError(path, "", "", "--animate draws a loading path: add --continuation N")
+        raise ArgumentError("--animate", f"draws a loading path, and {shown(path, 200)} has none: "
+                            "add --continuation N (or [solver] continuation = N)")
     if args.yarn and problem.yarn is None:
         raise ProblemError(path, "yarn", "radius", "--yarn draws the yarn's thickness: add "
                            "[yarn] radius = r (length units) to the problem file")
@@ -98,13 +101,32 @@ def save_options(args: Namespace) -> dict[str, Any]:
 # ``python -X importtime -c "import knit_nlp.cli"``), which ``knit-nlp solve`` never needs.
 
 def run_control(args: Namespace) -> int:
-    from .inverse import run
+    """``knit-nlp control``: write ``<problem>.control.json`` and ``.png`` and print readable
+    lines (``control_summary``); exit 0 only for a converged, stable, forward-checked answer."""
+    from .inverse.control import control, control_summary
+    from .inverse.spec import parse_control
     path = resolve(args.problem)
-    return run.control_file(path, load_toml(path), Path(args.out))
+    ans = control(parse_control(path, load_toml(path)))
+    print(control_summary(ans, ans.save(Path(args.out))))
+    return 0 if ans.success else 1
+
+
+def check_params(params: list[str]) -> None:
+    """``fit --params``: each a material value (:data:`MATERIAL`), each at most once; else an
+    :class:`ArgumentError` naming the name and the allowed ones."""
+    allowed = ", ".join(MATERIAL)
+    for k, name in enumerate(params):
+        if name not in MATERIAL:
+            raise ArgumentError(f"--params {shown(name)}", f"unknown parameter {quoted(name)}; "
+                                f"use {allowed}")
+        if name in params[:k]:
+            raise ArgumentError(f"--params {shown(name)}", f"given twice; give each of "
+                                f"{allowed} at most once")
 
 
 def run_fit(args: Namespace) -> int:
     from .inverse import run
+    check_params(args.params)
     return run.fit_files([resolve(p) for p in args.problems], Path(args.observations),
                          args.params, Path(args.out), args.name)
 

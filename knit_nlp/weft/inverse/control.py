@@ -23,7 +23,7 @@ import casadi as ca
 import numpy as np
 
 from ...jsonio import write_json
-from ...outcome import Energy, Outcome
+from ...outcome import Energy, Outcome, describe
 from ..model.centrelines import natural_centrelines
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
@@ -32,7 +32,7 @@ from ..solving.solve import SolveReport
 from .equilibrium import Equilibrium, Stability
 from .plot import plot_control
 from .points import point_function, point_jacobian
-from .spec import ControlProblem
+from .spec import Actuated, ControlProblem
 
 CONVERGED = "Converged"
 
@@ -100,6 +100,15 @@ class ControlResult(Outcome):
     def energy(self) -> Energy:
         return self.equilibrium.energy
 
+    @property
+    def message(self) -> str:
+        """The status spelled out, and which actuated unknowns ended on a bound."""
+        bound = at_bounds(self)
+        if not bound:
+            return describe(self.status)
+        return (f"{describe(self.status)}; stopped on a bound: {', '.join(bound)} "
+                "(widen its bounds to let it move further)")
+
     def to_json(self) -> dict[str, Any]:
         """The contract's ``<problem>.control.json`` (plus ``message`` and ``energy``)."""
         return control_json(self)
@@ -124,6 +133,59 @@ class ControlResult(Outcome):
                            f"{name}: {result['status']}, objective {result['objective']:.3g}, "
                            f"{'stable' if result['stable'] else 'NOT STABLE'}")
         return [js, png]
+
+
+# per kind of actuated clamp: its file table and the names of its unknowns
+KINDS = {"clamp": ("clamp", ("target x", "target y")),
+         "rigid": ("rigid_clamp", ("translation x", "translation y", "rotation"))}
+
+
+def _label(a: Actuated) -> str:
+    """How a file names an actuated clamp's table: ``clamp[2]``, ``rigid_clamp[1]``."""
+    return f"{KINDS[a.kind][0]}[{a.table}]"
+
+
+def at_bounds(ans: ControlResult, rtol: float = 1e-8) -> list[str]:
+    """Each actuated unknown that ends on one of its bounds, as ``clamp[2] target x = 16
+    (upper bound)``."""
+    out, k = [], 0
+    for a in ans.ctl.cp.actuated:
+        for d, name in enumerate(KINDS[a.kind][1]):
+            u = float(ans.state.u[k + d])
+            for side, b in (("lower", a.lower[d]), ("upper", a.upper[d])):
+                if np.isfinite(b) and abs(u - b) <= rtol * (1.0 + abs(b)):
+                    out.append(f"{_label(a)} {name} = {u:.6g} ({side} bound)")
+        k += a.size
+    return out
+
+
+def control_summary(ans: ControlResult, paths: list[Path]) -> str:
+    """What ``knit-nlp control`` prints: readable lines (no Python dicts), the bound an
+    actuated unknown stopped on included."""
+    r = ans.to_json()
+    lines = [f"{ans.problem.name}: {r['status']} in {r['iterations']} outer iterations, "
+             f"{r['forward_solves']} forward solves, {r['timings']['total_s']:.2f} s"]
+    for a, v in zip(ans.ctl.cp.actuated, r["actuated"]):
+        where = (f"target {_xy(v['target'])}" if a.kind == "clamp" else
+                 f"translation {_xy(v['translation'])}, rotation {v['rotation']:.6g} rad")
+        lines.append(f"  actuated {_label(a)}: {where}")
+    lines += [f"  on a bound: {b}: widen its bounds to let it move further" for b in at_bounds(ans)]
+    for g in r["goals"]:
+        lines.append(f"  goal {_xy(g['loop'])} {g['point']}: goal {_xy(g['goal'])}, "
+                     f"achieved {_xy(g['achieved'])}, misfit {g['misfit']:.3g}")
+    for o in r["openings"]:
+        lines.append(f"  opening at least {o['at_least']:.4g}: achieved {o['achieved']:.4g}")
+    lines.append(f"  stable: {r['stable']} (min reduced Hessian eigenvalue "
+                 f"{r['min_reduced_hessian_eigenvalue']:.3g}); forward check: "
+                 f"{r['forward_check']['success']} (max distance "
+                 f"{r['forward_check']['max_distance']:.2e})")
+    lines.append(f"  wrote {', '.join(map(str, paths))}")
+    return "\n".join(lines)
+
+
+def _xy(v: list[float]) -> str:
+    """``(16, 14.3232)``: numbers to 6 significant digits."""
+    return "(" + ", ".join(f"{c:.6g}" for c in v) + ")"
 
 
 def _clamp_offsets(cp: ControlProblem) -> list[int]:

@@ -232,6 +232,12 @@ class Fitter:
         spring, bending, work = (float(t) for t in terms)
         return Energy(spring + bending, spring, bending, work)
 
+    def _scale_free(self) -> bool:
+        """Whether scaling every material value leaves every case's equilibrium unchanged:
+        all of them are fitted and no case has a load (the energy is linear in the values, so
+        displacement-only clamps fix the shape by the values' ratios alone)."""
+        return set(MATERIAL) <= set(self.names) and not any(c.eq.problem.loads for c in self.cases)
+
     def _std_errors(self, v: np.ndarray) -> tuple[list[float | None], list[str]]:
         """σ²(JᵀJ)⁻¹ over the determined values; the others None, with a warning each. With
         no more residuals than values σ² cannot be estimated: every standard error is None."""
@@ -246,8 +252,14 @@ class Fitter:
             for q, k in enumerate(keep):
                 std[k] = float(np.sqrt(max(cov[q, q], 0.0)))
         warnings = []
+        scale_free = self._scale_free()
         for k, name in enumerate(self.names):
-            if k in undetermined:
+            if k in undetermined and scale_free:
+                warnings.append(f"{name} is not determined by the data: only ratios can be "
+                                "identified with displacement-only clamps: add a force or fit "
+                                "ratios with --params (leave one of "
+                                f"{', '.join(MATERIAL)} out: it keeps its file value)")
+            elif k in undetermined:
                 warnings.append(f"{name} is not determined by the data (JᵀJ is singular to "
                                 f"relative condition {self.opts.condition_limit:g} in its direction)")
             elif dof <= 0:
