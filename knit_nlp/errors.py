@@ -26,7 +26,9 @@ def quoted(value: object, limit: int = MAX_SHOWN) -> str:
 class ProblemError(Exception):
     """A bad problem file or bad argument.
 
-    ``str(err)`` is the one-line message the CLI prints: ``file: [table] key: message``.
+    ``str(err)`` is the one-line message the CLI prints: ``file: [table] key: message``, or
+    ``file: (top level) key: message`` for a top-level key, ``file: message`` for the whole file
+    (or a flag: "(top level)" names file keys only).
     """
 
     def __init__(self, file: object, table: str, key: str, message: str) -> None:
@@ -34,6 +36,8 @@ class ProblemError(Exception):
         super().__init__(str(self))
 
     def __str__(self) -> str:
+        if not self.table and not self.key:          # the whole file, or a flag such as --out
+            return f"{shown(self.file, 200)}: {shown(self.message, 400)}"
         where = f"[{shown(self.table)}]" if self.table else "(top level)"
         key = f" {shown(self.key)}" if self.key else ""
         return f"{shown(self.file, 200)}: {where}{key}: {shown(self.message, 400)}"

@@ -120,7 +120,7 @@ NUMBERS = {
     "jacquard huge span": (JACQUARD + "[fall_plate.span]\nthick = 99999999999999999999\n",
                            "[fall_plate.span] thick", "<="),
     "integer of 5000 digits": (WEFT.replace("courses = 2", "courses = " + "9" * 5000),
-                               "(top level)", "not a usable TOML document"),
+                               "p.toml: not a usable", "TOML document"),
 }
 
 

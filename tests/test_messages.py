@@ -250,3 +250,12 @@ def test_single_and_double_brackets_swapped_say_which_to_write(write_problem, tm
                                                                text, words):
     refused(capsys, ["solve", str(write_problem(text, "a.toml")), "--out",
                      str(tmp_path / "out")], words)
+
+
+def test_an_out_folder_message_names_the_flag_not_a_file_key(tmp_path, capsys):
+    """'(top level)' names file keys only: an unusable --out is 'PATH: what to do'."""
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["solve", "wada_fig7", "--out", str(blocker)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "(top level)" not in err and "give a folder" in err and len(err.splitlines()) == 1
