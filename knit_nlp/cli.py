@@ -24,7 +24,7 @@ from .outdir import check_out, prepare_out
 from .provenance import check_overwrite
 from .studies import overview, sweep
 from .studies.executors import add_executor_arguments
-from .studies.runner import print_table, run_with_options
+from .studies.runner import prepare_study, print_table, run_with_options
 from .tomlio import load_toml
 
 
@@ -161,7 +161,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     vary = [sweep.parse_axis("--vary", a) for a in args.vary]
     along = [sweep.parse_axis("--path", a) for a in args.path]
     paths = sweep.sweep_paths(doc, problem, vary, along)
-    prepare_out(str(Path(args.out) / name), "sweep", ())
+    prepare_study(Path(args.out), name, ("sweep.csv", "sweep.png"))
     summary = run_with_options(name, paths, Path(args.out), args)
     keys = [a.key for a in (*vary, *along)]
     out = Path(args.out) / name

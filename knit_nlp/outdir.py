@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import os
 import re
+import tempfile
 from pathlib import Path
 
 from .errors import ArgumentError, ProblemError, quoted, shown
+
+OUTPUT_SUFFIXES = ("json", "npz", "png", "svg", "csv", "gif")
 
 
 def check_out(out: str) -> Path:
@@ -31,25 +34,38 @@ def check_out(out: str) -> Path:
     return folder
 
 
-def prepare_out(out: str, name: str, kinds: tuple[str, ...]) -> Path:
-    """The output folder, checked (:func:`check_out`) and created; also refused if it holds a
-    non-file where an output must go. Called after the problem is read and checked, before
-    solving: bad input writes nothing."""
+def prepare_out(out: str, name: str, kinds: tuple[str, ...],
+                files: tuple[str, ...] = ()) -> Path:
+    """The output folder, checked (:func:`check_out`), created and shown writable by creating
+    and removing a file in it (``os.access`` tells root that /proc may be written); also
+    refused if it holds a non-file where an output must go: ``<name>.<kind>.<suffix>`` for
+    each kind, and each of ``files``. Called after the input is read and checked, before
+    solving: bad input writes nothing, and a folder nothing can be written to is found before
+    the solve, not after."""
     folder = check_out(out)
     try:
         folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
     except OSError as err:
-        raise ProblemError(out, "", "", f"cannot create the output folder "
+        raise ProblemError(out, "", "", f"cannot create the output folder or write into it "
                            f"({shown(err.strerror or err)})") from None
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ProblemError(out, "", "", "cannot write into the output folder")
-    for kind in kinds:
-        for suffix in ("json", "npz", "png", "svg", "csv", "gif"):
-            target = folder / f"{name}.{kind}.{suffix}"
-            if target.exists() and not target.is_file():
-                raise ProblemError(out, "", "", f"{quoted(target.name)} exists and is not a "
-                                   "file; results cannot be written there")
+    names = [f"{name}.{kind}.{suffix}" for kind in kinds for suffix in OUTPUT_SUFFIXES]
+    check_files(out, folder, (*names, *files))
     return folder
+
+
+def check_files(out: str, folder: Path, names: tuple[str, ...] | list[str]) -> None:
+    """Refuse (one line naming ``out``) if any of ``names`` in ``folder`` exists and is not a
+    regular file: a result cannot be written there."""
+    for file_name in names:
+        target = folder / file_name
+        if target.exists() and not target.is_file():
+            raise ProblemError(out, "", "", f"{quoted(target.name)} exists and is not a "
+                               "file; results cannot be written there: remove it or choose "
+                               "another --out")
 
 
 def output_name(flag: str, name: str) -> str:

@@ -25,11 +25,22 @@ from typing import Iterator
 from ..errors import ArgumentError
 
 CONNECT_TIMEOUT_S = 10
+WORKERS_PER_CORE = 4       # --workers above this many per core is refused (max_workers)
 _ADDRESS = re.compile(r"^(tcp|tls|inproc|ucx)://\S+$|^[A-Za-z0-9_.\-\[\]:]+:\d+$")
 
 
+def max_workers() -> int:
+    """The most local worker processes a study may ask for: four per core (a forked pool
+    starts them all at once, so ``--workers 1000000000`` would fork until the machine stops)."""
+    return WORKERS_PER_CORE * (os.cpu_count() or 1)
+
+
 def local_pool(workers: int | None = None) -> ProcessPoolExecutor:
-    """A process pool of ``workers`` processes (default: all cores); forked where possible."""
+    """A process pool of ``workers`` processes (default: all cores; 1 to :func:`max_workers`,
+    else ValueError); forked where possible."""
+    if workers is not None and not 1 <= workers <= max_workers():
+        raise ValueError(f"workers must be from 1 to {max_workers()} (four per core); "
+                         f"got {workers}")
     ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
     return ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx)
 
@@ -114,6 +125,18 @@ def _scheduler_argument(value: str) -> str:
     return value
 
 
+def _workers_argument(value: str) -> int:
+    """argparse ``type`` of ``--workers``: a whole number from 1 to :func:`max_workers`."""
+    try:
+        workers = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{value!r}: use a whole number of processes") from None
+    if not 1 <= workers <= max_workers():
+        raise argparse.ArgumentTypeError(f"{value!r}: use 1 to {max_workers()} processes "
+                                         f"(at most {WORKERS_PER_CORE} per core)")
+    return workers
+
+
 def _timeout_argument(value: str) -> float:
     try:
         seconds = float(value)
@@ -126,8 +149,9 @@ def _timeout_argument(value: str) -> float:
 
 def add_executor_arguments(ap: argparse.ArgumentParser) -> None:
     """``--workers``, ``--scheduler`` and ``--timeout``, the same on every study command."""
-    ap.add_argument("--workers", type=int, default=None,
-                    help="local processes (default: all cores; ignored with --scheduler)")
+    ap.add_argument("--workers", type=_workers_argument, default=None,
+                    help=f"local processes, 1 to {WORKERS_PER_CORE} per core (default: all "
+                         "cores; ignored with --scheduler)")
     ap.add_argument("--scheduler", type=_scheduler_argument, default=None, metavar="ADDRESS",
                     help="run on Dask: a scheduler address (tcp://HOST:PORT) or local:N for a "
                          "local cluster of N workers (needs knit_nlp[cluster])")

@@ -31,8 +31,9 @@ import numpy as np
 
 from ..api import model_of
 from ..atomic import atomic_file
-from ..errors import ArgumentError
+from ..errors import ArgumentError, ProblemError
 from ..jsonio import write_json
+from ..outdir import prepare_out
 from .executors import capacity, local_pool, open_executor
 from .points import PointOutcome, PointTask, solve_point, this_process
 
@@ -338,6 +339,18 @@ def run_study(name: str, paths: Sequence[LoadPath], out_root: Path = Path("resul
         write_json(out / "summary.json", summary)
     summary["lost_points"] = run.lost_points
     return summary
+
+
+def prepare_study(out_root: Path, name: str, files: tuple[str, ...] = ()) -> Path:
+    """The study's folder ``out_root/name``, checked and created before anything is solved
+    (:func:`~knit_nlp.outdir.prepare_out`): refused in one line if ``summary.json`` or one of
+    ``files`` exists there and is not a file, or ``points`` (the cache) is not a folder, so a
+    study that could not write its results does not run and leave its cache behind."""
+    out = prepare_out(str(out_root / name), name, (), files=("summary.json", *files))
+    if (out / "points").exists() and not (out / "points").is_dir():
+        raise ProblemError(out_root / name, "", "", "'points' exists and is not a folder; the "
+                           "study's cache goes there: remove it or choose another --out")
+    return out
 
 
 def run_with_options(name: str, paths: Sequence[LoadPath], out_root: Path, options: Any,

@@ -13,6 +13,7 @@ or range is an :class:`~knit_nlp.errors.ArgumentError` naming the argument (exit
 from __future__ import annotations
 
 import itertools
+import math
 import re
 from dataclasses import dataclass
 from typing import Any, Sequence
@@ -44,6 +45,9 @@ class Axis:
 def _number(text: str, axis_error) -> float:
     if not re.fullmatch(NUMBER, text.strip()):
         raise axis_error(f"{text!r} is not a number")
+    if not math.isfinite(float(text)):
+        raise axis_error(f"{text.strip()!r} is not finite (beyond the largest float, about "
+                         "1.8e308); give a finite number")
     return float(text)
 
 
@@ -66,8 +70,11 @@ def parse_axis(flag: str, text: str) -> Axis:
         ends.append(np.array([_number(p, bad) for p in pieces]))
     if ends[0].shape != ends[1].shape:
         raise bad("START and STOP must both be numbers or both X,Y pairs")
-    values = [ends[0] + (ends[1] - ends[0]) * (k / (count - 1) if count > 1 else 0.0)
-              for k in range(count)]
+    with np.errstate(over="ignore", invalid="ignore"):   # -1e308:1e308: the step overflows
+        values = [ends[0] + (ends[1] - ends[0]) * (k / (count - 1) if count > 1 else 0.0)
+                  for k in range(count)]
+    if not all(np.isfinite(v).all() for v in values):
+        raise bad("the values from START to STOP are not all finite numbers; use a smaller range")
     plain = tuple(float(v[0]) if v.size == 1 else [float(c) for c in v] for v in values)
     return Axis(flag, text, m["key"], plain)
 

@@ -42,17 +42,26 @@ def read_rows(path: Path) -> list[tuple[int, dict[str, str]]]:
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise ProblemError(path, "", "", "no header and no rows")
-    header = next(csv.reader([lines[0][1]]))
+    header = _cells(path, *lines[0])
     if [h.strip() for h in header] != COLUMNS:
         raise ProblemError(path, f"line {lines[0][0]}", "header",
                            f"columns must be exactly {','.join(COLUMNS)}; got {','.join(header)}")
     rows = []
     for number, ln in lines[1:]:
-        cells = next(csv.reader([ln]))
+        cells = _cells(path, number, ln)
         if len(cells) != len(COLUMNS):
             raise ProblemError(path, f"line {number}", "", f"expected {len(COLUMNS)} cells, got {len(cells)}")
         rows.append((number, dict(zip(COLUMNS, (c.strip() for c in cells)))))
     return rows
+
+
+def _cells(path: Path, number: int, line: str) -> list[str]:
+    """The cells of one CSV line; a line the csv module refuses (a cell over its field limit
+    of 128 KiB, a stray quote) is one ProblemError naming it."""
+    try:
+        return next(csv.reader([line]))
+    except csv.Error as err:
+        raise ProblemError(path, f"line {number}", "", f"not a CSV row ({err})") from None
 
 
 def _number(path: Path, where: str, key: str, text: str, integer: bool = False) -> float:

@@ -7,13 +7,16 @@ least-squares similarity (Umeyama's problem in two dimensions); two matches fix 
 """
 from __future__ import annotations
 
+import io
 import json
+import math
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ...errors import ProblemError
+from ...errors import ProblemError, shown
 from ...tomlio import Table, load_toml, read_regular_file
 from ..model.problem import WeftProblem, _PointReader, parse_problem
 from ..model.quadrature import positions
@@ -78,20 +81,92 @@ class SolvedShape:
         return positions(self.coefficients[i, j][None], [s], self.L, t)[0, 0] + self.starts[i, j]
 
 
-MAX_RESULT_BYTES = 256 * 2 ** 20     # a result JSON read back (docs/limits.md)
+MAX_RESULT_BYTES = 256 * 2 ** 20     # a result JSON or NPZ read back (docs/limits.md)
+MAX_ARRAY_BYTES = 256 * 2 ** 20      # ... and the arrays its NPZ declares, before decompressing
+ARRAYS = ("deformed", "coefficients", "starts", "s")
 
 
 def load_result(path: Path) -> SolvedShape:
-    """A ``knit-nlp solve`` result JSON and its NPZ (same stem)."""
+    """A ``knit-nlp solve`` result JSON and its NPZ (same stem), checked: a JSON object, and
+    finite real arrays of consistent shapes (anything else is one ProblemError)."""
     try:
         result = json.loads(read_regular_file(path, MAX_RESULT_BYTES))
-        arrays = np.load(path.with_suffix(".npz"))
-        return SolvedShape(result, arrays["deformed"], arrays["coefficients"], arrays["starts"],
-                           float(arrays["s"][-1]))
-    except FileNotFoundError as err:
-        raise ProblemError(path, "", "", f"needs the result JSON and the NPZ beside it ({err.filename})") from None
-    except (OSError, ValueError, KeyError) as err:
+    except (UnicodeDecodeError, ValueError) as err:
         raise ProblemError(path, "", "", f"not a weft solve result ({err})") from None
+    if not isinstance(result, dict):
+        raise ProblemError(path, "", "", f"not a weft solve result (a JSON "
+                           f"{type(result).__name__}, not an object)")
+    npz = path.with_suffix(".npz")
+    if not npz.exists():
+        raise ProblemError(path, "", "", f"needs the result JSON and the NPZ beside it ({npz})")
+    arrays = _read_npz(npz)
+    lines, coefficients, starts, s = (arrays[k] for k in ARRAYS)
+    return SolvedShape(result, lines, coefficients, starts, float(s[-1]))
+
+
+def _read_npz(npz: Path) -> dict[str, np.ndarray]:
+    """The result's arrays (``ARRAYS``) as floats, refused in one line unless finite and of
+    the shapes a solve writes: ``s`` (S,) increasing from 0, ``coefficients`` (m, n, 2t+2),
+    ``starts`` (m, n, 2), ``deformed`` (m, n, S, 2)."""
+    data = read_regular_file(npz, MAX_RESULT_BYTES)
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            arrays = {key: _member(npz, zf, key) for key in ARRAYS}
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError) as err:
+        raise ProblemError(npz, "", "", f"not a weft solve result ({shown(err, 200)})") from None
+    _check_arrays(npz, arrays)
+    return arrays
+
+
+def _member(npz: Path, zf: zipfile.ZipFile, key: str) -> np.ndarray:
+    """One array of an NPZ, its declared size checked against ``MAX_ARRAY_BYTES`` before it is
+    read (zipfile reads no more than a member declares)."""
+    try:
+        info = zf.getinfo(f"{key}.npy")
+    except KeyError:
+        raise ProblemError(npz, "", key, "not a weft solve result (no such array)") from None
+    with zf.open(info) as fh:
+        version = np.lib.format.read_magic(fh)
+        header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                  else np.lib.format.read_array_header_2_0)
+        shape, _, dtype = header(fh)
+    size = math.prod(shape) * dtype.itemsize
+    if max(size, info.file_size) > MAX_ARRAY_BYTES:
+        raise ProblemError(npz, "", key, f"declares {max(size, info.file_size)} bytes, larger "
+                           f"than the limit of {MAX_ARRAY_BYTES} bytes")
+    if dtype.kind not in "fiu":
+        raise ProblemError(npz, "", key, f"not a weft solve result (numbers of type {dtype})")
+    with zf.open(info) as fh:
+        return np.lib.format.read_array(fh, allow_pickle=False).astype(float)
+
+
+def _check_arrays(npz: Path, arrays: dict[str, np.ndarray]) -> None:
+    s, coefficients = arrays["s"], arrays["coefficients"]
+    for key, a in arrays.items():
+        if not np.isfinite(a).all():
+            raise ProblemError(npz, "", key, "not a weft solve result (values not finite)")
+    if s.ndim != 1 or s.size < 2 or s[0] != 0 or not (np.diff(s) > 0).all():
+        raise ProblemError(npz, "", "s", "not a weft solve result (the material coordinates "
+                           "must be two or more, increasing from 0)")
+    if coefficients.ndim != 3 or coefficients.shape[2] < 4 or coefficients.shape[2] % 2:
+        raise ProblemError(npz, "", "coefficients", f"not a weft solve result (shape "
+                           f"{coefficients.shape}; expected courses x wales x (2 harmonics + 2))")
+    m, n = coefficients.shape[:2]
+    for key, shape in (("starts", (m, n, 2)), ("deformed", (m, n, s.size, 2))):
+        if arrays[key].shape != shape:
+            raise ProblemError(npz, "", key, f"not a weft solve result (shape "
+                               f"{arrays[key].shape}; expected {shape} from the coefficients "
+                               "and s)")
+
+
+def check_shape(shape: SolvedShape, pr: WeftProblem, result_path: Path, problem: Path) -> None:
+    """The problem resolving point labels must be the result's: as many courses and wales
+    loops and harmonics."""
+    m, n, k = shape.coefficients.shape
+    if (m, n, k) != (pr.courses, pr.wales, 2 * pr.t + 2):
+        raise ProblemError(problem, "", "", f"a {pr.courses} x {pr.wales} fabric with {pr.t} "
+                           f"harmonics, but the result {result_path} is {m} x {n} with "
+                           f"{(k - 2) // 2}: pass the result's own problem with --problem")
 
 
 def point_reader(problem_path: Path) -> tuple[_PointReader, WeftProblem]:

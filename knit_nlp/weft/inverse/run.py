@@ -7,28 +7,32 @@ from typing import Any
 
 import matplotlib.image as mpimg
 import numpy as np
+from PIL import Image
 
 from ...errors import ProblemError
 from ...jsonio import write_json
-from ...outdir import output_name
+from ...outdir import output_name, prepare_out
 from ...problems import resolve
 from ...tomlio import load_toml, read_regular_file
 from ..model.params import MATERIAL
-from ..model.problem import parse_problem
+from ..model.problem import WeftProblem, parse_problem
 from .control import control
 from .fit import fit, fit_name
 from .observations import load_observations
-from .overlay import load_result, overlay, parse_match, point_reader
+from .overlay import check_shape, load_result, overlay, parse_match, point_reader
 from .plot import plot_on_image
 from .spec import parse_control, strip_control_keys
 
 MAX_IMAGE_BYTES = 64 * 2 ** 20     # a photograph for overlay (docs/limits.md)
+MAX_IMAGE_PIXELS = 25_000_000      # ... and its pixels, from its header (a 24 MP camera's)
 
 
 def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
     """``knit-nlp control``: write ``<problem>.control.json`` and ``.png``; exit 0 only for a
     converged, stable, forward-checked answer."""
-    ans = control(parse_control(path, doc))
+    cp = parse_control(path, doc)
+    prepare_out(str(out), cp.problem.name, ("control",))
+    ans = control(cp)
     js, png = ans.save(out)
     result = ans.to_json()
     print(f"{ans.problem.name}: {result['status']} in {result['iterations']} outer iterations, "
@@ -66,9 +70,12 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     missing = sorted(set(problems) - {o.case for o in obs})
     if missing:
         raise ProblemError(observations, "", "case", f"no observations of case {missing[0]!r}")
+    _check_fittable(paths[0], next(iter(problems.values())), params)
+    name = fit_name(list(problems)) if name is None else name
+    prepare_out(str(out), name, ("fit",))
     ans = fit(list(problems.values()), obs, params)
     ans.files = {case: str(path) for case, path in zip(problems, paths)}
-    ans.name = fit_name(list(problems)) if name is None else name
+    ans.name = name
     js, png = ans.save(out)
     result = ans.to_json()
     print(f"fit: {result['status']} in {result['iterations']} iterations, "
@@ -82,6 +89,16 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     return 0 if ans.success else 1
 
 
+def _check_fittable(path: Path, first: WeftProblem, params: list[str]) -> None:
+    """The fit starts from the first load case's values and works on their logarithms: each
+    value fitted must be positive (a zero has no logarithm and no scale)."""
+    for param in params:
+        if not getattr(first, param) > 0:
+            raise ProblemError(path, "material", param, f"is {getattr(first, param)!r}; a fit "
+                               f"works on log {param}, so its start value must be positive: "
+                               f"set a positive guess or leave {param} out of --params")
+
+
 def overlay_file(result_path: Path, image: Path, matches: list[str], observations: Path | None,
                  problem: Path | None, out: Path) -> int:
     """``knit-nlp overlay``: write ``<result stem>.<image stem>.overlay.png`` (and
@@ -91,16 +108,15 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
     shape = load_result(result_path)
     problem = problem or _problem_of(shape.result, result_path)
     reader, pr = point_reader(problem)
+    check_shape(shape, pr, result_path, problem)
     parsed = [parse_match(m, reader) for m in matches]
     obs = None
     if observations is not None:
         obs = load_observations(observations, {pr.name: pr}, other_cases=True)
-    try:
-        picture = mpimg.imread(io.BytesIO(read_regular_file(image, MAX_IMAGE_BYTES)))
-    except (OSError, ValueError, SyntaxError) as err:
-        raise ProblemError(image, "", "", f"cannot read the image ({err})") from None
-    ans = overlay(shape, parsed, obs)
+    picture = read_image(image)
     stem = overlay_name(result_path, image)
+    prepare_out(str(out), stem, ("overlay",))
+    ans = overlay(shape, parsed, obs)
     t = ans.transform
     caption = (f"{shape.result.get('problem', '')}: similarity scale {t.scale:.4g} px/unit, "
                f"rotation {np.degrees(t.rotation):.3f} deg; largest match residual "
@@ -121,6 +137,32 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
         print(f"  observed vs computed: RMS {ans.observed_rms:.4g} model units over {len(obs)} points")
     print(f"  wrote {png}, {js}")
     return 0
+
+
+def read_image(image: Path) -> np.ndarray:
+    """The photograph's pixels: a regular file of at most ``MAX_IMAGE_BYTES`` whose header
+    declares at most ``MAX_IMAGE_PIXELS`` pixels, checked before it is decoded (a PNG of a few
+    kB can declare 60000 x 60000 pixels and take tens of GB to decode and draw)."""
+    data = read_regular_file(image, MAX_IMAGE_BYTES)
+    try:
+        width, height = _declared_size(data)
+        if width * height > MAX_IMAGE_PIXELS:
+            raise ProblemError(image, "", "", f"{width} x {height} pixels; the limit is "
+                               f"{MAX_IMAGE_PIXELS} pixels: scale the photograph down")
+        return mpimg.imread(io.BytesIO(data))
+    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as err:
+        raise ProblemError(image, "", "", f"cannot read the image ({err})") from None
+
+
+def _declared_size(data: bytes) -> tuple[int, int]:
+    """(width, height) from an image's header, without decoding it (Pillow's own bomb check,
+    which refuses only images above 179 megapixels without saying their size, set aside)."""
+    limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+    try:
+        with Image.open(io.BytesIO(data)) as im:
+            return im.size
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
 
 
 def overlay_name(result_path: Path, image: Path) -> str:
