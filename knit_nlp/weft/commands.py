@@ -103,12 +103,9 @@ def save_options(args: Namespace) -> dict[str, Any]:
 def run_control(args: Namespace) -> int:
     """``knit-nlp control``: write ``<problem>.control.json`` and ``.png`` and print readable
     lines (``control_summary``); exit 0 only for a converged, stable, forward-checked answer."""
-    from .inverse.control import control, control_summary
-    from .inverse.spec import parse_control
+    from .inverse import run
     path = resolve(args.problem)
-    ans = control(parse_control(path, load_toml(path)))
-    print(control_summary(ans, ans.save(Path(args.out))))
-    return 0 if ans.success else 1
+    return run.control_file(path, load_toml(path), Path(args.out))
 
 
 def check_params(params: list[str]) -> None:

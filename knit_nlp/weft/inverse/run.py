@@ -9,14 +9,14 @@ import matplotlib.image as mpimg
 import numpy as np
 from PIL import Image
 
-from ...errors import ProblemError
+from ...errors import ArgumentError, ProblemError
 from ...jsonio import write_json
 from ...outdir import output_name, prepare_out
 from ...problems import resolve
 from ...tomlio import load_toml, read_regular_file
 from ..model.params import MATERIAL
 from ..model.problem import WeftProblem, parse_problem
-from .control import control
+from .control import control, control_summary
 from .fit import fit, fit_name
 from .observations import load_observations
 from .overlay import check_shape, load_result, overlay, parse_match, point_reader
@@ -28,26 +28,13 @@ MAX_IMAGE_PIXELS = 25_000_000      # ... and its pixels, from its header (a 24 M
 
 
 def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
-    """``knit-nlp control``: write ``<problem>.control.json`` and ``.png``; exit 0 only for a
-    converged, stable, forward-checked answer."""
+    """``knit-nlp control``: check the output folder, solve, write ``<problem>.control.json``
+    and ``.png`` and print readable lines (``control_summary``); exit 0 only for a converged,
+    stable, forward-checked answer."""
     cp = parse_control(path, doc)
     prepare_out(str(out), cp.problem.name, ("control",))
     ans = control(cp)
-    js, png = ans.save(out)
-    result = ans.to_json()
-    print(f"{ans.problem.name}: {result['status']} in {result['iterations']} outer iterations, "
-          f"{result['forward_solves']} forward solves, {result['timings']['total_s']:.2f} s")
-    for a in result["actuated"]:
-        print(f"  actuated {a}")
-    for g in result["goals"]:
-        print(f"  goal {g['loop']} {g['point']}: goal {np.round(g['goal'], 4).tolist()}, achieved "
-              f"{np.round(g['achieved'], 4).tolist()}, misfit {g['misfit']:.3g}")
-    for o in result["openings"]:
-        print(f"  opening at least {o['at_least']:.4g}: achieved {o['achieved']:.4g}")
-    print(f"  stable: {result['stable']} (min reduced Hessian eigenvalue "
-          f"{result['min_reduced_hessian_eigenvalue']:.3g}); forward check: "
-          f"{result['forward_check']['success']} (max distance {result['forward_check']['max_distance']:.2e})")
-    print(f"  wrote {js}, {png}")
+    print(control_summary(ans, ans.save(out)))
     return 0 if ans.success else 1
 
 
@@ -59,7 +46,7 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     if name is not None:
         output_name("--name", name)
     if not params or len(set(params)) != len(params) or any(n not in MATERIAL for n in params):
-        raise ProblemError("--params", "", " ".join(params), f"choose distinct values among {', '.join(MATERIAL)}")
+        raise ArgumentError("--params", f"give distinct values among {', '.join(MATERIAL)}")
     problems = {}
     for path in paths:
         pr = parse_problem(strip_control_keys(load_toml(path)), path)
