@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from knit_nlp.cli import main
-from knit_nlp.jacquard import load_problem, solve_static
+from knit_nlp.jacquard import load_problem, parse_problem as parse_jacquard, solve_static
+from knit_nlp.tomlio import load_toml
 from knit_nlp.jacquard.render import _Tiling, figure
 
 from imagecheck import check_jacquard_picture
@@ -140,3 +141,36 @@ def test_the_12_by_12_svg_is_small(tmp_path):
     assert svg.stat().st_size < 800_000
     assert text.count("<path") < 120       # one compound path per bar, structure and layer
     assert text.count("<image") == 2       # only the two design grids (lossless, 1 px per cell)
+
+
+@pytest.fixture(scope="module")
+def big_k():
+    """The letter K scaled to a 40 x 40 patch (every design cell 2.5 x 2.5 cells): the old
+    picture drew a 24 x 24 corner window of it, and the K's lower leg was never drawn."""
+    doc = load_toml(PROBLEMS / "jacquard_letter_k.toml")
+    rows = [r for r in doc["fall_plate"]["design"].split("\n") if r]
+    big = ["".join(rows[int(j / 2.5)][int(i / 2.5)] for i in range(40)) for j in range(40)]
+    doc["fabric"].update(wales=40, courses=40)
+    doc["fall_plate"]["design"] = "\n".join(big)
+    doc["inlay"]["design"] = "\n".join(["+" * 40] * 40)
+    result = solve_static(parse_jacquard(doc, PROBLEMS / "jacquard_letter_k.toml"))
+    assert result.success
+    return result
+
+
+def test_a_40_by_40_design_is_drawn_whole_by_default(big_k):
+    fig, axes = figure(big_k)
+    p = big_k.problem
+    assert "window" not in axes["natural"].get_title()
+    darkness = cell_darkness(fig, axes["simulated"], p, big_k.positions)
+    r, null = motif_correlation(darkness, p.systems[0].codes, shuffles=100)
+    assert darkness.shape == (40, 40) and r > 0.7 and r > null + 0.3, (r, null)
+    plt.close(fig)
+
+
+def test_a_window_is_drawn_only_on_request_and_says_so(big_k):
+    fig, axes = figure(big_k, window=20)
+    title = axes["natural"].get_title()
+    assert "20 x 20 window at the bottom-left corner" in title and "40 x 40" in title
+    assert axes["natural"].get_xlim()[1] < 0.6 * 40 * big_k.problem.w
+    plt.close(fig)

@@ -6,6 +6,7 @@ from argparse import Namespace
 from pathlib import Path
 from typing import Any
 
+from ..errors import ArgumentError
 from .api import SOLVERS
 from .problem import JacquardProblem
 
@@ -14,6 +15,9 @@ FLAGS = (
     (("--solver",), {"choices": list(SOLVERS), "default": None,
                      "help": "override [solver] method"}, None),
     (("--svg",), {"action": "store_true", "help": "also write an SVG picture"}, None),
+    (("--window",), {"type": int, "default": None, "metavar": "LOOPS",
+                     "help": "draw at most LOOPS wales and courses from the bottom-left corner "
+                             "(default: the whole fabric, up to 120 each way)"}, None),
 )
 
 
@@ -27,4 +31,9 @@ def solve_options(args: Namespace, problem: JacquardProblem, path: Path) -> dict
 
 
 def save_options(args: Namespace) -> dict[str, Any]:
-    return {"svg": True} if args.svg else {}
+    """``save`` keywords from the flags; ``--window`` below 1 is refused in one line."""
+    if args.window is not None and args.window < 1:
+        raise ArgumentError("--window", f"must be a whole number of loops >= 1; got "
+                            f"{args.window}")
+    return {**({"svg": True} if args.svg else {}),
+            **({"window": args.window} if args.window is not None else {})}

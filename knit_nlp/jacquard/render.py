@@ -60,7 +60,9 @@ INLAY_SCALE = 0.5
 TINT = {"thick": 0.75, "thin": 0.25}
 DESIGN_GREYS = {0: "#ffffff", 1: "#a6a6a6", 2: "#1a1a1a"}      # net, thin, thick (as in PNGs)
 STRUCTURE_CODES = {"thick": 2, "thin": 1}
-MAX_LOOPS = 24    # largest number of wales / courses drawn per panel
+MAX_LOOPS = 24    # a periodic design is tiled (up to 3 repeats) to about this many loops
+DRAW_LIMIT = 120  # the whole fabric is drawn up to this many wales / courses (a window of this
+#                   size beyond, labelled as such; ``window`` asks for a smaller one)
 
 
 def bezier_path(ctrl: np.ndarray, closed: bool) -> MplPath:
@@ -95,12 +97,16 @@ class _Tiling:
     """Positions of the drawn loops: repeats tiled (periodic) or the patch once (fixed), and
     the frame of each loop."""
 
-    def __init__(self, p: JacquardProblem, x: np.ndarray) -> None:
+    def __init__(self, p: JacquardProblem, x: np.ndarray, window: int | None = None) -> None:
+        """The whole patch (fixed) or whole repeats, tiled up to 3 times while under MAX_LOOPS
+        (periodic); at most ``window`` (default DRAW_LIMIT) loops each way from the corner."""
         self.p = p
         m, n = p.wales, p.courses
         tiles = (lambda k: 1) if p.boundary == "fixed" else (lambda k: min(3, max(1, MAX_LOOPS // k)))
-        self.nw = min(MAX_LOOPS, m * tiles(m))
-        self.nc = min(MAX_LOOPS, n * tiles(n))
+        cap = DRAW_LIMIT if window is None else window
+        self.nw = min(cap, m * tiles(m))
+        self.nc = min(cap, n * tiles(n))
+        self.window = self.nw < m or self.nc < n
         self.x = x.reshape(n, m, 2)
 
     def root(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -173,7 +179,8 @@ def _underlaps(t: _Tiling, sys: JacquardSystem, i, j) -> dict[str, np.ndarray]:
     return out
 
 
-def draw_fabric(ax: "Axes", p: JacquardProblem, x: np.ndarray, title: str) -> None:
+def draw_fabric(ax: "Axes", p: JacquardProblem, x: np.ndarray, title: str,
+                window: int | None = None) -> None:
     """The fabric with particle positions ``x`` ((M*N, 2), row j*M + i): cells tinted by the
     front structure, inlay underlaps (back), pillar loops, fall-plate underlaps (front).
     Positions that are not all finite (a diverged run) are not drawn; the panel says so."""
@@ -182,7 +189,7 @@ def draw_fabric(ax: "Axes", p: JacquardProblem, x: np.ndarray, title: str) -> No
         ax.text(0.5, 0.5, "not drawn: the positions are not finite", ha="center",
                 va="center", transform=ax.transAxes)
         return
-    t = _Tiling(p, x)
+    t = _Tiling(p, x, window)
     jj, ii = np.meshgrid(np.arange(t.nc), np.arange(t.nw), indexing="ij")
     i, j = ii.ravel(), jj.ravel()
     cells = t.local(i, j, CELL)
@@ -230,10 +237,12 @@ def draw_design(ax: "Axes", sys: JacquardSystem, title: str) -> None:
         spine.set_color("#777777")
 
 
-def figure(result: Solved) -> tuple["Figure", dict[str, "Axes"]]:
-    """The picture: design grids | natural fabric | simulated fabric (axes by those names)."""
+def figure(result: Solved, window: int | None = None) -> tuple["Figure", dict[str, "Axes"]]:
+    """The picture: design grids | natural fabric | simulated fabric (axes by those names);
+    the fabric panels draw at most ``window`` loops each way (default: the whole fabric up to
+    DRAW_LIMIT), and their titles say when they show a window."""
     p = result.problem
-    t = _Tiling(p, result.network.natural)
+    t = _Tiling(p, result.network.natural, window)
     aspect = (t.nc * p.h) / (t.nw * p.w)
     height = max(4.0, min(11.0, 5.2 * aspect + 1.2))
     fig = new_figure(figsize=(13, height), dpi=100, layout="constrained")
@@ -250,12 +259,15 @@ def figure(result: Solved) -> tuple["Figure", dict[str, "Axes"]]:
                          frameon=False)
     reps = ("the fixed patch" if p.boundary == "fixed" and t.nw == p.wales and t.nc == p.courses
             else f"{t.nw // p.wales} x {t.nc // p.courses} repeats" if t.nw >= p.wales
-            and t.nc >= p.courses else f"{t.nw} x {t.nc} window of the {p.wales} x {p.courses}")
-    draw_fabric(axes["natural"], p, result.network.natural, f"{p.name}: natural ({reps})")
+            and t.nc >= p.courses else f"{t.nw} x {t.nc} window at the bottom-left corner\nof "
+            f"the {p.wales} x {p.courses}" + ("" if window else
+                                              f"; whole fabric drawn up to {DRAW_LIMIT}"))
+    draw_fabric(axes["natural"], p, result.network.natural, f"{p.name}: natural ({reps})",
+                window)
     pulled = "; ".join(f"{q.edge} moved ({q.displacement[0]:g}, {q.displacement[1]:g}) mm"
                        for q in p.pulls)
     draw_fabric(axes["simulated"], p, result.positions,
-                f"simulated ({result.solver})" + (f": {pulled}" if pulled else ""))
+                f"simulated ({result.solver})" + (f": {pulled}" if pulled else ""), window)
     return fig, axes
 
 
@@ -268,9 +280,11 @@ def compact_svg(text: str) -> str:
     return re.sub(r' d="([^"]*)"', shorten, text)
 
 
-def render(result: Solved, path: Path, svg: bool = False) -> list[Path]:
-    """Write the picture to ``path`` (PNG) and, if asked, the SVG beside it."""
-    fig, _ = figure(result)
+def render(result: Solved, path: Path, svg: bool = False,
+           window: int | None = None) -> list[Path]:
+    """Write the picture to ``path`` (PNG) and, if asked, the SVG beside it (``window``:
+    :func:`figure`)."""
+    fig, _ = figure(result, window)
     written = [save_figure(fig, path)]
     if svg:
         buffer = io.StringIO()

@@ -140,9 +140,12 @@ class JacquardResult(Outcome):
             **({"source": src} if (src := source_record(p.source)) else {}),
         }
 
-    def save(self, out_dir: Path | str, svg: bool = False) -> list[Path]:
-        """``DIR/<problem>.jacquard.json`` and ``.png`` (and ``.svg`` on request)."""
+    def save(self, out_dir: Path | str, svg: bool = False,
+             window: int | None = None) -> list[Path]:
+        """``DIR/<problem>.jacquard.json`` and ``.png`` (and ``.svg`` on request; ``window``:
+        draw at most this many loops each way, default the whole fabric up to DRAW_LIMIT)."""
         out = Path(out_dir)
         js = write_json(out / f"{self.problem.name}.jacquard.json", self.to_json())
-        pictures = render(self, out / f"{self.problem.name}.jacquard.png", svg=svg)
+        pictures = render(self, out / f"{self.problem.name}.jacquard.png", svg=svg,
+                          window=window)
         return [js, *pictures]
