@@ -134,3 +134,18 @@ def test_a_load_with_nothing_to_push_against_is_refused(write_problem, clamp, fx
             load_problem(path)
     else:
         assert load_problem(path).loads
+
+
+def test_fit_with_a_load_case_that_nothing_holds_is_refused_at_once(write_problem, capsys):
+    """The issue's case: fit ran 491 s, then crashed drawing fit.png."""
+    case = write_problem(LOAD.format(clamp="", fx=1.0, fy=0.0, other="").replace(
+        "[fabric]", 'name = "free"\n[fabric]'), "free.toml")
+    obs = case.parent / "obs.csv"
+    obs.write_text("case,course,wale,point,x,y\nfree,2,2,H,1.0,1.0\n")
+    t0 = time.perf_counter()
+    assert main(["fit", str(case), "--observations", str(obs), "--params", "k_b",
+                 "--out", str(case.parent / "o")]) == 2
+    assert time.perf_counter() - t0 < 1.0
+    err = capsys.readouterr().err.strip()
+    assert "free.toml: [load[1]] force: has no equilibrium" in err and len(err.splitlines()) == 1
+    assert not (case.parent / "o").exists()
