@@ -31,7 +31,7 @@ import numpy as np
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
-from ..solving.contact.rounds import ContactSolver
+from ..solving.contact.rounds import ContactRun, ContactSolver
 from ..solving.contact.solve import ACTIVE, contact_block, solve_with_contact
 from ..solving.solve import SolveReport
 from ..transcription.contact import ContactNLP
@@ -44,6 +44,7 @@ KEEP = 16                  # solved contact states remembered (by base solution)
 # taken as active they make K singular (cond 2e18, dx/dp off by 200 %); dropped, dx/dp matches
 # central differences of the forward contact solves to 4e-4
 AT_BOUND = 1e-5
+POLISH = 2                 # re-solves with the pairs searched on a forward solution
 
 
 @dataclass
@@ -74,6 +75,7 @@ class _Recording(ContactSolver):
             sA, sB, sigma, required, used, _ = self._assign(pairs)
             self.last = (self.cnlp, self.cnlp.parameters(p_base, sA, sB, sigma), rep.x,
                          rep.lam_g, used, sigma, required)
+            self.last_pairs = (pairs, lam)
         return rep, lam
 
 
@@ -110,8 +112,31 @@ class ContactEquilibrium(Equilibrium):
                                             WeftParams.from_vector(self.problem, p), x_start=x0)
         else:
             block = self._block(rep, "one load step with contact from the last control state")
+        if rep.success and self.contact.last is not None and self._polish(p, rep):
+            run = ContactRun(rep, *self.contact.last_pairs)
+            block = contact_block(self.problem, self.contact, run, block["route"] + ", polished",
+                                  self.problem.solver.tol)
         self._remember(rep, block)
         return rep
+
+    def _polish(self, p: np.ndarray, rep: SolveReport) -> bool:
+        """Solve again (warm) with the pairs searched on the solution, ``POLISH`` times: the
+        rounds accept contact points that moved less than half a sample, so two paths to the
+        same parameters end up to ~1e-3 apart; the re-solves make x(p) smooth enough for the
+        outer iteration and its forward check (measured: tests/test_contact_control.py)."""
+        c, polished = self.contact, False
+        for _ in range(POLISH):
+            kept = c.last, c.last_pairs
+            pairs, lam = c.last_pairs
+            found = c.pairs(rep.x)
+            out, _ = c.solve_once(p, rep.x, found, (rep.lam_g, pairs, lam), rep, [], "polish")
+            xn = out.x[:self.wnlp.n_variables]
+            if not out.success or c.crossed(xn, found, c.pairs(xn)):
+                c.last, c.last_pairs = kept
+                break
+            rep.x, rep.lam_g, rep.objective = xn, out.lam_g[:self.wnlp.n_constraints], out.objective
+            polished = True
+        return polished
 
     def _from_origin(self, p: np.ndarray, origin) -> SolveReport | None:
         """contact.run from a solved, uncrossed state to p in one load step (halved as needed)."""
