@@ -163,16 +163,22 @@ def test_check_of_a_natural_fabric_is_clean_with_and_without_a_radius(solved, tm
     assert check(nat, pr).ok
 
 
-def test_control_and_fit_with_a_radius_are_refused_with_a_reason(tmp_path, capsys):
-    """Their implicit-function gradients do not hold the active contacts yet: exit 2, one line,
-    nothing written (not a silent solve without contact)."""
+def test_fit_with_a_radius_is_refused_with_a_reason(tmp_path, capsys):
+    """Fit's implicit-function gradients do not hold the active contacts yet (control's do:
+    tests/test_contact_control.py): exit 2, one line, nothing written (not a silent solve
+    without contact)."""
     from knit_nlp.problems import resolve
-    path = tmp_path / "place_stitch.toml"
-    path.write_text(resolve("place_stitch").read_text() + "\n" + YARN)
-    assert main(["control", str(path), "--out", str(tmp_path / "o")]) == 2
+    example = resolve("place_stitch").parent / "fit_example"
+    path = tmp_path / "fit_shear.toml"
+    path.write_text((example / "fit_shear.toml").read_text() + "\n" + YARN)
+    rows = (example / "observations.csv").read_text().splitlines(keepends=True)
+    (tmp_path / "observations.csv").write_text("".join(
+        r for r in rows if not r.startswith("fit_") or r.startswith("fit_shear,")))
+    assert main(["fit", str(path), "--observations", str(tmp_path / "observations.csv"),
+                 "--params", "R_f", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert "control, fit and calibrate: no yarn contact yet" in err and err.count("\n") == 1
-    assert not (tmp_path / "o").exists()
+    assert "fit and calibrate: no yarn contact yet" in err and err.count("\n") == 1
+    assert not any((tmp_path / "o").glob("**/*.*"))        # no result written
 
 
 def test_calibrate_with_a_radius_is_refused_with_a_reason(tmp_path, capsys):
@@ -187,5 +193,5 @@ def test_calibrate_with_a_radius_is_refused_with_a_reason(tmp_path, capsys):
     path.write_text(spec.read_text() + "\n[yarn]\nradius = 0.74\n")
     assert main(["calibrate", str(path), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert "control, fit and calibrate: no yarn contact yet" in err and err.count("\n") == 1
+    assert "fit and calibrate: no yarn contact yet" in err and err.count("\n") == 1
     assert not any((tmp_path / "o").glob("**/*.*"))        # no result written

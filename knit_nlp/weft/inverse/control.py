@@ -25,10 +25,10 @@ import numpy as np
 from ...jsonio import write_json
 from ...outcome import Energy, Outcome, describe
 from ..model.centrelines import natural_centrelines
-from ..model.params import WeftParams
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport
+from .contact_equilibrium import ContactEquilibrium
 from .equilibrium import Equilibrium, Stability
 from .plot import plot_control
 from .points import point_function, point_jacobian
@@ -92,9 +92,7 @@ class ControlResult(Outcome):
     @property
     def equilibrium(self) -> WeftResult:
         """The forward model's result at the answer (its clamps, loops, energy)."""
-        eq, rep = self.ctl.eq, self.state.report
-        return WeftResult(eq.wnlp, rep, WeftParams.from_vector(self.problem, self.p), eq.build_s,
-                          eq.solver.violation(rep.x, self.p))
+        return self.ctl.eq.result(self.state.report, self.p)
 
     @property
     def energy(self) -> Energy:
@@ -203,7 +201,8 @@ class Controller:
 
     def __init__(self, cp: ControlProblem, options: ControlOptions | None = None) -> None:
         self.cp, self.opts = cp, options or ControlOptions()
-        self.eq = Equilibrium(cp.problem)
+        # with [yarn] radius the forward model and its KKT system hold the active contacts
+        self.eq = Equilibrium(cp.problem) if cp.problem.yarn is None else ContactEquilibrium(cp.problem)
         pl = self.eq.wnlp.p
         idx = []
         for a in cp.actuated:
@@ -294,9 +293,12 @@ class Controller:
             raise RuntimeError(f"step QP failed: {self._qp.stats()['return_status']}")
         return np.asarray(sol["x"]).ravel()[:nu], np.asarray(sol["lam_a"]).ravel()
 
-    def equilibrium(self, u: np.ndarray, x0: np.ndarray | None = None):
-        """The forward solve at unknowns u (the built IPOPT instance; warm start x0)."""
-        return self.eq.solve(self.params(u), x0=x0)
+    def equilibrium(self, u: np.ndarray, x0: np.ndarray | None = None,
+                    origin: State | None = None):
+        """The forward solve at unknowns u (the built IPOPT instance; warm start x0; with
+        contact, a load step from the state ``origin``)."""
+        return self.eq.solve(self.params(u), x0=x0, origin=None if origin is None else
+                             (origin.x, self.params(origin.u)))
 
     def run(self, u_start: np.ndarray | None = None) -> ControlResult:
         t0 = time.perf_counter()
@@ -320,7 +322,7 @@ class Controller:
             if pred <= self.opts.objective_tol or np.abs(d).max() <= self.opts.step_tol * (1 + np.abs(s.u).max()):
                 status = CONVERGED
                 break
-            trial = self.equilibrium(s.u + d, x0=s.x + dx @ d)
+            trial = self.equilibrium(s.u + d, x0=s.x + dx @ d, origin=s)
             if not trial.success:
                 radius = 0.25 * np.abs(d).max()
                 continue

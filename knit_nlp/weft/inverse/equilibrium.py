@@ -31,6 +31,7 @@ from ..model.problem import WeftProblem
 from ..model.params import WeftParams
 from ..model.parametrisation import Full
 from ..solving.contact.solve import refuse
+from ..output.results import WeftResult
 from ..solving.solve import SolveReport, WeftSolver, solve
 from ..transcription.factory import transcribe
 from ..transcription.full import FullNLP
@@ -61,10 +62,11 @@ class Stability:
 class Equilibrium:
     """A weft problem's forward NLP and IPOPT instance (built once), plus the KKT Functions."""
 
-    def __init__(self, problem: WeftProblem) -> None:
-        if problem.yarn is not None:
-            # the sensitivities would need the active contacts as equality rows of K
-            raise refuse(problem, "control, fit and calibrate", "their implicit-function gradients do not yet "
+    def __init__(self, problem: WeftProblem, uses: str = "fit and calibrate") -> None:
+        if problem.yarn is not None and not self.contact_ready:
+            # their sensitivities would need the active contacts as rows of K
+            # (ContactEquilibrium, contact_equilibrium.py, has them: control uses it)
+            raise refuse(problem, uses, "their implicit-function gradients do not yet "
                          "hold the active contacts; solve the problem at chosen targets with "
                          "knit-nlp solve or sweep")
         t0 = time.perf_counter()
@@ -84,14 +86,23 @@ class Equilibrium:
         self.build_s = time.perf_counter() - t0
         self.forward_solves = 0
 
+    contact_ready = False       # whether the KKT system holds active yarn contacts
+
     @property
     def n(self) -> int:
         return self.wnlp.n_variables
 
-    def solve(self, p: np.ndarray, x0: np.ndarray | None = None) -> SolveReport:
-        """The forward solve at parameters p (direct, then continuation; see weft.solve)."""
+    def solve(self, p: np.ndarray, x0: np.ndarray | None = None,
+              origin: tuple[np.ndarray, np.ndarray] | None = None) -> SolveReport:
+        """The forward solve at parameters p (direct, then continuation; see weft.solve);
+        ``origin`` (a solved state and its parameters) is for paths with contact only."""
         self.forward_solves += 1
         return solve(self.wnlp, self.solver, params=WeftParams.from_vector(self.problem, p), x0=x0)
+
+    def result(self, report: SolveReport, p: np.ndarray) -> WeftResult:
+        """The typed forward result of a solve at parameters p."""
+        return WeftResult(self.wnlp, report, WeftParams.from_vector(self.problem, p), self.build_s,
+                          self.solver.violation(report.x, p))
 
     def kkt(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray) -> tuple[ca.DM, ca.DM]:
         """The KKT matrix K = ∂F/∂(x, λ) = [[H, Jᵀ], [J, 0]] and ∂F/∂p at a solution."""
@@ -105,40 +116,51 @@ class Equilibrium:
                     dp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """dx/dθ and dλ/dθ (n × k, m × k) for parameter directions dp = ∂p/∂θ (size(p) × k),
         by the implicit-function theorem on F(z, p) = 0 (one factorization of K)."""
-        K, Fp = self.kkt(x, lam, p)
+        K, Fp, nx = self.system(x, lam, p)
         if self._linsol is None or self._linsol.sparsity() != K.sparsity():
             self._linsol = ca.Linsol("kkt", "mumps", K.sparsity())
         self._linsol.sfact(K)
         self._linsol.nfact(K)
         rhs = -(Fp @ ca.DM(np.asarray(dp, dtype=float).reshape(Fp.shape[1], -1)))
         dz = np.asarray(self._linsol.solve(K, rhs))
-        return dz[:self.n], dz[self.n:]
+        return dz[:self.n], dz[nx:]
+
+    def system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray) -> tuple[ca.DM, ca.DM, int]:
+        """The KKT matrix, ∂F/∂p and the size of K's Hessian block (here: kkt, n)."""
+        K, Fp = self.kkt(x, lam, p)
+        return K, Fp, self.n
 
     def stability(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
                   method: str = "sparse") -> Stability:
         """Smallest eigenvalue of the Lagrangian Hessian reduced to the null space of J."""
-        K, _ = self.kkt(x, lam, p)
-        if method == "sparse":
-            try:
-                import scipy  # noqa: F401
-            except ImportError:                                     # pragma: no cover
-                method = "dense"
-                if self.n > DENSE_FALLBACK:
-                    raise RuntimeError(f"the stability check above {DENSE_FALLBACK} variables "
-                                       "needs scipy (pip install scipy)") from None
-        if method == "dense":
-            return _dense_reduced_min(_dense(K), self.n)
-        negative, rho = _penalised_inertia(K, self.n)
-        if negative:
-            if self.n <= DENSE_FALLBACK:
-                found = _dense_reduced_min(_dense(K), self.n)
-                return Stability(found.min_eigenvalue, f"inertia of H + rho J^T J (rho = {rho:.3g}): "
-                                 f"{negative} negative; value from {found.method}")
-            return Stability(float("nan"), f"inertia of H + rho J^T J (rho = {rho:.3g}): "
-                             f"{negative} negative eigenvalues (value not computed)")
-        mu = _lanczos_smallest(K, self.n)
-        return Stability(mu, f"no negative pivot in LDL^T of H + rho J^T J (rho = {rho:.3g}); "
-                         f"smallest by shift-invert Lanczos on the KKT matrix (sigma = {SHIFT:g})")
+        K, _, n = self.system(x, lam, p)
+        return reduced_stability(K, n, method)
+
+
+def reduced_stability(K: ca.DM, n: int, method: str = "sparse") -> Stability:
+    """Smallest eigenvalue of K's Hessian block (n × n) reduced to the null space of its
+    constraint block (module docstring: ``sparse`` or ``dense``)."""
+    if method == "sparse":
+        try:
+            import scipy  # noqa: F401
+        except ImportError:                                     # pragma: no cover
+            method = "dense"
+            if n > DENSE_FALLBACK:
+                raise RuntimeError(f"the stability check above {DENSE_FALLBACK} variables "
+                                   "needs scipy (pip install scipy)") from None
+    if method == "dense":
+        return _dense_reduced_min(_dense(K), n)
+    negative, rho = _penalised_inertia(K, n)
+    if negative:
+        if n <= DENSE_FALLBACK:
+            found = _dense_reduced_min(_dense(K), n)
+            return Stability(found.min_eigenvalue, f"inertia of H + rho J^T J (rho = {rho:.3g}): "
+                             f"{negative} negative; value from {found.method}")
+        return Stability(float("nan"), f"inertia of H + rho J^T J (rho = {rho:.3g}): "
+                         f"{negative} negative eigenvalues (value not computed)")
+    mu = _lanczos_smallest(K, n)
+    return Stability(mu, f"no negative pivot in LDL^T of H + rho J^T J (rho = {rho:.3g}); "
+                     f"smallest by shift-invert Lanczos on the KKT matrix (sigma = {SHIFT:g})")
 
 
 
