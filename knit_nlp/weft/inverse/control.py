@@ -37,6 +37,8 @@ from .spec import Actuated, ControlProblem
 CONVERGED = "Converged"
 
 
+CONTACT_FORWARD = 0.01    # forward check with yarn contact: 1/100 of the radius (forward_tolerance)
+
 @dataclass
 class ControlOptions:
     """Outer-iteration limits and tolerances."""
@@ -339,6 +341,14 @@ class Controller:
             status = "Converged_Opening_Infeasible"
         return self._finish(start, s, ok, status, it, t0)
 
+    def forward_tolerance(self) -> float:
+        """The forward check's largest centreline distance: ``forward_tol``; with yarn contact
+        at least CONTACT_FORWARD × radius, since contact rounds settle their contact points
+        only to a fraction of a sample (docs/contact.md), while another equilibrium branch
+        differs by the yarn's thickness."""
+        yarn = self.cp.problem.yarn
+        return max(self.opts.forward_tol, 0.0 if yarn is None else CONTACT_FORWARD * yarn.radius)
+
     def _finish(self, start: State, s: State, ok: bool, status: str, it: int, t0: float) -> ControlResult:
         t1 = time.perf_counter()
         p = self.params(s.u)
@@ -347,7 +357,7 @@ class Controller:
         fwd = self.eq.solve(p)
         lines = [self.eq.wnlp.centrelines(v, 21) for v in (s.x, fwd.x)]
         dist = float(np.linalg.norm(lines[0] - lines[1], axis=-1).max())
-        fwd_ok = bool(fwd.success and dist <= self.opts.forward_tol)
+        fwd_ok = bool(fwd.success and dist <= self.forward_tolerance())
         t3 = time.perf_counter()
         if ok and not stab.stable:
             status = "Saddle: the equilibrium is not stable"
