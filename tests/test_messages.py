@@ -74,7 +74,7 @@ def test_a_model_that_is_not_a_string_is_one_line(write_problem, tmp_path, capsy
 @pytest.mark.parametrize("argv, words", [
     (["solve", "jacquard_stripe", "--reduced"],
      ["knit-nlp: --reduced: applies to weft problems only", "is a jacquard problem: drop "
-      "--reduced (jacquard flags: --solver, --svg)"]),
+      "--reduced (jacquard flags: --solver, --svg, --window)"]),
     (["solve", "wada_fig7", "--solver", "static", "--svg"],
      ["knit-nlp: --solver --svg: apply to jacquard problems only", "drop --solver --svg"]),
     (["solve", "wada_fig7", "--reduced", "--warm-from-reduced"],
