@@ -66,3 +66,11 @@ def test_study_workers_keep_quiet():
     """A sweep has its own progress line: the solver its workers build installs none."""
     built = prepare_point(load_toml(PROBLEMS / "wada_fig7.toml"))
     assert built.solver.progress is None
+
+
+def test_a_long_control_reports_each_outer_iteration(monkeypatch, capsys, tmp_path):
+    """A control that outlasts QUIET_FOR (here 0) prints one line per outer iteration."""
+    monkeypatch.setattr("knit_nlp.weft.inverse.control.QUIET_FOR", 0.0)
+    assert main(["control", "place_stitch", "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "control: outer iteration 1, goal misfit" in err and "trust radius" in err

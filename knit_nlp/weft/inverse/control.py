@@ -14,6 +14,7 @@ the objective Σw|misfit|² + travel_weight·Σ|travel|² is |r|²; each step so
 """
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +25,7 @@ import numpy as np
 
 from ...jsonio import write_json
 from ...outcome import Energy, Outcome, describe
+from ...progress import QUIET_FOR
 from ..model.centrelines import natural_centrelines
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
@@ -302,6 +304,18 @@ class Controller:
         return self.eq.solve(self.params(u), x0=x0, origin=None if origin is None else
                              (origin.x, self.params(origin.u)))
 
+    def _progress(self, it: int, s: State, radius: float, t0: float) -> None:
+        """One stderr line per outer iteration once the control has run QUIET_FOR seconds (a
+        control that cannot reach its goal or opening is not silent while it tries)."""
+        took = time.perf_counter() - t0
+        if took < QUIET_FOR:
+            return
+        short = float(np.max(-s.gap, initial=0.0))
+        sys.stderr.write(f"  control: outer iteration {it}, goal misfit {float(np.sqrt(s.r @ s.r)):.3g}"
+                         + (f", opening short by {short:.3g}" if short > 0 else "")
+                         + f", trust radius {radius:.3g}, {took:.0f} s\n")
+        sys.stderr.flush()
+
     def run(self, u_start: np.ndarray | None = None) -> ControlResult:
         t0 = time.perf_counter()
         u = self.u0.copy() if u_start is None else np.asarray(u_start, dtype=float)
@@ -336,6 +350,7 @@ class Controller:
                     radius = max(radius, 2.0 * np.abs(d).max())
             else:
                 radius = 0.25 * np.abs(d).max()
+            self._progress(it, s, radius, t0)
         ok = status == CONVERGED and bool(np.all(s.gap >= -self.opts.opening_tol))
         if status == CONVERGED and not ok:
             status = "Converged_Opening_Infeasible"
