@@ -133,7 +133,10 @@ class ControlResult(Outcome):
                            natural_centrelines(self.problem), wnlp.centrelines(self.start.x),
                            wnlp.centrelines(self.state.x), goals, reached, travel, openings,
                            f"{name}: {result['status']}, objective {result['objective']:.3g}, "
-                           f"{'stable' if result['stable'] else 'NOT STABLE'}")
+                           f"{'stable' if result['stable'] else 'NOT STABLE'}"
+                           + ("" if self.problem.yarn is None else
+                              f"; yarn contact, r = {self.problem.yarn.radius:g} "
+                              f"{self.problem.units.length}"))
         return [js, png]
 
 

@@ -87,15 +87,18 @@ class CheckReport:
 
 def loops_of(result: Any, problem: WeftProblem, where: str = "result"
              ) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients (m, n, 2t+2) and loop starts (m, n, 2) of a result JSON, checked against
-    the problem (ProblemError naming the key otherwise)."""
+    """Coefficients (m, n, 2t+2) and loop starts (m, n, 2) of a result JSON (a solve's, or a
+    control's ``equilibrium``), checked against the problem (ProblemError naming the key
+    otherwise)."""
     m, n, nc = problem.courses, problem.wales, n_coeffs(problem.t)
     if not isinstance(result, dict):
         raise ProblemError(where, "", "", f"a weft result is a JSON object, got "
                            f"{type(result).__name__}")
+    if "loops" not in result and isinstance(result.get("equilibrium"), dict):
+        result = result["equilibrium"]           # a control result: its equilibrium's loops
     loops = result.get("loops")
     if not isinstance(loops, dict):
-        raise ProblemError(where, "loops", "", "missing: not a weft solve result")
+        raise ProblemError(where, "loops", "", "missing: not a weft solve or control result")
     coeffs = _array(loops.get("coefficients"), (m, n, nc), where, "coefficients")
     course = _array(loops.get("course_starts"), (m, 2), where, "course_starts")
     ends = positions(coeffs.reshape(-1, nc), [problem.L], problem.L, problem.t).reshape(m, n, 2)
