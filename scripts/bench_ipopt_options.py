@@ -1,0 +1,156 @@
+"""Benchmark: IPOPT options on the full weft model's diagonal pull (issue 22 item 1).
+
+For each size n, the pull ``knit_nlp.weft.model.cases.diagonal_pull(n)`` is built once (full
+model, closed-form derivatives) and its multilevel start computed once with the current
+options; then every configuration below solves the fine problem from that same start, round
+after round (the order rotated each round, so that A and B alternate on a shared, noisy
+machine). A configuration is the current defaults (``WeftSolver``: ``mumps_scaling = 0``,
+``mumps_permuting_scaling = 0``, ``MODEL_IPOPT["full"]``) plus the options it names.
+
+Printed per configuration: median wall seconds of the solve, IPOPT iterations, KKT
+factorisations and those with the wrong inertia (read from IPOPT's output file at
+``file_print_level = 6``, where the MUMPS interface reports each), the median seconds in the
+linear solver (``StdAugSystemSolverMultiSolve`` of ``print_timing_statistics``: MUMPS's
+analysis, factorisations and solves), the status and the energy, and the ratio of the median time to
+the defaults' median in the same run. ``--end-to-end`` times the multilevel start too (the
+coarse solves then use the configuration's options as well).
+
+    OMP_NUM_THREADS=1 python scripts/bench_ipopt_options.py                  # n = 50, 100
+    python scripts/bench_ipopt_options.py --sizes 50 --rounds 1 --configs default amf
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))     # knit_nlp from this checkout
+
+from knit_nlp.weft.model.cases import diagonal_pull  # noqa: E402
+from knit_nlp.weft.model.parametrisation import Full  # noqa: E402
+from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
+from knit_nlp.weft.solving import solve as weft_solve  # noqa: E402
+from knit_nlp.weft.solving.solve import WeftSolver, start_point  # noqa: E402
+from knit_nlp.weft.transcription.factory import transcribe  # noqa: E402
+
+CONFIGS: dict[str, dict] = {
+    "default": {},
+    "amd": {"mumps_pivot_order": 0},
+    "amf": {"mumps_pivot_order": 2},
+    "pord": {"mumps_pivot_order": 4},
+    "metis": {"mumps_pivot_order": 5},
+    "qamd": {"mumps_pivot_order": 6},
+    "mem100": {"mumps_mem_percent": 100},
+    "pivtol1e-8": {"mumps_pivtol": 1e-8},
+    "pivtol1e-4": {"mumps_pivtol": 1e-4},
+    "fhp1e-4": {"first_hessian_perturbation": 1e-4},
+    "fhp10": {"first_hessian_perturbation": 10.0},
+    "perturb_cd": {"perturb_always_cd": "yes"},
+    "negcurv0": {"neg_curv_test_tol": 1e-12},
+    "noscale": {"nlp_scaling_method": "none"},
+    "brf0": {"bound_relax_factor": 0.0},
+    "relax_fixed": {"fixed_variable_treatment": "relax_bounds"},
+    "adaptive": {"mu_strategy": "adaptive"},
+    "lss_none": {"linear_system_scaling": "none"},
+    "mumps_scaling77": {"mumps_scaling": 77},
+}
+# level 6: MUMPS's interface reports every factorisation and every wrong inertia
+FILE_OPTIONS = {"file_print_level": 6, "print_timing_statistics": "yes"}
+FACTORISED = "Number of doubles for MUMPS to hold factorization"
+WRONG_INERTIA = "Factorization failed with retval = 2"
+# the linear solver's wall seconds (MUMPS's analysis, factorisations and solves together: the
+# MUMPS interface books no separate LinearSystemFactorization time)
+LINEAR_S = re.compile(r"StdAugSystemSolverMultiSolve\.*:\s*\S+\s*\(sys:\s*\S+\s*wall:\s*(\S+)\)")
+
+
+def read_log(path: str) -> dict[str, float]:
+    """Factorisations, factorisations with the wrong inertia (each followed by a larger
+    Hessian perturbation) and the linear solver's wall seconds from one IPOPT output file."""
+    text = Path(path).read_text(errors="replace")
+    linear = LINEAR_S.search(text)
+    return {"factorisations": text.count(FACTORISED), "wrong_inertia": text.count(WRONG_INERTIA),
+            "linear_s": float(linear.group(1)) if linear else float("nan")}
+
+
+def run(wnlp, x0, opts: dict, end_to_end: bool) -> dict:
+    """One solve with ``opts`` on top of the defaults, logged to a temporary file."""
+    with tempfile.NamedTemporaryFile(suffix=".ipopt.log", delete=False) as f:
+        log = f.name
+    try:
+        t0 = time.perf_counter()
+        if end_to_end:
+            x0 = start_point(wnlp, wnlp.p0, "multilevel")
+        solver = WeftSolver(wnlp, ipopt={**opts, **FILE_OPTIONS, "output_file": log})
+        rep = solver.once(wnlp.p0, x0)
+        wall = time.perf_counter() - t0
+        return {"wall": wall, "iterations": rep.iterations, "status": rep.status,
+                "energy": rep.objective, **read_log(log)}
+    finally:
+        os.unlink(log)
+
+
+def bench(n: int, configs: list[str], rounds: int, end_to_end: bool) -> None:
+    """Build the n x n diagonal pull, start it once, time every configuration ``rounds`` times."""
+    t0 = time.perf_counter()
+    wnlp = transcribe(parse_problem(diagonal_pull(n), f"<diagonal_pull {n}>"), Full())
+    t1 = time.perf_counter()
+    x0 = start_point(wnlp, wnlp.p0, "multilevel")
+    print(f"\n## {n} x {n} diagonal pull: {wnlp.n_variables} variables, "
+          f"{wnlp.n_constraints} constraints; build {t1 - t0:.1f} s, multilevel start "
+          f"{time.perf_counter() - t1:.1f} s", flush=True)
+    full_defaults = dict(weft_solve.MODEL_IPOPT["full"])
+    results: dict[str, list[dict]] = {c: [] for c in configs}
+    for r in range(rounds):
+        order = configs[r % len(configs):] + configs[:r % len(configs)]
+        for c in order:
+            # the coarse solves of --end-to-end see the configuration too
+            weft_solve.MODEL_IPOPT["full"] = {**full_defaults, **CONFIGS[c]}
+            try:
+                results[c].append(run(wnlp, x0, CONFIGS[c], end_to_end))
+            finally:
+                weft_solve.MODEL_IPOPT["full"] = full_defaults
+            last = results[c][-1]
+            print(f"  round {r + 1} {c:16s} {last['wall']:7.2f} s  {last['iterations']:3d} it "
+                  f"{last['factorisations']:>4} fact", file=sys.stderr, flush=True)
+    table(results, configs)
+
+
+def table(results: dict[str, list[dict]], configs: list[str]) -> None:
+    """The markdown table: medians, effort, ratio to the defaults in this run."""
+    base = statistics.median(r["wall"] for r in results[configs[0]])
+    print(f"| option ({configs[0]} = reference) | wall s (median) | ratio | iterations | "
+          "factorisations | wrong inertia | linear solver s (median) | status | energy |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for c in configs:
+        rs = results[c]
+        wall = statistics.median(r["wall"] for r in rs)
+        lin = statistics.median(r["linear_s"] for r in rs)
+        opt = ", ".join(f"{k} = {v}" for k, v in CONFIGS[c].items()) or "current defaults"
+        print(f"| {c}: {opt} | {wall:.2f} | {wall / base:.2f} | {rs[0]['iterations']} | "
+              f"{rs[0]['factorisations']} | {rs[0]['wrong_inertia']} | {lin:.2f} | "
+              f"{rs[0]['status']} | {rs[0]['energy']:.6g} |", flush=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[50, 100])
+    ap.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS),
+                    help="the first is the reference of the ratios (default: all)")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--end-to-end", action="store_true",
+                    help="time the multilevel start with each configuration too")
+    args = ap.parse_args()
+    print(f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', '(unset)')} "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', '(unset)')} "
+          f"cores={os.cpu_count()} rounds={args.rounds}; command: {' '.join(sys.argv)}")
+    for n in args.sizes:
+        bench(n, args.configs, args.rounds, args.end_to_end)
+
+
+if __name__ == "__main__":
+    main()
