@@ -2,18 +2,19 @@
 
 For each size n, the pull ``knit_nlp.weft.model.cases.diagonal_pull(n)`` is built once (full
 model, closed-form derivatives) and its multilevel start computed once with the current
-options; then every configuration below solves the fine problem from that same start, round
-after round (the order rotated each round, so that A and B alternate on a shared, noisy
-machine). A configuration is the current defaults (``WeftSolver``: ``mumps_scaling = 0``,
+options; then every configuration below solves the fine problem from that same start, each run
+right next to a run of the reference (the first configuration, the current defaults), the
+order of the pair alternating from round to round: on a shared machine the load drifts within
+minutes, so only a pair's ratio is compared, and the median of the rounds' ratios is
+printed. A configuration is the current defaults (``WeftSolver``: ``mumps_scaling = 0``,
 ``mumps_permuting_scaling = 0``, ``MODEL_IPOPT["full"]``) plus the options it names.
 
 Printed per configuration: median wall seconds of the solve, IPOPT iterations, KKT
 factorisations and those with the wrong inertia (read from IPOPT's output file at
 ``file_print_level = 6``, where the MUMPS interface reports each), the median seconds in the
 linear solver (``StdAugSystemSolverMultiSolve`` of ``print_timing_statistics``: MUMPS's
-analysis, factorisations and solves), the status and the energy, and the ratio of the median time to
-the defaults' median in the same run. ``--end-to-end`` times the multilevel start too (the
-coarse solves then use the configuration's options as well).
+analysis, factorisations and solves), the status and the energy, and the median ratio to the reference. ``--end-to-end``
+times the multilevel start too (the coarse solves then use the configuration's options).
 
     OMP_NUM_THREADS=1 python scripts/bench_ipopt_options.py                  # n = 50, 100
     python scripts/bench_ipopt_options.py --sizes 50 --rounds 1 --configs default amf
@@ -109,35 +110,47 @@ def bench(n: int, configs: list[str], rounds: int, end_to_end: bool) -> None:
     print(f"\n## {n} x {n} diagonal pull: {wnlp.n_variables} variables, "
           f"{wnlp.n_constraints} constraints; build {t1 - t0:.1f} s, multilevel start "
           f"{time.perf_counter() - t1:.1f} s", flush=True)
-    full_defaults = dict(weft_solve.MODEL_IPOPT["full"])
-    results: dict[str, list[dict]] = {c: [] for c in configs}
+    ref, others = configs[0], configs[1:] or configs[:1]
+    runs: dict[str, list[dict]] = {c: [] for c in configs}
+    ratios: dict[str, list[float]] = {c: [] for c in configs}
     for r in range(rounds):
-        order = configs[r % len(configs):] + configs[:r % len(configs)]
-        for c in order:
-            # the coarse solves of --end-to-end see the configuration too
-            weft_solve.MODEL_IPOPT["full"] = {**full_defaults, **CONFIGS[c]}
-            try:
-                results[c].append(run(wnlp, x0, CONFIGS[c], end_to_end))
-            finally:
-                weft_solve.MODEL_IPOPT["full"] = full_defaults
-            last = results[c][-1]
-            print(f"  round {r + 1} {c:16s} {last['wall']:7.2f} s  {last['iterations']:3d} it "
-                  f"{last['factorisations']:>4} fact", file=sys.stderr, flush=True)
-    table(results, configs)
+        for i, c in enumerate(others):
+            # A/B next to each other, the order alternating: the load drifts within minutes
+            pair = (ref, c) if (r + i) % 2 == 0 else (c, ref)
+            done = {k: timed(wnlp, x0, k, end_to_end, r) for k in pair}
+            for k, res in done.items():
+                runs[k].append(res)
+            ratios[c].append(done[c]["wall"] / done[ref]["wall"])
+    table(runs, ratios, configs)
 
 
-def table(results: dict[str, list[dict]], configs: list[str]) -> None:
-    """The markdown table: medians, effort, ratio to the defaults in this run."""
-    base = statistics.median(r["wall"] for r in results[configs[0]])
-    print(f"| option ({configs[0]} = reference) | wall s (median) | ratio | iterations | "
-          "factorisations | wrong inertia | linear solver s (median) | status | energy |")
+def timed(wnlp, x0, config: str, end_to_end: bool, r: int) -> dict:
+    """One run of ``config``; its options also reach the coarse solves of ``--end-to-end``."""
+    full_defaults = dict(weft_solve.MODEL_IPOPT["full"])
+    weft_solve.MODEL_IPOPT["full"] = {**full_defaults, **CONFIGS[config]}
+    try:
+        res = run(wnlp, x0, CONFIGS[config], end_to_end)
+    finally:
+        weft_solve.MODEL_IPOPT["full"] = full_defaults
+    print(f"  round {r + 1} {config:16s} {res['wall']:7.2f} s  {res['iterations']:3d} it "
+          f"{res['factorisations']:>4} fact", file=sys.stderr, flush=True)
+    return res
+
+
+def table(runs: dict[str, list[dict]], ratios: dict[str, list[float]],
+          configs: list[str]) -> None:
+    """The markdown table: medians, effort, median of the paired ratios to the reference."""
+    print(f"| option ({configs[0]} = reference) | wall s (median) | ratio (median of pairs) | "
+          "iterations | factorisations | wrong inertia | linear solver s (median) | status | "
+          "energy |")
     print("|---|---|---|---|---|---|---|---|---|")
     for c in configs:
-        rs = results[c]
+        rs = runs[c]
         wall = statistics.median(r["wall"] for r in rs)
         lin = statistics.median(r["linear_s"] for r in rs)
+        ratio = f"{statistics.median(ratios[c]):.2f}" if ratios[c] else "1"
         opt = ", ".join(f"{k} = {v}" for k, v in CONFIGS[c].items()) or "current defaults"
-        print(f"| {c}: {opt} | {wall:.2f} | {wall / base:.2f} | {rs[0]['iterations']} | "
+        print(f"| {c}: {opt} | {wall:.2f} | {ratio} | {rs[0]['iterations']} | "
               f"{rs[0]['factorisations']} | {rs[0]['wrong_inertia']} | {lin:.2f} | "
               f"{rs[0]['status']} | {rs[0]['energy']:.6g} |", flush=True)
 
