@@ -38,12 +38,13 @@ DEFAULT_START = "multilevel"    # measured: docs/measurements.md
 # 100 x 100, where the coarse solves cost more than they save; diagonal pulls 9 on 8 x 8 and
 # 13-39 on larger fabrics)
 EASY_ITERATIONS = 6
-# IPOPT options by transcription (``WeftNLP.model``), measured (docs/measurements.md, "IPOPT and
-# the KKT systems"). Full model: its first Newton systems from a multilevel start have the
-# wrong inertia (33-63 negative curvature directions, 100 x 100 diagonal pull) until the
-# Hessian is regularised by delta_w = 1, which IPOPT reaches from its default first trial 1e-4
-# in three factorisations (1e-4, 1e-2, 1); starting the trials at 1 reaches the same delta_w,
-# hence the same iterates, in one: 14 -> 12 factorisations of the KKT system.
+# IPOPT options by transcription (``WeftNLP.model``), measured (docs/measurements.md, "IPOPT
+# options for the full weft model (measured)": no other option won). Full model: its first
+# Newton systems from a multilevel start have the wrong inertia (33-63 negative curvature
+# directions, 100 x 100 diagonal pull) until the Hessian is regularised by delta_w = 1, which
+# IPOPT reaches from its default first trial 1e-4 in three factorisations (1e-4, 1e-2, 1);
+# starting the trials at 1 reaches the same delta_w, hence the same iterates, in one: 14 -> 12
+# factorisations of the KKT system.
 MODEL_IPOPT: dict[str, dict] = {"full": {"first_hessian_perturbation": 1.0}, "reduced": {}}
 WARM = {"warm_start_init_point": "yes"}     # start from given multipliers (``once(..., lam_g0=...)``)
 
