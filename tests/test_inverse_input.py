@@ -132,3 +132,30 @@ def test_actuating_a_whole_edge_clamp_is_refused_with_what_to_do(write_problem, 
     err = capsys.readouterr().err.strip()
     assert "[clamp[1]] actuated: grips 3 points" in err and "[[rigid_clamp]]" in err
     assert len(err.splitlines()) == 1 and not (path.parent / "o").exists()
+
+
+OPENING = """
+[[opening]]
+points = [{{loop = [2, 2], point = "B"}}, {{loop = [2, 2], point = "R"}}]
+at_least = {at_least}
+"""
+
+
+@pytest.mark.parametrize("factor, code", [(1.01, 2), (0.99, None)])
+def test_an_opening_wider_than_the_yarn_between_its_points_is_refused(write_problem, capsys,
+                                                                      factor, code):
+    """B and R of one loop are |s_R - s_B| of yarn apart: no grip opens them wider (the issue's
+    control with an unreachable opening ran 431 s before exit 1)."""
+    from knit_nlp.weft.inverse.spec import load_control
+    from knit_nlp.weft.model.problem import load_problem as weft_problem
+    base = BASE.format(clamp="actuated = true", extra=GOAL)
+    cr = weft_problem(write_problem(BASE.format(clamp="", extra=""), "plain.toml")).crossings
+    yarn = abs(cr.s["R"] - cr.s["B"])
+    path = write_problem(base + OPENING.format(at_least=factor * yarn))
+    if code is None:
+        assert load_control(path).openings[0].at_least == pytest.approx(factor * yarn)
+    else:
+        assert main(["control", str(path), "--out", str(path.parent / "o")]) == code
+        err = capsys.readouterr().err.strip()
+        assert "[opening[1]] at_least:" in err and "out of reach" in err
+        assert len(err.splitlines()) == 1 and not (path.parent / "o").exists()

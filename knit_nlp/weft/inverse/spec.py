@@ -213,5 +213,13 @@ def _read_opening(tab: Table, points: _PointReader) -> Opening:
     if len(pts) != 2:
         raise tab.error("points", f"an opening needs exactly two points, got {len(pts)}")
     at_least = tab.number("at_least", positive=True)
+    (la, _, sa), (lb, _, sb) = pts
+    if la[0] == lb[0]:          # one course: its yarn is inextensible (weft/model/reach.py)
+        yarn = abs((la[1] - 1) * points.natural.length + sa
+                   - (lb[1] - 1) * points.natural.length - sb)
+        if at_least > yarn:
+            raise tab.error("at_least", f"{at_least:g} is out of reach: the two points lie on "
+                            f"course {la[0]} with {yarn:.6g} of inextensible yarn between them, "
+                            f"so no grip can open them wider; ask for at most {yarn:.6g}")
     tab.finish()
     return Opening(tuple(pts), at_least)
