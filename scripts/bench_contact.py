@@ -41,13 +41,14 @@ def timed_pull(n: int, radius: float | None, budget: float) -> dict:
     if "contact" in r.extra:
         c = r.extra["contact"]
         row.update(active=c["active"], gap_over_2r=c["smallest_gap_over_2r"],
-                   new_crossings=c["new_crossings"], solves=c["solves"])
+                   new_crossings=c["new_crossings"], solves=c["solves"],
+                   nlp_vars=c["contact_nlp"]["n_variables"])
     return row
 
 
 def cost(sizes: list[int], budget: float, repeats: int) -> None:
     print(f"{'size':>7} {'without s':>10} {'with s':>10} {'ratio':>7}  contact (active, "
-          "smallest gap / 2r, new crossings, IPOPT solves), status")
+          "smallest gap / 2r, new crossings, IPOPT solves, contact NLP variables), status")
     for n in sizes:
         plain, withc = [], []
         for _ in range(repeats):                 # alternate: A, B, A, B ...
@@ -59,7 +60,7 @@ def cost(sizes: list[int], budget: float, repeats: int) -> None:
         ok = "" if last["success"] else f"  NOT CONVERGED ({last['status']}: ratio is a lower bound)"
         print(f"{n:>3}x{n:<3} {a:>10.2f} {b:>10.2f} {b / a:>7.2f}  "
               f"({last.get('active')}, {last.get('gap_over_2r')}, {last.get('new_crossings')}, "
-              f"{last.get('solves')}){ok}", flush=True)
+              f"{last.get('solves')}, {last.get('nlp_vars')}){ok}", flush=True)
 
 
 def stretch_doc(n: int) -> dict:
@@ -139,7 +140,8 @@ def main() -> None:
     for n in args.big:
         r = timed_pull(n, RADIUS, args.budget)
         print(f"{n}x{n} with contact: {r['seconds']:.1f} s, {r['status']}, active "
-              f"{r.get('active')}, new crossings {r.get('new_crossings')}", flush=True)
+              f"{r.get('active')}, new crossings {r.get('new_crossings')}, IPOPT solves "
+              f"{r.get('solves')}, contact NLP variables {r.get('nlp_vars')}", flush=True)
     if args.curve:
         curves = {}
         for label, radius in [("without contact (paper's model)", None)] + [

@@ -36,10 +36,18 @@ MAX_ROUNDS = 12
 WARM = {"warm_start_init_point": "yes", "mu_init": 1e-5, "warm_start_bound_push": 1e-9,
         "warm_start_mult_bound_push": 1e-9, "warm_start_slack_bound_push": 1e-9,
         "warm_start_slack_bound_frac": 1e-9, "warm_start_bound_frac": 1e-9}
-WIDEST = 0.4               # the reach is widened (x2 per failed step) up to this many L
+WIDEST = 0.4               # the reach is widened (x2 per failed step) up to this many L ...
+# ... but a step that let yarns cross is halved after one widening (to this many L): on the 6 x 6
+# pull each such failed attempt cost ~40 s (a 100-200 iteration round) and widening to 0.4 L took
+# 4 of them; halving then is 3x cheaper there. A solve that diverges (a body pushed by a load
+# with nothing else to stop it) still widens to WIDEST.
+WIDE_CROSSED = 0.04
 MOVED = 0.5                # contact points that moved less than this many samples have settled
 FLIP = 1e-6               # a pair now this far (relative to L) on its other side passed through
+CROSSED = "Contact_Crossing"        # the status of a step that let yarns cross
 SPARE = 0.5                # extra slots per pair of loops, relative, when (re)building
+SHRINK = 2.0               # a pool above this many times the pairs' need (with SPARE) is rebuilt
+MIN_POOL = 64              # ... but a pool of this many slots is never too large
 
 
 @dataclass
@@ -91,19 +99,28 @@ class ContactSolver:
         return find_pairs(self.fabric, curves, self.grid, self.reach)
 
     def _slots(self, pairs: Pairs) -> bool:
-        """Make sure every pair of loops has enough slots; True when rebuilt."""
+        """Make sure every pair of loops has enough slots; True when rebuilt. The pool grows by
+        ``SPARE`` where a pair of loops lacks slots, and is rebuilt for the pairs alone (with
+        ``SPARE``) once it holds more than ``SHRINK`` times that: every slot costs its
+        quadrature in every evaluation, used or not (a widened search once left 4,700 slots
+        for 430 pairs on the 6 x 6 pull)."""
         need = _counts(pairs.kA, pairs.kB)
         have = {} if self.cnlp is None else _counts(self.cnlp.kA, self.cnlp.kB)
-        if self.cnlp is not None and all(have.get(k, 0) >= v for k, v in need.items()):
+        want = {k: int(np.ceil(v * (1 + SPARE))) for k, v in need.items()}
+        small = max(sum(want.values()), MIN_POOL)
+        fits = self.cnlp is not None and all(have.get(k, 0) >= v for k, v in need.items())
+        if fits and self.cnlp.n_slots <= SHRINK * small:
             return False
-        if not need and not have:
-            need = {(0, 0): 1}                 # one unused slot: the NLP exists from the start
-        merged = {k: max(v, have.get(k, 0)) for k, v in {**have, **need}.items()}
+        if self.cnlp is not None and self.cnlp.n_slots > SHRINK * small:
+            have = {}                          # too large: the pairs' own slots only
+        merged = {k: (have[k] if have.get(k, 0) >= need.get(k, 0) else want[k])
+                  for k in {**have, **want}}
+        if not merged:
+            merged = {(0, 0): 1}               # one unused slot: the NLP exists from the start
         kA, kB = [], []
         for (a, b), v in sorted(merged.items()):
-            cap = v if have.get((a, b), 0) >= need.get((a, b), 0) else int(np.ceil(v * (1 + SPARE)))
-            kA += [a] * cap
-            kB += [b] * cap
+            kA += [a] * v
+            kB += [b] * v
         t0 = time.perf_counter()
         self.cnlp = build_contact_nlp(self.base, np.array(kA), np.array(kB))
         self.solver = WeftSolver(self.cnlp, ipopt=WARM)
@@ -205,7 +222,7 @@ class ContactSolver:
             xn = rep.x[:self.base.n_variables]
             found = self.pairs(xn)
             if self.crossed(xn, pairs, found):
-                report.status = "Contact_Crossing"
+                report.status = CROSSED
                 if self.log is not None:
                     self.log(self.why)
                 return None
@@ -241,7 +258,8 @@ class ContactSolver:
             if out is None:
                 # first widen the reach (a pair farther away may be what the step needed:
                 # a body pushed by a load has nothing else to stop it), then halve the step
-                if self.reach < WIDEST * self.base.problem.L:
+                widest = WIDE_CROSSED if report.status == CROSSED else WIDEST
+                if self.reach < widest * self.base.problem.L:
                     self.reach *= 2
                     pairs = self.pairs(x)
                     continue

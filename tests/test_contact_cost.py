@@ -1,0 +1,68 @@
+"""What keeps contact solves cheap (docs/contact.md, "Cost (measured)"): the slot pool is
+rebuilt smaller once it is far larger than its pairs need, and a load step that let yarns cross
+is halved after one widening of the search (a diverging solve still widens further)."""
+from __future__ import annotations
+
+import numpy as np
+
+from knit_nlp.weft.model.contact.pairs import Pairs
+from knit_nlp.weft.model.params import WeftParams
+from knit_nlp.weft.model.problem import parse_problem
+from knit_nlp.weft.solving.contact import rounds
+from knit_nlp.weft.solving.contact.rounds import ContactSolver
+from knit_nlp.weft.solving.solve import SolveReport
+from knit_nlp.weft.transcription.full import build_nlp
+
+SQUEEZE = {"name": "squeeze", "fabric": {"courses": 1, "wales": 1}, "yarn": {"radius": 0.15},
+           "rigid_clamp": [{"points": [{"loop": [1, 1], "point": "start"}]},
+                           {"points": [{"loop": [1, 1], "point": "end"}],
+                            "translation": [-0.5, 0.0]}],
+           "clamp": [{"loop": [1, 1], "point": "start", "fix": [], "angle": 0.0},
+                     {"loop": [1, 1], "point": "end", "fix": [], "angle": 0.0}]}
+
+
+def _solver() -> tuple[ContactSolver, object]:
+    pr = parse_problem(SQUEEZE, "squeeze")
+    base = build_nlp(pr)
+    return ContactSolver(base, pr.yarn.radius), base
+
+
+def _pairs(n: int) -> Pairs:
+    z = np.zeros(n)
+    return Pairs(z.astype(int), np.linspace(1, 4, n), z.astype(int), np.linspace(6, 9, n),
+                 np.ones(n), np.full(n, 0.3), np.ones(n))
+
+
+def test_the_slot_pool_shrinks_when_far_larger_than_its_pairs_need():
+    """200 pairs, then 10: the pool of 300 slots (a widened search's) is rebuilt for the 10
+    (with SPARE), not kept; a small change after that reuses the pool (it used to grow only)."""
+    contact, _ = _solver()
+    assert contact._slots(_pairs(200)) and contact.cnlp.n_slots == 300
+    assert contact._slots(_pairs(10)) and contact.cnlp.n_slots == 15
+    assert not contact._slots(_pairs(12)) and contact.cnlp.n_slots == 15
+    assert contact._slots(_pairs(40)) and contact.cnlp.n_slots == 60
+
+
+def _reaches(status: str) -> list[float]:
+    """The search reach of every attempt of a run whose steps all fail with ``status``."""
+    contact, base = _solver()
+    seen: list[float] = []
+
+    def step(p, x, pairs, warm, final, report, rounds_, note):
+        seen.append(contact.reach)
+        report.status = status
+        return None
+
+    contact.step = step
+    report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
+    contact.run(base.params.vector(), WeftParams.natural(base.problem).vector(), base.x0, 2,
+                report, max_halvings=1)
+    return seen
+
+
+def test_a_step_that_let_yarns_cross_is_halved_after_one_widening():
+    L = 10.0
+    crossed = _reaches(rounds.CROSSED)
+    assert max(crossed) == rounds.WIDE_CROSSED * L and len(crossed) == 3   # widen once, halve
+    diverged = _reaches("Diverging_Iterates")
+    assert max(diverged) >= rounds.WIDEST * L                 # nothing stops it: widen further
