@@ -104,7 +104,7 @@ def plot_curves(path: str, n: int, curves: dict) -> None:
         units = pr.units
         e = [0.0] + [r[0] * 100 for r in rows if r[2]]
         f = [0.0] + [r[1] for r in rows if r[2]]
-        failed = [r[0] * 100 for r in rows if not r[2]]
+        failed = ", ".join(f"{r[0] * 100:g}" for r in rows if not r[2])
         ax.plot(e, f, "o-", ms=4, label=label + (f" (not converged at {failed} %)" if failed
                                                   else ""))
     ax.set_xlabel("course-direction strain [%] (edge displacement / natural width)")
