@@ -74,3 +74,10 @@ def test_a_long_control_reports_each_outer_iteration(monkeypatch, capsys, tmp_pa
     assert main(["control", "place_stitch", "--out", str(tmp_path)]) == 0
     err = capsys.readouterr().err
     assert "control: outer iteration 1, goal misfit" in err and "trust radius" in err
+
+
+def test_a_long_jacquard_newton_solve_shows_progress(monkeypatch, capsys, tmp_path):
+    """The jacquard static solver's Newton iterations (made to speak at once) on stderr."""
+    monkeypatch.setattr("knit_nlp.jacquard.newton.QUIET_FOR", 0.0)
+    assert main(["solve", "jacquard_bench_100", "--out", str(tmp_path)]) == 0
+    assert "Newton iteration 1: max |dE/dx|" in capsys.readouterr().err
