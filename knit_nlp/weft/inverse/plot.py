@@ -6,7 +6,6 @@ answer), fit (observed against fitted points per load case) and overlays on a ph
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from matplotlib.collections import LineCollection

@@ -136,10 +136,8 @@ def build_contact_nlp(base: FullNLP, kA: np.ndarray, kB: np.ndarray) -> ContactN
     """The base NLP with one contact slot per entry of (kA, kB), closed-form derivatives."""
     if base.model != "full":
         raise ValueError("contact is built on the full model")
-    pr = base.problem
     kA, kB = np.asarray(kA, dtype=int), np.asarray(kB, dtype=int)
     n, nx0, ng0, np0 = len(kA), base.n_variables, base.n_constraints, base.p.size
-    nc, N = n_coeffs(pr.t), pr.n_loops
     x = ca.MX.sym("x", nx0 + VARS * n)
     p = ca.MX.sym("p", np0 + 3 * n)
     xb, pb = x[:nx0], p[:np0]
@@ -220,8 +218,6 @@ def _basis(u: ca.MX, L: float, t: int) -> list[ca.MX]:
 def _derivatives(base: FullNLP, geo: _Geometry, x, p, g, nx0: int, ng0: int, n: int) -> dict:
     """``jac_g`` and ``hess_lag`` of the whole NLP: the base parts from derivatives.py, the
     contact parts in closed form (module docstring)."""
-    pr = base.problem
-    nc, N = geo.nc, pr.n_loops
     nx, ngc = nx0 + VARS * n, LIFT * n + n
     base_d = closed_form_derivatives(base)
     xb, pb = x[:nx0], p[:base.p.size]

@@ -174,7 +174,7 @@ def strand_feet(pts: np.ndarray, grid: Grid, reach: float, exclusion: float) -> 
     best = np.lexsort((dist, run))
     first = best[np.r_[True, run[best][1:] != run[best][:-1]]]
     first = first[~excluded[first]]
-    fu, fc, fiu, fcv, fiv = U[first], cu[first], iu[first], cv[first], iv[first]
+    fc, fiu, fcv, fiv = cu[first], iu[first], cv[first], iv[first]
     P = pts[fc, fiu]
     foot, tangent, Sf = _polyline_foot(pts, grid, fcv, fiv, P)
     normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
