@@ -32,17 +32,9 @@ FIELDS = {"clamp": {"position": True, "displacement": True, "angle": False},
 def _points(pr: WeftProblem, table: str, number: int) -> list[int]:
     """0-based indices, among the problem's points of ``table`` (clamps, loads or rigid clamps),
     of the points the file's ``table[number]`` made; ``ValueError`` when it has no such table."""
-    if table == "rigid_clamp":
-        count = len(pr.rigid_clamps)
-        made = [[q] for q in range(count)]
-    else:
-        points = pr.clamps if table == "clamp" else pr.loads
-        names = [p.table or f"point {q}" for q, p in enumerate(points)]   # built in Python: one
-        made = [[q for q, nm in enumerate(names) if nm == name]            # table per point
-                for name in dict.fromkeys(names)]
-        count = len(made)
-    if not 1 <= number <= count:
-        raise ValueError(f"{table}[{number}] does not exist: the problem file has {count} "
+    made = pr.tables(table)
+    if not 1 <= number <= len(made):
+        raise ValueError(f"{table}[{number}] does not exist: the problem file has {len(made)} "
                          f"[[{table}]] table(s), numbered from 1 in file order")
     return made[number - 1]
 

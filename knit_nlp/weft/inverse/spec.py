@@ -153,7 +153,7 @@ def _read_actuated_clamp(tab: Table, k: int, pr: WeftProblem) -> Actuated | None
         if tab.has("bounds"):
             raise tab.error("bounds", "bounds apply to an actuated clamp only (actuated = true)")
         return None
-    made = [q for q, c in enumerate(pr.clamps) if c.table == tab.name]
+    made = pr.tables("clamp")[k]
     if len(made) != 1:
         raise tab.error("actuated", f"grips {len(made)} points (a course, wale or edge); an "
                         "actuated clamp moves one point: to move a whole course, wale or edge, "

@@ -147,6 +147,16 @@ class WeftProblem:
         """Natural start point of every loop, (m, n, 2)."""
         return natural_starts(self.natural, self.courses, self.wales)
 
+    def tables(self, kind: str) -> list[list[int]]:
+        """The 0-based indices of the points each of the file's ``[[kind]]`` tables made
+        (``kind``: clamp, load or rigid_clamp), in file order: a course, wale or edge table
+        makes several. A problem built in Python has one table per point."""
+        if kind == "rigid_clamp":
+            return [[q] for q in range(len(self.rigid_clamps))]
+        points = self.clamps if kind == "clamp" else self.loads
+        names = [p.table or f"point {q}" for q, p in enumerate(points)]
+        return [[q for q, nm in enumerate(names) if nm == name] for name in dict.fromkeys(names)]
+
     def natural_position(self, loop: tuple[int, int], s: float) -> np.ndarray:
         """Natural position of the material point s of a 1-based loop."""
         i, j = loop
