@@ -16,6 +16,7 @@ import numpy as np
 
 from ...tomlio import Table, load_toml
 from ..model.problem import WeftProblem, _PointReader, parse_problem
+from ..model.reach import yarn_between
 
 CLAMP_KEYS = ("actuated", "bounds")
 RIGID_KEYS = ("actuated", "translation_bounds", "rotation_bounds")
@@ -214,12 +215,10 @@ def _read_opening(tab: Table, points: _PointReader) -> Opening:
         raise tab.error("points", f"an opening needs exactly two points, got {len(pts)}")
     at_least = tab.number("at_least", positive=True)
     (la, _, sa), (lb, _, sb) = pts
-    if la[0] == lb[0]:          # one course: its yarn is inextensible (weft/model/reach.py)
-        yarn = abs((la[1] - 1) * points.natural.length + sa
-                   - (lb[1] - 1) * points.natural.length - sb)
-        if at_least > yarn:
-            raise tab.error("at_least", f"{at_least:g} is out of reach: the two points lie on "
-                            f"course {la[0]} with {yarn:.6g} of inextensible yarn between them, "
-                            f"so no grip can open them wider; ask for at most {yarn:.6g}")
+    yarn = yarn_between((la, sa), (lb, sb), points.natural.length)   # one course: inextensible
+    if yarn is not None and at_least > yarn:
+        raise tab.error("at_least", f"{at_least:g} is out of reach: the two points lie on "
+                        f"course {la[0]} with {yarn:.6g} of inextensible yarn between them, "
+                        f"so no grip can open them wider; ask for at most {yarn:.6g}")
     tab.finish()
     return Opening(tuple(pts), at_least)

@@ -19,7 +19,7 @@ from ...layout import Layout
 from ...tomlio import MAX_MAGNITUDE
 from .basis import phi
 from .problem import WeftProblem
-from .reach import out_of_reach, unheld_force
+from .reach import unreachable
 
 MATERIAL = ("k_a", "k_b", "R_f")
 
@@ -147,7 +147,7 @@ class WeftParams:
         for k, v in (rigid or {}).items():
             rig[_index(k, len(pr.rigid_clamps), "rigid clamp")] = _finite(
                 v, (3,), f"motion (tx, ty, rotation) of rigid clamp {k}")
-        found = out_of_reach(pr, tgt, rig) or unheld_force(pr, frc)
+        found = unreachable(pr, tgt, rig, frc)
         if found:
             raise ValueError(f"{found[0]} {found[1]} {found[2]}")
         return replace(self, targets=tgt, angles=ang, forces=frc, moments=mom, rigid=rig, **mat)

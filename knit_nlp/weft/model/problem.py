@@ -18,7 +18,7 @@ from ...tomlio import Table, finite_number, load_toml
 from ...outcome import SolverOptions as BaseSolverOptions
 from ...units import Units, read_units
 from .basis import n_coeffs
-from .reach import out_of_reach, unheld_force
+from .reach import unreachable
 from .crossings import LABELS, CrossingError, Crossings, find_crossings
 from .parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
@@ -212,7 +212,7 @@ def _check_reach(pr: WeftProblem) -> None:
     targets = np.array([c.target for c in pr.clamps]).reshape(-1, 2)
     rigid = np.array([[*r.translation, r.rotation] for r in pr.rigid_clamps]).reshape(-1, 3)
     forces = np.array([ld.force for ld in pr.loads]).reshape(-1, 2)
-    found = out_of_reach(pr, targets, rigid) or unheld_force(pr, forces)
+    found = unreachable(pr, targets, rigid, forces)
     if found:
         raise ProblemError(pr.source, *found)
 

@@ -35,12 +35,23 @@ class Grips(Protocol):
     def natural_position(self, loop: tuple[int, int], s: float) -> np.ndarray: ...
 
 
-class Held(NamedTuple):
-    """One held material point: where it must go, which coordinates are held, its arc
-    coordinate along its course, and what holds it (file table, key, point)."""
+def yarn_between(a: tuple[tuple[int, int], float], b: tuple[tuple[int, int], float],
+                 L: float) -> float | None:
+    """The length of yarn between material points a and b, each ((course, wale), s), when they
+    lie on one course (the loops of a course chain end to start: arc (wale − 1)·L + s); None
+    on different courses (only springs join those)."""
+    (la, sa), (lb, sb) = a, b
+    if la[0] != lb[0]:
+        return None
+    return abs((la[1] - 1) * L + sa - (lb[1] - 1) * L - sb)
 
-    course: int
-    arc: float
+
+class Held(NamedTuple):
+    """One held material point ((course, wale), s), where it must go, which coordinates are
+    held, and what holds it (file table, key, point)."""
+
+    loop: tuple[int, int]
+    s: float
     target: np.ndarray
     fix: tuple[bool, bool]
     table: str
@@ -54,7 +65,7 @@ def held_points(pr: Grips, targets: np.ndarray, rigid: np.ndarray) -> list[Held]
     out = []
     for q, c in enumerate(pr.clamps):
         if any(c.fix):
-            out.append(Held(c.loop[0], (c.loop[1] - 1) * pr.L + c.s, targets[q], c.fix,
+            out.append(Held(c.loop, c.s, targets[q], c.fix,
                             c.table or f"clamp {q + 1}", c.key,
                             f"loop {list(c.loop)} {c.point}"))
     for k, rc in enumerate(pr.rigid_clamps):
@@ -62,8 +73,7 @@ def held_points(pr: Grips, targets: np.ndarray, rigid: np.ndarray) -> list[Held]
         R = np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
         for q, (loop, label, s) in enumerate(rc.points):
             p0 = pr.natural_position(loop, s)
-            out.append(Held(loop[0], (loop[1] - 1) * pr.L + s,
-                            rc.centre + R @ (p0 - rc.centre) + [tx, ty], (True, True),
+            out.append(Held(loop, s, rc.centre + R @ (p0 - rc.centre) + [tx, ty], (True, True),
                             f"rigid_clamp[{k + 1}]", "translation",
                             f"loop {list(loop)} {label}"))
     return out
@@ -75,8 +85,8 @@ def out_of_reach(pr: Grips, targets: np.ndarray, rigid: np.ndarray
     farther apart than the yarn between them, or None when every pair is within reach."""
     by_course: dict[int, list[Held]] = defaultdict(list)
     for h in held_points(pr, targets, rigid):
-        by_course[h.course].append(h)
-    for course, pts in sorted(by_course.items()):
+        by_course[h.loop[0]].append(h)
+    for _, pts in sorted(by_course.items()):
         for a in range(len(pts)):
             for b in range(a + 1, len(pts)):
                 found = _pair(pts[a], pts[b], pr)
@@ -89,14 +99,14 @@ def _pair(p: Held, q: Held, pr: Grips) -> tuple[str, str, str] | None:
     both = [d for d in range(2) if p.fix[d] and q.fix[d]]
     if not both:
         return None
-    yarn = abs(p.arc - q.arc)
+    yarn = yarn_between((p.loop, p.s), (q.loop, q.s), pr.L)
     apart = float(np.linalg.norm((q.target - p.target)[both]))
     if apart <= yarn * (1 + SLACK) + SLACK * pr.L:
         return None
     unit = pr.units.length
     what = "apart" if len(both) == 2 else f"apart in {'xy'[both[0]]}"
     return (q.table, q.key,
-            f"is out of reach: {q.where} and {p.where} ({p.table}) lie on course {q.course} "
+            f"is out of reach: {q.where} and {p.where} ({p.table}) lie on course {q.loop[0]} "
             f"with {yarn:.6g} {unit} of inextensible yarn between them, but their targets are "
             f"{apart:.6g} {unit} {what}; move the targets closer (at most {yarn:.6g} {unit})")
 
@@ -118,3 +128,10 @@ def unheld_force(pr: Grips, forces: np.ndarray) -> tuple[str, str, str] | None:
                     f"[[clamp]] (fix = [\"{'xy'[d]}\"] or both) or a [[rigid_clamp]], or "
                     "balance the loads")
     return None
+
+
+def unreachable(pr: Grips, targets: np.ndarray, rigid: np.ndarray, forces: np.ndarray
+                ) -> tuple[str, str, str] | None:
+    """(table, key, message) of the first grip no configuration satisfies at these clamp
+    targets, rigid motions and load forces (:func:`out_of_reach`, :func:`unheld_force`)."""
+    return out_of_reach(pr, targets, rigid) or unheld_force(pr, forces)
