@@ -18,7 +18,6 @@ from ..outdir import prepare_out
 from ..problems import resolve
 from ..tomlio import load_toml
 from .inverse.spec import has_control_keys, strip_control_keys
-from .model.params import MATERIAL
 from .model.problem import MAX_CONTINUATION, WeftProblem, parse_problem
 from .output.check import SAMPLES, check, load_result_json, write_check
 from .output.export import EXPORTS
@@ -108,22 +107,9 @@ def run_control(args: Namespace) -> int:
     return run.control_file(path, load_toml(path), Path(args.out))
 
 
-def check_params(params: list[str]) -> None:
-    """``fit --params``: each a material value (:data:`MATERIAL`), each at most once; else an
-    :class:`ArgumentError` naming the name and the allowed ones."""
-    allowed = ", ".join(MATERIAL)
-    for k, name in enumerate(params):
-        if name not in MATERIAL:
-            raise ArgumentError(f"--params {shown(name)}", f"unknown parameter {quoted(name)}; "
-                                f"use {allowed}")
-        if name in params[:k]:
-            raise ArgumentError(f"--params {shown(name)}", f"given twice; give each of "
-                                f"{allowed} at most once")
-
-
 def run_fit(args: Namespace) -> int:
     from .inverse import run
-    check_params(args.params)
+    run.check_params(args.params)           # before the problems are looked up
     return run.fit_files([resolve(p) for p in args.problems], Path(args.observations),
                          args.params, Path(args.out), args.name)
 

@@ -9,7 +9,7 @@ import matplotlib.image as mpimg
 import numpy as np
 from PIL import Image
 
-from ...errors import ArgumentError, ProblemError
+from ...errors import ArgumentError, ProblemError, quoted, shown
 from ...jsonio import write_json
 from ...outdir import output_name, prepare_out
 from ...problems import resolve
@@ -43,10 +43,9 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     """``knit-nlp fit``: write ``<name>.fit.json`` and ``.fit.png`` (``name``: ``--name``, by
     default the load cases' names joined by "+", ``fit.fit_name``); exit 0 when the fit
     converged."""
+    check_params(params)
     if name is not None:
         output_name("--name", name)
-    if not params or len(set(params)) != len(params) or any(n not in MATERIAL for n in params):
-        raise ArgumentError("--params", f"give distinct values among {', '.join(MATERIAL)}")
     problems = {}
     for path in paths:
         pr = parse_problem(strip_control_keys(load_toml(path)), path)
@@ -74,6 +73,21 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
         print(f"  warning: {w}")
     print(f"  wrote {js}, {png}")
     return 0 if ans.success else 1
+
+
+def check_params(params: list[str]) -> None:
+    """``fit --params``: at least one material value (:data:`MATERIAL`), each at most once;
+    else an :class:`ArgumentError` naming the name and the allowed ones."""
+    allowed = ", ".join(MATERIAL)
+    if not params:
+        raise ArgumentError("--params", f"give at least one of {allowed}")
+    for k, name in enumerate(params):
+        if name not in MATERIAL:
+            raise ArgumentError(f"--params {shown(name)}", f"unknown parameter {quoted(name)}; "
+                                f"use {allowed}")
+        if name in params[:k]:
+            raise ArgumentError(f"--params {shown(name)}", f"given twice; give each of "
+                                f"{allowed} at most once")
 
 
 def _check_fittable(path: Path, first: WeftProblem, params: list[str]) -> None:
