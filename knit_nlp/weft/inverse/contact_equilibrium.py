@@ -4,7 +4,7 @@ implicit-function sensitivities and its stability check hold the active contacts
 Forward solve: ``solving.contact.solve_with_contact`` (the paper's model first, then contact
 rounds or load steps with contact), or, inside the control iteration, one load step with contact
 from the last solved state (``origin``) to the new actuation, halved where yarns would cross —
-the path the clamps actually travel. The contact solver is wrapped (``_Recording``) to keep the
+the path the clamps actually travel. The contact solver keeps (``ContactSolver.last``) the
 last accepted solve of the contact NLP: its slots (material points s_A, s_B and sides σ), its
 full solution (base variables and the slots' lifted P_A, P_B, Θ) and multipliers.
 
@@ -70,21 +70,6 @@ class ContactState:
         return int(self.active.sum())
 
 
-class _Recording(ContactSolver):
-    """The contact solver, keeping its last successful solve (what the sensitivities need)."""
-
-    last: tuple | None = None
-
-    def solve_once(self, p_base, x_base, pairs, warm, report, rounds, note):
-        rep, lam = super().solve_once(p_base, x_base, pairs, warm, report, rounds, note)
-        if rep.success:
-            sA, sB, sigma, required, used, _ = self._assign(pairs)
-            self.last = (self.cnlp, self.cnlp.parameters(p_base, sA, sB, sigma), rep.x,
-                         rep.lam_g, used, sigma, required)
-            self.last_pairs = (pairs, lam)
-        return rep, lam
-
-
 def active_gaps(gap: np.ndarray, required: np.ndarray, lam_gap: np.ndarray, used: np.ndarray,
                 tol: float) -> np.ndarray:
     """Gap rows held at their bound: used, within AT_BOUND (relative) of their required gap,
@@ -102,7 +87,7 @@ class ContactEquilibrium(Equilibrium):
 
     def __init__(self, problem: WeftProblem) -> None:
         super().__init__(problem)
-        self.contact = _Recording(self.wnlp, problem.yarn.radius)
+        self.contact = ContactSolver(self.wnlp, problem.yarn.radius)
         self.states: OrderedDict[bytes, ContactState | None] = OrderedDict()
         self.blocks: dict[bytes, dict] = {}
 

@@ -90,6 +90,11 @@ class ContactSolver:
         self.solver: WeftSolver | None = None
         self.build_s = 0.0
         self.log = None                  # a callable receiving every Round as it ends
+        # the last successful solve of the contact NLP: (NLP, its parameters, x, λ, slots in
+        # use, sides σ, required gaps), and its pairs with their gap multipliers (what the
+        # sensitivities with contact need: inverse/contact_equilibrium.py)
+        self.last: tuple | None = None
+        self.last_pairs: tuple[Pairs, np.ndarray] | None = None
         self.deadline = np.inf           # the wall-clock budget shared with the paper's solves
 
     def pairs(self, x_base: np.ndarray) -> Pairs:
@@ -197,14 +202,18 @@ class ContactSolver:
             lam_gap = np.zeros(c.n_slots)
             lam_gap[slot_of] = _carry((old, lam_old), pairs)
             lam0 = np.concatenate([lam_base, c.lift_multipliers(x0, sigma, lam_gap), lam_gap])
-        rep = self.solver.once(c.parameters(p_base, sA, sB, sigma), x0, lbg=lbg, ubg=ubg,
-                               lam_g0=lam0)
+        params = c.parameters(p_base, sA, sB, sigma)
+        rep = self.solver.once(params, x0, lbg=lbg, ubg=ubg, lam_g0=lam0)
         report.add_effort(rep)
         rounds.append(Round(note, len(pairs), c.n_slots, rebuilt, rep.iterations, rep.status,
                             time.perf_counter() - t0))
         if self.log is not None:
             self.log(rounds[-1])
-        return rep, rep.lam_g[c.gap_rows][slot_of]
+        lam = rep.lam_g[c.gap_rows][slot_of]
+        if rep.success:
+            self.last = (c, params, rep.x, rep.lam_g, used, sigma, required)
+            self.last_pairs = (pairs, lam)
+        return rep, lam
 
     def step(self, p: np.ndarray, x: np.ndarray, pairs: Pairs, warm, final: bool,
              report: SolveReport, rounds: list[Round], note: str):
