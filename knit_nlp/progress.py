@@ -18,6 +18,27 @@ import numpy as np
 QUIET_FOR = 3.0    # seconds a solve runs before its progress line appears (without --verbose)
 
 
+class Clock:
+    """When a progress line is due: not before ``quiet_for`` seconds from :meth:`start`, then at
+    most once every ``every`` seconds (every time when ``quiet_for`` is 0: ``--verbose``)."""
+
+    def __init__(self, quiet_for: float, every: float = 1.0) -> None:
+        self.quiet_for, self.every = quiet_for, every
+        self.start()
+
+    def start(self) -> None:
+        self.t0 = self.shown = time.perf_counter()
+
+    def due(self) -> float | None:
+        """The seconds since :meth:`start` when a line is due (and it is then counted as
+        shown), else None."""
+        now = time.perf_counter()
+        if now - self.t0 < self.quiet_for or (self.quiet_for and now - self.shown < self.every):
+            return None
+        self.shown = now
+        return now - self.t0
+
+
 class IterationLine(ca.Callback):
     """Called by ``nlpsol`` after every IPOPT iteration with the current iterate; rewrites one
     line: iterates so far (each solve's first is its start), objective, largest constraint residual."""
@@ -27,13 +48,13 @@ class IterationLine(ca.Callback):
         ca.Callback.__init__(self)
         self.nx, self.ng, self.count = nx, ng, 0
         self.stream = stream or sys.stderr
-        self.quiet_for, self.budget = quiet_for, budget
+        self.clock, self.budget = Clock(quiet_for), budget
         self.start()
         self.construct("iteration_line", {})
 
     def start(self) -> None:
         """Restart the clock (a new solve, or a new ``max_time`` budget)."""
-        self.t0 = self.shown_at = time.perf_counter()
+        self.clock.start()
         self.warned, self.written = False, False
 
     def get_n_in(self) -> int:
@@ -60,20 +81,19 @@ class IterationLine(ca.Callback):
 
     def eval(self, arg: list[ca.DM]) -> list[int]:
         self.count += 1
-        now = time.perf_counter()
-        if now - self.t0 < self.quiet_for or (self.quiet_for and now - self.shown_at < 1.0):
+        took = self.clock.due()
+        if took is None:
             return [0]
-        self.shown_at = now
-        if not self.warned and now - self.t0 > self.budget / 2:
+        if not self.warned and took > self.budget / 2:
             self.warned = True
             self.stream.write(f"{chr(13) if self.written else ''}  warning: this solve has used "
-                              f"{now - self.t0:.0f} s, half its [solver] max_time of "
+                              f"{took:.0f} s, half its [solver] max_time of "
                               f"{self.budget:g} s; it may end without converging (exit 1)\n")
         g = np.asarray(arg[2]).ravel()
         viol = float(np.max(np.abs(g))) if g.size else 0.0
         self.stream.write(f"\r  IPOPT iterate {self.count:5d}  objective "
                           f"{float(arg[1]):.10g}  max |g| {viol:.2e}  "
-                          f"{now - self.t0:.0f} s  ")
+                          f"{took:.0f} s  ")
         self.stream.flush()
         self.written = True
         return [0]

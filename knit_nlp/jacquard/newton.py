@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..progress import QUIET_FOR
+from ..progress import QUIET_FOR, Clock
 from .linalg import BlockHessian, linear_solver
 from .springs import SpringSet, spring_forces, spring_geometry, spring_hessians
 
@@ -145,14 +145,12 @@ def minimise(energy: SpringEnergy, z0: np.ndarray, tol: float, max_iter: int,
         return NewtonOutcome(z, converged, status, it, linear.iterations, linear.describe(),
                              g_max, {**clock, **linear.timings})
 
-    started = shown = time.perf_counter()
+    progress = Clock(QUIET_FOR)       # no solve runs silently: a line once it outlasts QUIET_FOR
     for it in range(max_iter + 1):
         g_max = float(np.max(np.abs(g))) if g.size else 0.0
-        now = time.perf_counter()
-        if now - started >= QUIET_FOR and (now - shown >= 1.0 or QUIET_FOR == 0):
-            shown = now               # no solve runs silently: a line once it outlasts QUIET_FOR
+        if (took := progress.due()) is not None:
             sys.stderr.write(f"  Newton iteration {it}: max |dE/dx| {g_max:.3g} (tol {tol:g}), "
-                             f"{now - started:.0f} s\n")
+                             f"{took:.0f} s\n")
             sys.stderr.flush()
         if g_max <= tol:
             return outcome(True, f"max |dE/dx| {g_max:.3g} <= tol {tol:g}", it, g_max)
