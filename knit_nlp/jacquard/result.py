@@ -13,7 +13,6 @@ from ..jsonio import write_json
 from ..outcome import Energy, Outcome, describe
 from ..provenance import source_record
 from .problem import JacquardProblem
-from .render import render
 from .springs import (Network, edge_particles, edge_reaction, residual_force, spring_energy,
                       spring_geometry)
 
@@ -144,6 +143,7 @@ class JacquardResult(Outcome):
              window: int | None = None) -> list[Path]:
         """``DIR/<problem>.jacquard.json`` and ``.png`` (and ``.svg`` on request; ``window``:
         draw at most this many loops each way, default the whole fabric up to DRAW_LIMIT)."""
+        from .render import render       # matplotlib (about 0.4 s) only when drawing
         out = Path(out_dir)
         js = write_json(out / f"{self.problem.name}.jacquard.json", self.to_json())
         pictures = render(self, out / f"{self.problem.name}.jacquard.png", svg=svg,

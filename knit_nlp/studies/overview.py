@@ -9,7 +9,6 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..figures import new_figure, save_figure
 from ..jsonio import write_csv
 from ..units import Units
 
@@ -74,6 +73,7 @@ def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], titl
     key, one line per grip and combination of the other keys; points that did not converge
     (or were lost) as crosses on the axis. ``units``: the problem's; ``key_units``: the unit
     of each key's values."""
+    from ..figures import new_figure, save_figure     # matplotlib (0.4 s) only when drawing
     units, key_units = units or Units(), key_units or {}
     rows = summary["points"]
     grips = list(dict.fromkeys(g for r in rows for g in (r.get("grips") or {})))

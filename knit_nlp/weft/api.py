@@ -20,7 +20,6 @@ from .model.params import WeftParams
 from .model.problem import MAX_CONTINUATION, WeftProblem
 from .output.comparison import Comparison
 from .output.results import WeftResult
-from .solving.contact.solve import refuse
 from .study import study
 
 
@@ -44,6 +43,7 @@ def solve(problem: WeftProblem, parametrisation: Parametrisation | None = None, 
         if not isinstance(param, Full):
             raise ValueError("warm_from_reduced starts the full model: use Full()")
         if problem.yarn is not None:
+            from .solving.contact.solve import refuse     # scipy.spatial only with contact
             raise refuse(problem, "the warm start from the reduced model")
         return _warm_from_reduced(problem, params, continuation, verbose)[1]
     return study(problem, param, verbose=verbose).run(params, continuation=continuation,

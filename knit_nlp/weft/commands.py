@@ -20,8 +20,7 @@ from ..tomlio import load_toml
 from .inverse.spec import has_control_keys, strip_control_keys
 from .model.problem import MAX_CONTINUATION, WeftProblem, parse_problem
 from .output.check import SAMPLES, check, load_result_json, write_check
-from .output.export import EXPORTS
-from .output.plot import COLOURINGS
+from .output.export import COLOURINGS, EXPORTS
 
 
 def _steps(text: str) -> int:

@@ -26,7 +26,6 @@ from .model.centrelines import natural_centrelines
 from .model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .model.params import WeftParams
 from .model.problem import WeftProblem, parse_problem
-from .output.plot import animate
 from .output.results import WeftResult
 from .solving.adaptive import solve_adaptive
 from .solving.contact.rounds import ContactSolver
@@ -216,4 +215,5 @@ def animate_points(gif: Path, problem: WeftProblem,
     natural = natural_centrelines(problem)
     shown = [(f"{problem.name}: natural", natural)] + [(label, nlp.centrelines(x))
                                                        for label, x in frames if x is not None]
+    from .output.plot import animate      # matplotlib only when drawing
     return animate(gif, natural, shown, problem.units, fps)

@@ -11,7 +11,6 @@ import numpy as np
 from ...jsonio import write_json
 from ...provenance import source_record
 from ..model.centrelines import SAMPLES
-from .plot import plot_overlay
 from .results import WeftResult
 
 RMS_LOOPS_OK = 0.1
@@ -161,6 +160,7 @@ class Comparison:
 
     def save(self, out_dir: Path | str) -> list[Path]:
         """``DIR/<problem>.compare.json`` and the overlay ``.compare.png``."""
+        from .plot import plot_overlay      # matplotlib (about 0.4 s) only when drawing
         name = self.full.problem.name
         js = write_json(Path(out_dir) / f"{name}.compare.json", self.to_json())
         png = plot_overlay(Path(out_dir) / f"{name}.compare.png",

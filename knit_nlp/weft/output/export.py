@@ -10,6 +10,7 @@ from ...atomic import write_text
 from ...jsonio import write_csv
 
 EXPORTS = ("csv", "svg")
+COLOURINGS = ("course", "displacement")     # how the solution picture colours loops (plot.py)
 SVG_UNITS = ("mm", "cm", "in")     # lengths SVG itself knows; others are drawn at PX_PER_UNIT
 PX_PER_UNIT = 20.0
 

@@ -21,11 +21,11 @@ from matplotlib.figure import Figure
 from ...atomic import temporary_path
 from ...figures import fit_titles, legend_below, new_figure, save_figure, settle_layout
 from ...units import Units
+from .export import COLOURINGS
 from .reactions import SolvedFabric
 from .yarn import draw_yarn
 
 DPI = 110
-COLOURINGS = ("course", "displacement")
 REACTION, LOAD, GRIP = "crimson", "royalblue", "black"
 ARROW_FRACTION = 0.15          # the largest arrow is this fraction of the fabric's extent
 KEY_WIDTH = 0.3               # the fraction of the width under the picture kept for the reference arrow

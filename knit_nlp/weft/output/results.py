@@ -22,8 +22,6 @@ from ..model.problem import WeftProblem
 from ..solving.solve import SolveReport
 from ..transcription.protocol import WeftNLP
 from .export import write_centreline_csv, write_centreline_svg
-from .path import write_path
-from .plot import animate as animate_frames, plot_solution
 from .reactions import ClampReaction, LoadResult, RigidClampReaction
 
 
@@ -208,6 +206,9 @@ class WeftResult(Outcome):
         ``animate``, ``.gif``; ``yarn``: the picture draws the yarn with its thickness and the
         active contacts (``[yarn] radius``). ``colour``: "course" or "displacement"; ``export``: any of "csv"
         (``.csv``, rows course, wale, s, x, y) and "svg" (``.svg``)."""
+        # matplotlib (about 0.4 s to import) only when pictures are written
+        from .path import write_path
+        from .plot import animate as animate_frames, plot_solution
         stem = Path(out_dir) / f"{self.problem.name}.{self.model}"
 
         def out(suffix: str) -> Path:

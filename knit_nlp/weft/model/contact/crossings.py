@@ -15,7 +15,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .curves import Curves
 from .natural import NaturalFabric
@@ -49,6 +48,7 @@ def find_crossings(curves: Curves, grid: Grid) -> Crossings:
     p0 = pts[:, :-1].reshape(-1, 2)
     d = (pts[:, 1:] - pts[:, :-1]).reshape(-1, 2)
     length = np.linalg.norm(d, axis=1)
+    from scipy.spatial import cKDTree     # lazy: 0.4 s to import, only when counting
     tree = cKDTree(p0 + d / 2)
     uv = tree.query_pairs(float(length.max()) + 1e-12, output_type="ndarray")
     if uv.size == 0:

@@ -24,7 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
 
 from ..basis import phi
 
@@ -114,6 +113,7 @@ class NaturalFabric:
             ib = (s >= lock.b[0]) & (s <= lock.b[1])
             designed |= ia[:, None] & ib[None, :]
         width = 2 * int(np.ceil(NEIGHBOURHOOD * (GRID - 1))) + 1
+        from scipy import ndimage           # lazy: scipy only when contact is used
         gap = ndimage.minimum_filter(np.where(same, np.inf, np.where(designed, 0.0, dist)),
                                      size=width, mode="nearest")
         # grid points miss the closest points by up to half a spacing on each yarn: allow for
