@@ -4,7 +4,7 @@ crossing and no gap below 2r·(1 − 1e-3), judged by the independent checker
 fabric), not by the solver's own contact block.
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python scripts/check_shipped_contact.py \
-        [--names diagonal_pull wada_fig7] [--radius 0.015] [--budget 900]
+        [--names diagonal_pull wada_fig7] [--radius 0.015] [--budget 900] [--out DIR]
 
 Each problem is solved as ``knit-nlp solve`` solves it (its clamps, loads and continuation)
 with ``[yarn] radius`` = its own radius if it has one, else ``--radius`` loop lengths, given
@@ -12,7 +12,8 @@ with ``[yarn] radius`` = its own radius if it has one, else ``--radius`` loop le
 their initial grip (``knit-nlp control`` with a radius is checked in docs/contact.md). Printed
 per problem: seconds, solver status, active contacts, smallest gap / 2r, and the checker's
 new crossings, short gaps and verdict; without the radius, the checker's new crossings of the
-paper's model on the same problem.
+paper's model on the same problem. ``--out DIR``: each result with a radius is saved there as
+``knit-nlp solve FILE --yarn`` saves it (JSON, NPZ, the picture with the yarn's thickness).
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ def _weft_names() -> list[str]:
     return [name for name, model, _ in named_problems() if model == "weft"]
 
 
-def check_one(name: str, radius_l: float, budget: float) -> dict:
+def check_one(name: str, radius_l: float, budget: float, out: str | None = None) -> dict:
     """Solve one shipped problem with and without a radius; the checker's verdict of both."""
     from knit_nlp.problems import resolve
     from knit_nlp.weft.api import solve
@@ -47,6 +48,8 @@ def check_one(name: str, radius_l: float, budget: float) -> dict:
     res = solve(with_r, Full())
     seconds = time.perf_counter() - t0
     after = check(res.to_json(), with_r)
+    if out is not None:
+        res.save(out, yarn=True)
     block = res.extra.get("contact", {})
     return {"name": name, "radius": r, "seconds": seconds, "success": res.success,
             "status": res.status, "active": block.get("active"),
@@ -62,13 +65,14 @@ def main() -> None:
     ap.add_argument("--radius", type=float, default=0.015,
                     help="radius in loop lengths where a problem has none (default 0.015)")
     ap.add_argument("--budget", type=float, default=900.0, help="seconds per contact solve")
+    ap.add_argument("--out", help="save each result with a radius in this folder")
     args = ap.parse_args()
     threads = {v: os.environ.get(v, "unset") for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
     print(f"threads {threads}; cores {os.cpu_count()}; load average {os.getloadavg()[0]:.2f}")
     print(f"{'problem':24} {'r':>7} {'seconds':>8} {'active':>6} {'gap/2r':>8} "
           f"{'paper new crossings':>19} {'new crossings':>13} {'short gaps':>10}  verdict")
     for name in args.names or _weft_names():
-        row = check_one(name, args.radius, args.budget)
+        row = check_one(name, args.radius, args.budget, args.out)
         gap = "-" if row["gap_over_2r"] is None else f"{row['gap_over_2r']:.5f}"
         verdict = "clean" if row["clean"] else (
             "VIOLATIONS" if row["success"] else f"NOT CONVERGED ({row['status']})")
