@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .curves import Curves
 from .natural import NaturalFabric
@@ -154,6 +153,7 @@ class Feet:
 def strand_feet(pts: np.ndarray, grid: Grid, reach: float, exclusion: float) -> Feet:
     """Valid feet of every sample on every strand within ``reach`` (see the module notes)."""
     m, K = pts.shape[:2]
+    from scipy.spatial import cKDTree     # lazy: 0.4 s to import, only with contact
     tree = cKDTree(pts.reshape(-1, 2))
     uv = tree.query_pairs(reach, output_type="ndarray")
     U = np.concatenate([uv[:, 0], uv[:, 1]]).astype(np.int64)
