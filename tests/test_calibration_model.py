@@ -146,6 +146,25 @@ def test_the_fits_jacobian_is_the_residuals_derivative(tmp_path):
         assert np.linalg.norm(J[:, q] - fd) < 0.05 * np.linalg.norm(fd), q
 
 
+def test_a_level_no_run_reaches_has_no_slope_in_the_fits_jacobian(tmp_path):
+    """A measured level that is NaN (no frame of that run reaches the force) is the constant
+    PENALTY in the residual, so its Jacobian rows are zero, as its central differences are
+    (they were the model's slope: a fit pulled towards nothing stalled at its start)."""
+    ramp_runs(tmp_path / "x.csv")
+    cal = Calibration(load_spec(_write(tmp_path, SPEC_SBS)))
+    (tm,) = cal._fit_models()
+    forces, ax, lat = cal._fit_data[id(tm)]
+    ax, lat = ax.copy(), lat.copy()
+    ax[0, -1] = lat[1, -2] = np.nan
+    cal._fit_data[id(tm)] = (forces, ax, lat)
+    v = np.array([0.02])
+    J = cal.jacobian(v)
+    fd = (cal.residual(v * np.exp(1e-3)) - cal.residual(v * np.exp(-1e-3))) / 2e-3
+    nan = np.isnan(np.r_[ax.ravel(), lat.ravel()])
+    assert nan.sum() == 2 and np.all(J[nan] == 0.0) and np.all(fd[nan] == 0.0)
+    assert np.all(J[~nan] != 0.0)
+
+
 def test_held_out_tests_never_enter_the_fit(tmp_path):
     """The residual and its Jacobian with a predict test are those without it, whatever the
     predict test's data."""

@@ -161,37 +161,3 @@ def test_check_of_a_natural_fabric_is_clean_with_and_without_a_radius(solved, tm
     nat["loops"]["coefficients"] = np.broadcast_to(pr.natural.coeffs, (2, 3, 8)).tolist()
     nat["loops"]["course_starts"] = pr.natural_starts()[:, 0].tolist()
     assert check(nat, pr).ok
-
-
-def test_fit_with_a_radius_is_refused_with_a_reason(tmp_path, capsys):
-    """Fit's implicit-function gradients do not hold the active contacts yet (control's do:
-    tests/test_contact_control.py): exit 2, one line, nothing written (not a silent solve
-    without contact)."""
-    from knit_nlp.problems import resolve
-    example = resolve("place_stitch").parent / "fit_example"
-    path = tmp_path / "fit_shear.toml"
-    path.write_text((example / "fit_shear.toml").read_text() + "\n" + YARN)
-    rows = (example / "observations.csv").read_text().splitlines(keepends=True)
-    (tmp_path / "observations.csv").write_text("".join(
-        r for r in rows if not r.startswith("fit_") or r.startswith("fit_shear,")))
-    assert main(["fit", str(path), "--observations", str(tmp_path / "observations.csv"),
-                 "--params", "R_f", "--out", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err
-    assert "fit and calibrate: no yarn contact yet" in err and err.count("\n") == 1
-    assert not any((tmp_path / "o").glob("**/*.*"))        # no result written
-
-
-def test_calibrate_with_a_radius_is_refused_with_a_reason(tmp_path, capsys):
-    """Calibration solves through the same equilibrium as control and fit: with a yarn radius it
-    refuses in one line (exit 2) rather than fitting the paper's model under a contact label."""
-    import shutil
-    from knit_nlp.weft.inverse.calibration.spec import spec_path
-    spec = spec_path("real_fabric/acrylic_fit_x")
-    for csv in spec.parent.glob("*.csv"):
-        shutil.copy(csv, tmp_path / csv.name)
-    path = tmp_path / "acrylic_contact.toml"
-    path.write_text(spec.read_text() + "\n[yarn]\nradius = 0.74\n")
-    assert main(["calibrate", str(path), "--out", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err
-    assert "fit and calibrate: no yarn contact yet" in err and err.count("\n") == 1
-    assert not any((tmp_path / "o").glob("**/*.*"))        # no result written

@@ -12,7 +12,6 @@ from knit_nlp.weft.inverse.control import Controller
 from knit_nlp.weft.inverse.equilibrium import Equilibrium
 from knit_nlp.weft.inverse.spec import parse_control
 from knit_nlp.weft.output.check import check
-from knit_nlp.weft.solving.contact.solve import ContactRefused
 from test_contact import squeezed
 
 
@@ -98,7 +97,8 @@ def test_control_with_a_radius_reaches_a_goal_that_needs_the_loop_jammed():
     assert ans.to_json()["equilibrium"]["contact"]["new_crossings"] == 0
 
 
-def test_fit_and_calibrate_equilibria_still_refuse_a_radius():
-    """Only control's equilibrium holds the contacts: the plain one (fit, calibrate) refuses."""
-    with pytest.raises(ContactRefused, match="fit and calibrate: no yarn contact yet"):
+def test_the_paper_equilibrium_refuses_a_radius_and_names_the_factory():
+    """Control, fit and calibrate get their equilibrium from ``equilibrium_for``; the paper's
+    one, built directly for a problem with a radius, refuses rather than drop the contacts."""
+    with pytest.raises(ValueError, match=r"ignores \[yarn\] radius.*equilibrium_for"):
         Equilibrium(squeezed(0.5))

@@ -1,5 +1,6 @@
-"""The forward equilibrium with yarn contact (``[yarn] radius``) for control: its solve, its
-implicit-function sensitivities and its stability check hold the active contacts.
+"""The forward equilibrium with yarn contact (``[yarn] radius``) for control, fit and
+calibrate (``equilibrium_for`` chooses it): its solve, its implicit-function sensitivities and
+its stability check hold the active contacts.
 
 Forward solve: ``solving.contact.solve_with_contact`` (the paper's model first, then contact
 rounds or load steps with contact), or, inside the control iteration, one load step with contact
@@ -44,6 +45,9 @@ from ..transcription.contact import VARS, ContactNLP, _basis
 from .equilibrium import Equilibrium
 
 KEEP = 16                  # solved contact states remembered (by base solution) for the KKT
+# ... for a calibration curve, whose nodes' sensitivities are taken after the whole pull (up to
+# curve.NODES x 10 steps, each possibly halved): every state of a pull must stay
+CURVE_KEEP = 1024
 # a gap row is active when it meets its bound to this (relative) and pushes (ACTIVE). Measured on
 # the squeezed loop (tests/test_contact_control.py): beside the contact (force 0.61, gap 2r to
 # 3e-8) IPOPT leaves rows 1.8e-3 (relative) off their bound with forces 1.6e-6 (μ / slack):
@@ -85,9 +89,10 @@ class ContactEquilibrium(Equilibrium):
 
     contact_ready = True
 
-    def __init__(self, problem: WeftProblem) -> None:
+    def __init__(self, problem: WeftProblem, keep: int = KEEP) -> None:
         super().__init__(problem)
         self.contact = ContactSolver(self.wnlp, problem.yarn.radius)
+        self.keep = keep
         self.states: OrderedDict[bytes, ContactState | None] = OrderedDict()
         self.blocks: dict[bytes, dict] = {}
 
@@ -158,13 +163,19 @@ class ContactEquilibrium(Equilibrium):
             state = ContactState(cnlp, pc, xc, lamc, active, block)
         self.states[key] = state
         self.blocks[key] = block
-        while len(self.states) > KEEP:
+        while len(self.states) > self.keep:
             old, _ = self.states.popitem(last=False)
             self.blocks.pop(old, None)
 
     def state(self, x: np.ndarray) -> ContactState | None:
-        """The contact solve behind base solution x (None: no contact solve, none active)."""
-        return self.states.get(np.asarray(x).tobytes())
+        """The contact solve behind base solution x (None: no contact solve, none active).
+        A ValueError for an x this equilibrium did not solve (or forgot: ``keep``): its
+        sensitivities would silently miss the contacts."""
+        key = np.asarray(x).tobytes()
+        if key not in self.states:
+            raise ValueError(f"no contact solve of this equilibrium ends at this state (it "
+                             f"keeps the last {self.keep}): solve it here first")
+        return self.states[key]
 
     def result(self, report: SolveReport, p: np.ndarray) -> WeftResult:
         """The forward result with its ``contact`` block (as ``knit-nlp solve`` writes it)."""
@@ -180,11 +191,21 @@ class ContactEquilibrium(Equilibrium):
         st = self.state(x)
         if st is None or not st.active.any():
             return super().sensitivity(x, lam, p, dp)
-        A, rhs, nz = sliding_system(st, self._dFdp(x, st.lam[:self.wnlp.n_constraints], p),
-                                    self.n, self._sliding(st.cnlp))
+        A, rhs, nz = self.linear_system(x, lam, p)
         dp = np.asarray(dp, dtype=float).reshape(rhs.shape[1], -1)
         dz = splu(A).solve(np.asarray(-(rhs @ dp)))
         return dz[:self.n], dz[nz:]
+
+    def linear_system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray
+                      ) -> tuple["sp.csc_matrix", np.ndarray, int]:
+        """The system ``sensitivity`` solves (``sliding_system``: unknowns x, the active
+        slots' s, the kept rows' λ, base constraints first), ∂F/∂p and where λ starts;
+        without active contacts, the base one."""
+        st = self.state(x)
+        if st is None or not st.active.any():
+            return super().linear_system(x, lam, p)
+        return sliding_system(st, self._dFdp(x, st.lam[:self.wnlp.n_constraints], p), self.n,
+                              self._sliding(st.cnlp))
 
     def _sliding(self, cnlp: ContactNLP) -> ca.Function:
         if getattr(self, "_slide_for", None) is not cnlp:
@@ -200,6 +221,13 @@ class ContactEquilibrium(Equilibrium):
             return super().system(x, lam, p)
         return contact_system(st, self._dFdp(x, st.lam[:self.wnlp.n_constraints], p),
                               self.n)
+
+
+def equilibrium_for(problem: WeftProblem, keep: int = KEEP) -> Equilibrium:
+    """The forward equilibrium of a problem: with ``[yarn] radius`` a
+    :class:`ContactEquilibrium` (remembering ``keep`` contact states), else the paper's
+    :class:`Equilibrium` — the one choice control, fit and calibrate share."""
+    return Equilibrium(problem) if problem.yarn is None else ContactEquilibrium(problem, keep)
 
 
 def contact_system(st: ContactState, Fp_base: ca.DM, nb: int,

@@ -30,7 +30,6 @@ import numpy as np
 from ..model.problem import WeftProblem
 from ..model.params import WeftParams
 from ..model.parametrisation import Full
-from ..solving.contact.solve import refuse
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport, WeftSolver, solve
 from ..transcription.factory import transcribe
@@ -62,13 +61,11 @@ class Stability:
 class Equilibrium:
     """A weft problem's forward NLP and IPOPT instance (built once), plus the KKT Functions."""
 
-    def __init__(self, problem: WeftProblem, uses: str = "fit and calibrate") -> None:
+    def __init__(self, problem: WeftProblem) -> None:
         if problem.yarn is not None and not self.contact_ready:
-            # their sensitivities would need the active contacts as rows of K
-            # (ContactEquilibrium, contact_equilibrium.py, has them: control uses it)
-            raise refuse(problem, uses, "their implicit-function gradients do not yet "
-                         "hold the active contacts; solve the problem at chosen targets with "
-                         "knit-nlp solve or sweep")
+            # its solves and sensitivities would ignore the yarn's thickness
+            raise ValueError(f"{problem.source}: Equilibrium ignores [yarn] radius; build it "
+                             "with contact_equilibrium.equilibrium_for(problem)")
         t0 = time.perf_counter()
         self.problem = problem
         self.wnlp: FullNLP = transcribe(problem, Full())
@@ -130,6 +127,15 @@ class Equilibrium:
         K, Fp = self.kkt(x, lam, p)
         return K, Fp, self.n
 
+    def linear_system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray
+                      ) -> tuple["scipy.sparse.csc_matrix", np.ndarray, int]:
+        """The sensitivities' linear system A dz = −Fp dp as SciPy/NumPy matrices, and where
+        dλ starts in dz (dλ's first rows are the base constraints': clamp reactions read
+        alike with and without contact). Here the KKT system ``kkt``; with contact, the
+        active contacts' (``ContactEquilibrium.linear_system``)."""
+        K, Fp = self.kkt(x, lam, p)
+        return _csc(K), np.asarray(ca.DM(Fp)), self.n
+
     def stability(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
                   method: str = "sparse") -> Stability:
         """Smallest eigenvalue of the Lagrangian Hessian reduced to the null space of J."""
@@ -181,6 +187,12 @@ def _penalised_inertia(K: ca.DM, n: int) -> tuple[int, float]:
             break
         factor *= 100
     return negative, min(factor, RHO_MAX) * scale
+
+
+def _csc(K: ca.DM) -> "scipy.sparse.csc_matrix":
+    import scipy.sparse as sp
+    rows, cols = K.sparsity().get_triplet()
+    return sp.csc_matrix((np.asarray(K.nonzeros()).ravel(), (rows, cols)), shape=K.shape)
 
 
 def _dense(K: ca.DM) -> np.ndarray:

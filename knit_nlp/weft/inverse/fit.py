@@ -28,10 +28,11 @@ import numpy as np
 from ...jsonio import write_json
 from ...outcome import Energy, Outcome
 from ..model.centrelines import natural_centrelines
-from ..model.params import MATERIAL, WeftParams
+from ..model.params import MATERIAL
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport
+from .contact_equilibrium import equilibrium_for
 from .equilibrium import Equilibrium
 from .observations import Observation
 from .plot import plot_fit
@@ -111,8 +112,7 @@ class FitResult(Outcome):
         for n, v in zip(self.names, self.values):
             wnlp.p.put(p, n, v)
         report = SolveReport(True, "Solve_Succeeded", c.x, c.lam, float("nan"), 0, 0.0)
-        return WeftResult(wnlp, report, WeftParams.from_vector(c.eq.problem, p), c.eq.build_s,
-                          c.eq.solver.violation(c.x, p))
+        return c.eq.result(report, p)
 
 
 NAME_CHARS = 60       # a fit's default name joins its cases' names up to this length
@@ -141,7 +141,7 @@ class Fitter:
             obs = [o for o in observations if o.case == pr.name]
             if not obs:
                 continue
-            eq = Equilibrium(pr)
+            eq = equilibrium_for(pr)
             fn = point_jacobian(point_function(eq.wnlp, [(o.loop, o.s) for o in obs]))
             self.cases.append(_Case(pr.name, eq, fn, np.array([o.xy for o in obs])))
         first = self.cases[0].eq.wnlp

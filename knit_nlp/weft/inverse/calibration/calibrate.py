@@ -147,8 +147,10 @@ class Calibration:
             forces, ax, lat = self._fit_data[id(tm)]
             dax, dlat = tm.derivatives(v, forces, self.names, self.spec.sensitivities)
             for kind in tm.matched(self.spec.strains):
-                d = dax if kind == "axial" else dlat
-                rows.append(np.tile(np.nan_to_num(d), (ax.shape[0], 1)))
+                d, data = (dax, ax) if kind == "axial" else (dlat, lat)
+                # a level no frame reaches is the constant PENALTY in the residual: no slope
+                rows.append(np.where(np.isnan(data).ravel()[:, None], 0.0,
+                                     np.tile(np.nan_to_num(d), (data.shape[0], 1))))
         return np.vstack(rows)
 
     def fit(self) -> FitOutcome | None:

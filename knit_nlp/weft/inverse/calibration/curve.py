@@ -1,6 +1,7 @@
 """A model test curve: the pulled clamp moved in warm-started steps, force and strains recorded.
 
-One forward NLP is built per specimen (:class:`~knit_nlp.weft.inverse.equilibrium.Equilibrium`)
+One forward NLP is built per specimen (``contact_equilibrium.equilibrium_for``: with
+``[yarn] radius`` every solve is a contact solve and the KKT system holds the active contacts)
 and re-solved at every step from the previous step's solution. Steps aim at even force
 increments (the secant stiffness of the last step sets the next), so the curve is resolved
 alike wherever its slope; a failed solve halves the step. The curve ends at the first node
@@ -19,11 +20,10 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
-from scipy import sparse
 from scipy.interpolate import PchipInterpolator
 from scipy.sparse.linalg import splu
 
-from ..equilibrium import Equilibrium
+from ..contact_equilibrium import CURVE_KEEP, equilibrium_for
 from ..points import point_function, point_jacobian
 from ...model.params import WeftParams
 from .specimen import PULLED, Specimen
@@ -64,7 +64,7 @@ class SpecimenModel:
 
     def __init__(self, specimen: Specimen) -> None:
         self.specimen = specimen
-        self.eq = Equilibrium(specimen.problem)
+        self.eq = equilibrium_for(specimen.problem, CURVE_KEEP)
         low, high = specimen.lateral_points
         self._points = point_jacobian(point_function(self.eq.wnlp, [*low, *high]))
         self._n_low = len(low)
@@ -162,23 +162,21 @@ class SpecimenModel:
 
     def kkt_sensitivity(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
                         dp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """dx/dθ, dλ/dθ = −K⁻¹ ∂F/∂p · dp on the equilibrium's KKT system (``Equilibrium.kkt``),
-        solved by SuperLU with the residual checked. (CasADi's MUMPS, which
+        """dx/dθ, dλ/dθ = −K⁻¹ ∂F/∂p · dp on the equilibrium's KKT system
+        (``Equilibrium.linear_system``: with contact the active contacts' rows and sliding
+        points), solved by SuperLU with the residual checked. (CasADi's MUMPS, which
         ``Equilibrium.sensitivity`` uses, returned the right-hand side unchanged, without an
         error, on the course pull at k_a = 4003, k_b = 0.009, R_f = 0.045 N/mm, N mm²; SuperLU's
         residual there is 1e-14.) NaN where the system is singular."""
-        K, Fp = self.eq.kkt(x, lam, p)
-        rows, cols = K.sparsity().get_triplet()
-        mat = sparse.csc_matrix((np.asarray(K.nonzeros()).ravel(), (rows, cols)), shape=K.shape)
-        rhs = -(np.asarray(ca.DM(Fp)) @ dp)
+        mat, Fp, nz = self.eq.linear_system(x, lam, p)
+        rhs = -(Fp @ dp)
         try:
             dz = splu(mat).solve(rhs)
         except RuntimeError:                    # exactly singular
             dz = np.full(rhs.shape, np.nan)
         bad = np.linalg.norm(mat @ dz - rhs, axis=0) > KKT_RESIDUAL * (1 + np.linalg.norm(rhs, axis=0))
         dz[:, bad] = np.nan
-        n = self.eq.n
-        return dz[:n], dz[n:]
+        return dz[:self.eq.n], dz[nz:]
 
     def node_sensitivities(self, c: Curve, names: list[str]) -> tuple[np.ndarray, np.ndarray,
                                                                       np.ndarray, np.ndarray]:
