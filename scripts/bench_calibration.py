@@ -12,8 +12,9 @@ keys changed in memory, so the table says exactly what differs:
 - a   the paper's material; only the clamp width (length_scale, which the data lack) fitted on x
 - b   k_a, k_b and length_scale fitted on x (axial and lateral strains), y predicted  [shipped]
 - bx  as b, the fit matching the axial strain only
-- c   as b with yarn contact, ``[yarn] radius = 0.74`` mm (issue 19; reported as waiting when
-      the weft reader does not know ``[yarn]`` yet)
+- c   as b with yarn contact, ``[yarn] radius = 0.74`` mm (issue 19)
+- c4  as c on b4's smaller specimens (4 loops on the shorter sides): c's own 6-loop specimens
+      need hours with contact (docs/real_fabric.md, "Run c")
 - d   k_a, k_b and length_scale fitted on x and y together
 - b4, b8, b10   as b with 4, 8 and 10 loops on the specimens' shorter sides (b: 6)
 - bc  as b with the aspect ratios from the clamps (clamp separation over the specimen's width at
@@ -49,7 +50,7 @@ from knit_nlp.weft.inverse.calibration.calibrate import Calibration  # noqa: E40
 
 SPEC = ROOT / "problems" / "real_fabric" / "acrylic_fit_x.toml"
 PAPER = {"k_a": 100.0, "k_b": 1.0}          # Wada et al.'s k L² / R_f (k_a = 1, k_b = 0.01, R_f = 1, L = 10)
-RUNS = ("a0", "a", "b", "bx", "c", "d", "b4", "b8", "b10", "bc", "bfd")
+RUNS = ("a0", "a", "b", "bx", "c", "c4", "d", "b4", "b8", "b10", "bc", "bfd")
 
 
 def _paper(doc: dict) -> dict:
@@ -87,8 +88,10 @@ def variant(name: str) -> dict:
         cal["fit"] = ["length_scale"]
     elif name == "bx":
         cal["strains"] = ["axial"]
-    elif name == "c":
+    elif name in ("c", "c4"):
         doc["yarn"] = {"radius": 0.74}
+        if name == "c4":
+            cal["min_loops"] = 4
     elif name == "d":
         for test in doc["test"]:
             test["use"] = "fit"

@@ -30,8 +30,8 @@ from ..model.centrelines import natural_centrelines
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport
-from .contact_equilibrium import ContactEquilibrium
-from .equilibrium import Equilibrium, Stability
+from .contact_equilibrium import equilibrium_for
+from .equilibrium import Stability
 from .plot import plot_control
 from .points import point_function, point_jacobian
 from .spec import Actuated, ControlProblem
@@ -209,7 +209,7 @@ class Controller:
     def __init__(self, cp: ControlProblem, options: ControlOptions | None = None) -> None:
         self.cp, self.opts = cp, options or ControlOptions()
         # with [yarn] radius the forward model and its KKT system hold the active contacts
-        self.eq = Equilibrium(cp.problem) if cp.problem.yarn is None else ContactEquilibrium(cp.problem)
+        self.eq = equilibrium_for(cp.problem)
         pl = self.eq.wnlp.p
         idx = []
         for a in cp.actuated:
