@@ -72,3 +72,22 @@ def test_a_held_contact_is_reseated_to_the_foot_of_its_point():
     hits = [abs(back[(int(k), round(float(s), 9))] - sb) for k, s, sb in
             zip(held.kA[i], held.sA[i], held.sB[i]) if (int(k), round(float(s), 9)) in back]
     assert hits and np.median(hits) < 1e-3
+
+
+def test_a_pair_in_an_interlock_box_that_changes_side_is_not_a_pass_through():
+    """Next to a designed crossing (required gap 0) the crossing slides along the yarns and a
+    pair there changes side without yarns passing through: only the crossing count judges it
+    (a 10 x 10 pull's last step was halved five times for this). A pair with a required gap
+    that changes side still did pass through."""
+    from knit_nlp.weft.model.contact.pairs import Pairs
+    st = _study(2, 60.0)
+    c: ContactSolver = st.contact
+    x = st.nlp.x0
+
+    def pair(required: float, sigma: float, sA: float) -> Pairs:
+        one = np.ones(1)
+        return Pairs(np.zeros(1, dtype=int), sA * one, np.full(1, 2), 1.6 * one, sigma * one,
+                     required * one, 0.01 * one)
+
+    assert not c.crossed(x, pair(0.0, 1.0, 3.12), pair(0.0, -1.0, 3.2))
+    assert c.crossed(x, pair(0.3, 1.0, 3.12), pair(0.3, -1.0, 3.2))

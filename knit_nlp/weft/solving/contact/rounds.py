@@ -180,7 +180,11 @@ class ContactSolver:
         if len(used) == 0 or len(found) == 0:
             return False
         idx, dist = _match(used, found, np.inf)
-        near = (idx >= 0) & (dist < self.grid.h)
+        # not in an interlock's box (required gap 0): there the designed crossing slides
+        # along the yarns, and a pair next to it changes side without anything passing
+        # through (a 10 x 10 pull's last step was halved five times for this); a new
+        # crossing there is what the count above finds
+        near = (idx >= 0) & (dist < self.grid.h) & (used.required[np.maximum(idx, 0)] > 0)
         through = near & (used.sigma[np.maximum(idx, 0)] * found.sigma * found.gap
                           < -FLIP * self.grid.L)
         if through.any():
