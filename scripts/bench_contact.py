@@ -39,6 +39,11 @@ def timed_pull(n: int, radius: float | None, budget: float) -> dict:
     row = {"n": n, "contact": radius is not None, "seconds": time.perf_counter() - t0,
            "success": r.success, "status": r.status}
     if "contact" in r.extra:
+        from knit_nlp.weft.output.check import check
+        rep = check(r.to_json(), pr)            # the independent checker, outside the timing
+        row["checked"] = (f"check: {len(rep.new_crossings)} new crossings, "
+                          f"{len(rep.short_gaps)} gaps below 2r(1-1e-3), smallest "
+                          f"{rep.smallest_gap / (2 * radius) if rep.smallest_gap else None}")
         c = r.extra["contact"]
         row.update(active=c["active"], gap_over_2r=c["smallest_gap_over_2r"],
                    new_crossings=c["new_crossings"], solves=c["solves"],
@@ -60,7 +65,8 @@ def cost(sizes: list[int], budget: float, repeats: int) -> None:
         ok = "" if last["success"] else f"  NOT CONVERGED ({last['status']}: ratio is a lower bound)"
         print(f"{n:>3}x{n:<3} {a:>10.2f} {b:>10.2f} {b / a:>7.2f}  "
               f"({last.get('active')}, {last.get('gap_over_2r')}, {last.get('new_crossings')}, "
-              f"{last.get('solves')}, {last.get('nlp_vars')}){ok}", flush=True)
+              f"{last.get('solves')}, {last.get('nlp_vars')}){ok}  {last.get('checked', '')}",
+              flush=True)
 
 
 def stretch_doc(n: int) -> dict:
@@ -132,7 +138,7 @@ def main() -> None:
                     help="yarn radii of the stretch curves (beside the paper's model)")
     ap.add_argument("--plot", default="docs/contact_stretch.png")
     args = ap.parse_args()
-    print(f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')} "
+    print(f"load average {os.getloadavg()[0]:.2f} at the start; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')} "
           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')} cores={os.cpu_count()}"
           f" radius={RADIUS} budget={args.budget} s")
     if args.sizes:
@@ -141,7 +147,8 @@ def main() -> None:
         r = timed_pull(n, RADIUS, args.budget)
         print(f"{n}x{n} with contact: {r['seconds']:.1f} s, {r['status']}, active "
               f"{r.get('active')}, new crossings {r.get('new_crossings')}, IPOPT solves "
-              f"{r.get('solves')}, contact NLP variables {r.get('nlp_vars')}", flush=True)
+              f"{r.get('solves')}, contact NLP variables {r.get('nlp_vars')}, "
+              f"{r.get('checked')}", flush=True)
     if args.curve:
         curves = {}
         for label, radius in [("without contact (paper's model)", None)] + [

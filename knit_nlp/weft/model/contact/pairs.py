@@ -251,6 +251,28 @@ def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float) -> 
     return closest.concat(_vertices(fab, curves, grid, feet, closest, reach))
 
 
+def reseat(fab: NaturalFabric, curves: Curves, grid: Grid,
+           pairs: Pairs) -> tuple[Pairs, np.ndarray]:
+    """The pairs of another state carried to this (uncrossed) one: each A point (material,
+    fixed) against its foot on B here, polished from B's old point (as :func:`_vertices` pairs
+    a sample with its foot: polishing both points could slide them into a designed crossing),
+    with this state's side and gap; pairs that become one piece of yarn, exempt or a crossing
+    are dropped. Also which of the given pairs are kept (a mask)."""
+    if len(pairs) == 0:
+        return Pairs.empty(), np.zeros(0, dtype=bool)
+    n = grid.wales
+    ca, cb = pairs.kA // n, pairs.kB // n
+    Sa, Sb = pairs.kA % n * grid.L + pairs.sA, pairs.kB % n * grid.L + pairs.sB
+    _, Sb = polish(curves, grid, ca, Sa, cb, Sb, move_a=False)
+    top = grid.wales * grid.L
+    inside = (Sb > 1e-9 * grid.L) & (Sb < top - 1e-9 * grid.L)     # a true foot, normal to B
+    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb)
+    normal, dist = _normal_gap(curves, grid, ca, Sa, cb, Sb)
+    keep = inside & ~same & (required > 0) & (dist > CROSSING * grid.L)
+    return Pairs(kA[keep], sA[keep], kB[keep], sB[keep], np.where(normal < 0, -1.0, 1.0)[keep],
+                 required[keep], np.abs(normal)[keep]), keep
+
+
 def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float) -> Pairs:
     """Samples of a yarn within reach of a strand, each against its foot (polished): where two
     yarns lie along each other they touch along a line, and one pair per sample holds the

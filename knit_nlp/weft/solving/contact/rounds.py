@@ -21,7 +21,7 @@ import numpy as np
 from ...model.contact.crossings import find_crossings, judge
 from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
-from ...model.contact.pairs import Grid, Pairs, find_pairs
+from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
 from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
@@ -48,6 +48,12 @@ CROSSED = "Contact_Crossing"        # the status of a step that let yarns cross
 SPARE = 0.5                # extra slots per pair of loops, relative, when (re)building
 SHRINK = 2.0               # a pool above this many times the pairs' need (with SPARE) is rebuilt
 MIN_POOL = 64              # ... but a pool of this many slots is never too large
+# a solve that ends with pairs below (1 - DEEP) of their required gap (pairs it had no slot for,
+# out of reach at the step's start: the yarns nearly crossed) restarts the step from its start
+# with those pairs, at most RESTARTS times a step: on the 6 x 6 pull continuing from the nearly
+# crossed state took 100-220 IPOPT iterations a round and still let yarns cross
+DEEP = 0.5
+RESTARTS = 2
 
 
 @dataclass
@@ -174,7 +180,11 @@ class ContactSolver:
         if len(used) == 0 or len(found) == 0:
             return False
         idx, dist = _match(used, found, np.inf)
-        near = (idx >= 0) & (dist < self.grid.h)
+        # not in an interlock's box (required gap 0): there the designed crossing slides
+        # along the yarns, and a pair next to it changes side without anything passing
+        # through (a 10 x 10 pull's last step was halved five times for this); a new
+        # crossing there is what the count above finds
+        near = (idx >= 0) & (dist < self.grid.h) & (used.required[np.maximum(idx, 0)] > 0)
         through = near & (used.sigma[np.maximum(idx, 0)] * found.sigma * found.gap
                           < -FLIP * self.grid.L)
         if through.any():
@@ -219,9 +229,14 @@ class ContactSolver:
              report: SolveReport, rounds: list[Round], note: str):
         """Solve at parameters p from the uncrossed state x and its pairs; solve again from
         the result with its own pairs until they meet their gaps (and, at the target, stop
-        moving). None when a solve fails or yarns crossed; else the state, its pairs, warm
-        data and the pairs' multipliers."""
+        moving). A solve that ends with pairs it had no slot for far inside their gap (yarns
+        out of reach at the step's start, now nearly crossed) is not continued from there:
+        the step is solved again from its start with those pairs added (:meth:`_restart`).
+        None when a solve fails or yarns crossed; else the state, its pairs, warm data and the
+        pairs' multipliers."""
         tol = TOL if final else STEP_TOL
+        start = (x, pairs, warm)
+        restarts = 0
         for k in range(MAX_ROUNDS):
             rep, lam = self.solve_once(p, x, pairs, warm, report, rounds,
                                        note if k == 0 else f"{note}, round {k + 1}")
@@ -235,7 +250,20 @@ class ContactSolver:
                 if self.log is not None:
                     self.log(self.why)
                 return None
-            moved = final and _moved((pairs, lam), found, self.grid.h * MOVED)
+            deep = found.gap < found.required * (1 - DEEP)
+            if deep.any() and restarts < RESTARTS:
+                more = self._restart(start, found.select(deep))
+                if more is not None:
+                    restarts += 1
+                    start = (start[0], more, start[2])
+                    x, pairs, warm = start
+                    if self.log is not None:
+                        self.log(f"  restart: {int(deep.sum())} pairs met deep inside their "
+                                 f"gap; from the step's start with {len(more)} pairs")
+                    continue
+            held = self._hold(xn, _held(pairs, lam, found, self.grid.h,
+                                        10 * self.base.problem.solver.tol))
+            moved = final and _moved((pairs, lam), found.concat(held), self.grid.h * MOVED)
             x, warm = xn, (rep.lam_g[:self.base.n_constraints], pairs, lam)
             report.x, report.objective = x, rep.objective
             report.lam_g = rep.lam_g[:self.base.n_constraints]
@@ -245,9 +273,28 @@ class ContactSolver:
                 short = np.max(1 - found.gap / np.maximum(found.required, 1e-300), initial=0)
                 self.log(f"  again: {int(self.violations(found, tol).sum())} short (worst "
                          f"{short:.2e}), moved {moved}")
-            pairs = found
+            pairs = found.concat(held)
         report.status = "Contact_Rounds_Exceeded"
         return None
+
+    def _hold(self, x: np.ndarray, held: Pairs) -> Pairs:
+        """Held pairs (:func:`_held`) at the state x: A's point against its foot on B now,
+        dropped when farther than the reach; one that has no foot there (it slid into an
+        interlock's box, where the required gap is 0: a contact at the box's border) stays at
+        its old points."""
+        now, kept = reseat(self.fabric, self._curves(x), self.grid, held)
+        return now.select(now.gap < now.required + self.reach).concat(held.select(~kept))
+
+    def _restart(self, start: tuple, deep: Pairs) -> Pairs | None:
+        """The step's starting pairs with ``deep`` (pairs a solve of the step met far inside
+        their gap) carried back to the step's start, where they are still apart; None when
+        none of them is new there (nothing to gain)."""
+        x0, pairs0, _ = start
+        back = reseat(self.fabric, self._curves(x0), self.grid, deep)[0]
+        back = back.select(back.gap >= back.required)
+        _, dist = _match(pairs0, back, np.inf)
+        back = back.select(~(dist < self.grid.h))           # not a pair the start already has
+        return None if len(back) == 0 else pairs0.concat(back)
 
     def run(self, p_target: np.ndarray, p_natural: np.ndarray, x_start: np.ndarray,
             steps: int, report: SolveReport, max_halvings: int = 8) -> ContactRun:
@@ -342,6 +389,24 @@ def _moved(last: tuple[Pairs, np.ndarray], pairs: Pairs, tol: float) -> bool:
         return False
     idx, dist = _match(pairs, old.select(active), tol)
     return bool(np.any(dist > tol))
+
+
+def _held(used: Pairs, lam: np.ndarray, found: Pairs, tol: float, floor: float) -> Pairs:
+    """The pairs that pushed in the last solve (−λ above ``floor`` and 1e-6 of the largest:
+    IPOPT leaves every inequality a tiny multiplier) and that the new search has no pair
+    within tol of: they stay for the next solve, A's point against its foot on B now
+    (``reseat``: the distance from that point of A to yarn B, a true requirement). Without them
+    a contact whose closest points jumped (two near minima) was dropped, its yarns came
+    together in the next solve, and the rounds cycled (the 5 x 5 diagonal pull: 12 rounds,
+    short 0.5, then 1e-4, then 0.5 ...). Kept at their old points they held the yarns apart
+    wider than 2r (a 12 x 12 stretch: smallest gap 1.08 x 2r, no contact of the search
+    active)."""
+    force = -np.asarray(lam)
+    active = used.select(force > max(1e-6 * float(force.max(initial=0.0)), floor))
+    if len(active) == 0:
+        return Pairs.empty()
+    _, dist = _match(found, active, np.inf)
+    return active.select(~(dist < tol))
 
 
 def _carry(last: tuple[Pairs, np.ndarray], pairs: Pairs) -> np.ndarray:

@@ -1,0 +1,93 @@
+"""How contact rounds end (docs/contact.md, "Cost (measured)"), counted on small diagonal pulls,
+not timed: a step whose solve meets pairs it had no slot for deep inside their gap is solved
+again from its start with them, and a contact that pushed stays in the next solve when the
+pair search loses it (else the rounds cycle)."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from knit_nlp.weft.model.cases import diagonal_pull
+from knit_nlp.weft.model.problem import Yarn, parse_problem
+from knit_nlp.weft.solving.contact.rounds import ContactSolver
+from knit_nlp.weft.study import ContactStudy
+
+R = 0.15
+
+
+def _study(n: int, budget: float) -> ContactStudy:
+    pr = parse_problem(diagonal_pull(n), f"pull {n}")
+    pr = dataclasses.replace(pr, solver=dataclasses.replace(pr.solver, max_time=budget),
+                             yarn=Yarn(R))
+    return ContactStudy(pr, verbose=None)
+
+
+def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_start():
+    """4 x 4 pull: the first solve of the last load step ends with 4 pairs it had no slot for
+    nearly crossed; the next solve starts again from that step's start (not from the nearly
+    crossed state) with more pairs."""
+    st = _study(4, 120.0)
+    starts: list[tuple[str, np.ndarray, int]] = []
+    once = st.contact.solve_once
+
+    def spy(p, x, pairs, warm, report, rounds, note):
+        starts.append((note, np.array(x), len(pairs)))
+        return once(p, x, pairs, warm, report, rounds, note)
+
+    st.contact.solve_once = spy
+    res = st.run()
+    block = res.extra["contact"]
+    assert res.success and block["new_crossings"] == 0
+    assert block["smallest_gap_over_2r"] >= 1 - 1e-4
+    again = [(a, b) for a, b in zip(starts, starts[1:]) if b[0] == a[0] + ", round 2"
+             and np.array_equal(a[1], b[1])]
+    assert again and again[0][1][2] > again[0][0][2]
+
+
+def test_rounds_do_not_cycle_when_the_search_loses_a_pushing_contact():
+    """5 x 5 pull: a contact at an interlock box's border was lost by the search every other
+    round, so the rounds cycled (short 0.5, 1e-4, 0.5 ...) until Contact_Rounds_Exceeded, and
+    the pull did not converge in 200 s; now it converges in a few solves."""
+    st = _study(5, 60.0)
+    res = st.run()
+    block = res.extra["contact"]
+    assert res.success and block["new_crossings"] == 0
+    assert block["smallest_gap_over_2r"] >= 1 - 1e-4
+    assert block["solves"] <= 10
+
+
+def test_a_held_contact_is_reseated_to_the_foot_of_its_point():
+    """Held pairs move B's point to the foot of A's (fixed) point at the new state."""
+    st = _study(4, 60.0)
+    c: ContactSolver = st.contact
+    x = st.nlp.x0
+    pairs = c.pairs(x)
+    pairs = pairs.select(pairs.required > 0)
+    moved = dataclasses.replace(pairs, sB=np.clip(pairs.sB + 0.05, 0, st.problem.L))
+    held = c._hold(x, moved)
+    assert len(held) > 0
+    _, i = np.unique(np.stack([held.kA, held.sA], 1), axis=0, return_index=True)
+    back = {(int(k), round(float(s), 9)): sb for k, s, sb in zip(pairs.kA, pairs.sA, pairs.sB)}
+    hits = [abs(back[(int(k), round(float(s), 9))] - sb) for k, s, sb in
+            zip(held.kA[i], held.sA[i], held.sB[i]) if (int(k), round(float(s), 9)) in back]
+    assert hits and np.median(hits) < 1e-3
+
+
+def test_a_pair_in_an_interlock_box_that_changes_side_is_not_a_pass_through():
+    """Next to a designed crossing (required gap 0) the crossing slides along the yarns and a
+    pair there changes side without yarns passing through: only the crossing count judges it
+    (a 10 x 10 pull's last step was halved five times for this). A pair with a required gap
+    that changes side still did pass through."""
+    from knit_nlp.weft.model.contact.pairs import Pairs
+    st = _study(2, 60.0)
+    c: ContactSolver = st.contact
+    x = st.nlp.x0
+
+    def pair(required: float, sigma: float, sA: float) -> Pairs:
+        one = np.ones(1)
+        return Pairs(np.zeros(1, dtype=int), sA * one, np.full(1, 2), 1.6 * one, sigma * one,
+                     required * one, 0.01 * one)
+
+    assert not c.crossed(x, pair(0.0, 1.0, 3.12), pair(0.0, -1.0, 3.2))
+    assert c.crossed(x, pair(0.3, 1.0, 3.12), pair(0.3, -1.0, 3.2))
