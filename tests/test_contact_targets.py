@@ -54,3 +54,14 @@ def test_shipped_problems_with_a_radius(name):
     r = 0.015 * pr.L
     res = solve(dataclasses.replace(pr, yarn=Yarn(r)), Full())
     _clean(res, r)
+
+
+def test_diagonal_pull_keeps_2r_at_the_edges_of_designed_boxes():
+    """The 6 x 6 diagonal pull with r = 0.15: where a yarn leaves an interlock's box its
+    required gap jumps from 0 to 2r between two of the solver's samples. Without pairs at the
+    box edges every sampled pair kept 2r while the checker (200 samples per loop) found
+    0.68 x 2r between loops (1,6) and (2,6)."""
+    from knit_nlp.weft.model.cases import diagonal_pull
+    r = 0.15
+    pr = dataclasses.replace(parse_problem(diagonal_pull(6), "pull6"), yarn=Yarn(r))
+    _clean(solve(pr, Full()), r)

@@ -29,6 +29,7 @@ from .natural import NaturalFabric
 
 NEWTON_STEPS = 25
 CROSSING = 1e-9           # relative to L: a polished minimum this close is a crossing
+EDGE_STEPS = 40           # bisection steps to a designed box's edge (2^-40 of a sample)
 
 
 @dataclass(frozen=True)
@@ -306,7 +307,49 @@ def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float) -> Pa
                     out.sB[v][:, None] - closest.sB[c][None, :])
                 near[v] = d.min(axis=1) < grid.h / 4
         out = out.select(~near)
-    return out
+    return out.concat(_box_edges(fab, curves, grid, feet, reach))
+
+
+def _box_edges(fab, curves, grid, feet: Feet, reach: float) -> Pairs:
+    """Pairs at the edges of designed interlock boxes: where a yarn leaves a box its required
+    gap jumps from 0 to 2r while the distance is still near its minimum, so the closest
+    outside point is the edge itself, between two samples (a 6 x 6 diagonal pull kept every
+    sample pair at 2r while the checker, sampling finer, found 0.68 x 2r there). For every two
+    consecutive samples of a yarn, one in a box and one out (each against its foot on the
+    same strand), the edge is bisected along the yarn, the foot following it, and the first
+    point out is paired with its foot."""
+    S = grid.S
+    _, _, _, _, same, required = _classify(fab, grid, feet.cu, S[feet.iu], feet.cv, feet.Sf)
+    inside = ~same & (required <= 0)
+    outside = ~same & (required > 0) & (feet.dist < 2 * fab.radius + reach + grid.h)
+    key = (feet.cu * (grid.wales * grid.per_loop + 1) + feet.iu) * (grid.courses + 1) + feet.cv
+    out_at = {k: i for i, k in zip(np.nonzero(outside)[0].tolist(), key[outside].tolist())}
+    lo, hi = [], []
+    step = (grid.courses + 1)
+    for i, k in zip(np.nonzero(inside)[0].tolist(), key[inside].tolist()):
+        for j in (out_at.get(k - step), out_at.get(k + step)):
+            if j is not None and abs(feet.Sf[j] - feet.Sf[i]) < 4 * grid.h:
+                lo.append(i)
+                hi.append(j)
+    if not lo:
+        return Pairs.empty()
+    lo, hi = np.array(lo), np.array(hi)
+    ca, cb = feet.cu[lo], feet.cv[lo]
+    a_in, a_out, Sb = S[feet.iu[lo]], S[feet.iu[hi]], feet.Sf[hi].astype(float)
+    Sb_out = Sb.copy()
+    for _ in range(EDGE_STEPS):
+        mid = 0.5 * (a_in + a_out)
+        _, Sb = polish(curves, grid, ca, mid, cb, Sb, move_a=False)
+        req = _classify(fab, grid, ca, mid, cb, Sb)[5]
+        out = req > 0
+        a_out, Sb_out = np.where(out, mid, a_out), np.where(out, Sb, Sb_out)
+        a_in = np.where(out, a_in, mid)
+    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, a_out, cb, Sb_out)
+    normal, dist = _normal_gap(curves, grid, ca, a_out, cb, Sb_out)
+    keep = ~same & (required > 0) & (np.abs(normal) < required + reach) & (
+        dist > CROSSING * grid.L)
+    return Pairs(kA[keep], sA[keep], kB[keep], sB[keep], np.where(normal < 0, -1.0, 1.0)[keep],
+                 required[keep], np.abs(normal)[keep])
 
 
 def _discrete_minima(pts: np.ndarray, ca, ia, cb, ib) -> np.ndarray:
