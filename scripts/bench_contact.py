@@ -22,7 +22,7 @@ RADIUS = 0.15          # 0.015 L: thinner than the jersey's closest non-crossing
 
 
 def _problem(doc: dict, radius: float | None, budget: float):
-    from knit_nlp.weft.model.problem import SolverOptions, Yarn, parse_problem
+    from knit_nlp.weft.model.problem import Yarn, parse_problem
     pr = parse_problem(doc, f"<bench {doc.get('name', '')}>")
     solver = dataclasses.replace(pr.solver, max_time=budget)
     return dataclasses.replace(pr, solver=solver, yarn=None if radius is None else Yarn(radius))

@@ -186,7 +186,7 @@ def test_fit_with_contact_gives_back_the_values_the_points_were_made_with(tmp_pa
     pr = _case()
     obs = _observed(pr)
     doc = specimen_doc(DOC, "wales", 2, 3, "pull")
-    lines = [f'name = "pull"', "[fabric]", "courses = 2", "wales = 3", "[loop]",
+    lines = ['name = "pull"', "[fabric]", "courses = 2", "wales = 3", "[loop]",
              "length = 11.28", "[material]", f"k_a = {TRUTH[0] * 1.3}", f"k_b = {TRUTH[1] * 0.8}",
              f"R_f = {SYNTH_TRUTH['R_f']}", "[yarn]", f"radius = {RADIUS}", "[units]",
              'length = "mm"', 'force = "N"']
