@@ -114,7 +114,10 @@ def synthetic_columns(path: Path, truth: dict[str, float] = SYNTH_TRUTH, courses
 
 
 def synthetic_spec(folder: Path, width: float, fit: str, start: dict[str, float],
-                   file: str = "synthetic.csv", extra: str = "") -> Path:
+                   file: str = "synthetic.csv", extra: str = "", direction: str = "courses",
+                   forces: str = "[2.0, 5.0, 8.0]", tables: str = "") -> Path:
+    """The synthetic specimen's calibration spec (``tables``: more problem tables, e.g.
+    ``[yarn]``; ``extra``: lines after the test)."""
     return write_spec(folder, f"""\
     name = "synthetic"
     [fabric]
@@ -129,13 +132,14 @@ def synthetic_spec(folder: Path, width: float, fit: str, start: dict[str, float]
     [units]
     length = "mm"
     force = "N"
+    {tables}
     [calibrate]
     fit = {fit}
-    forces = [2.0, 5.0, 8.0]
+    forces = {forces}
     [[test]]
     file = "{file}"
     format = "columns"
-    direction = "courses"
+    direction = "{direction}"
     use = "fit"
     width = {width}
     {extra}""")

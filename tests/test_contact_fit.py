@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from calibration_files import SYNTH_DOC, SYNTH_TRUTH, write_columns, write_spec
+from calibration_files import SYNTH_DOC, SYNTH_TRUTH, synthetic_spec, write_columns
 import knit_nlp
 from knit_nlp.cli import main
 from knit_nlp.weft.inverse.calibration.curve import (SpecimenModel, fd_derivatives,
@@ -103,32 +103,9 @@ def test_calibrate_with_contact_gives_back_the_values_its_curve_was_made_with(tm
     forces = np.linspace(0.0, 0.99 * c.force[-1], 200)
     axial, lateral = strains_at(c, sp, forces)
     write_columns(tmp_path / "synthetic.csv", forces * 10.0, axial, lateral)
-    spec = write_spec(tmp_path, f"""\
-    name = "synthetic"
-    [fabric]
-    courses = 2
-    wales = 3
-    [loop]
-    length = 11.28
-    [material]
-    k_a = {SYNTH_TRUTH['k_a']}
-    k_b = 0.0015
-    R_f = {SYNTH_TRUTH['R_f']}
-    [yarn]
-    radius = {RADIUS}
-    [units]
-    length = "mm"
-    force = "N"
-    [calibrate]
-    fit = ["k_b"]
-    forces = [{0.3 * top:.6g}, {0.6 * top:.6g}, {0.9 * top:.6g}]
-    [[test]]
-    file = "synthetic.csv"
-    format = "columns"
-    direction = "wales"
-    use = "fit"
-    width = {width}
-    """)
+    spec = synthetic_spec(tmp_path, width, '["k_b"]', {**SYNTH_TRUTH, "k_b": 0.0015},
+                          direction="wales", tables=f"[yarn]\n    radius = {RADIUS}",
+                          forces=f"[{0.3 * top:.6g}, {0.6 * top:.6g}, {0.9 * top:.6g}]")
     res = knit_nlp.calibrate(spec)
     assert res.success, res.message
     assert res.parameters()["k_b"]["value"] == pytest.approx(SYNTH_TRUTH["k_b"], rel=1e-2)
