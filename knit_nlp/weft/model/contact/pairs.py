@@ -328,7 +328,8 @@ def _box_edges(fab, curves, grid, feet: Feet, reach: float) -> Pairs:
     step = (grid.courses + 1)
     for i, k in zip(np.nonzero(inside)[0].tolist(), key[inside].tolist()):
         for j in (out_at.get(k - step), out_at.get(k + step)):
-            if j is not None and abs(feet.Sf[j] - feet.Sf[i]) < 4 * grid.h:
+            if j is not None and feet.cu[j] == feet.cu[i] and \
+                    abs(feet.Sf[j] - feet.Sf[i]) < 4 * grid.h:          # same yarn, same strand
                 lo.append(i)
                 hi.append(j)
     if not lo:
