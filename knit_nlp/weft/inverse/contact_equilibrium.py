@@ -42,7 +42,7 @@ from ..solving.contact.solve import ACTIVE, contact_block, solve_with_contact
 from ..solving.solve import SolveReport
 from ..model.basis import n_coeffs
 from ..transcription.contact import VARS, ContactNLP, _basis
-from .equilibrium import Equilibrium
+from .equilibrium import Equilibrium, scipy_matrix
 
 KEEP = 16                  # solved contact states remembered (by base solution) for the KKT
 # ... for a calibration curve, whose nodes' sensitivities are taken after the whole pull (up to
@@ -290,20 +290,15 @@ def sliding_system(st: ContactState, Fp_base: ca.DM, nb: int, fn: ca.Function
     gap = np.arange(c.n_constraints)[c.gap_rows]
     kept = np.r_[np.arange(gap[0]), gap[st.active]]
     Cx, Cp, Fcp = fn(st.x, st.lam[ngb:], st.p)
-    Fcp = _sp(Fcp)[:, scol]
+    Fcp = scipy_matrix(Fcp)[:, scol]
     Fxs = Fcp[:nx]
     gs = sp.vstack([sp.csr_matrix((ngb, len(scol))), Fcp[nx:]]).tocsr()[kept]
-    Cx, Cs = _sp(Cx)[crow], _sp(Cp)[crow][:, scol]
-    Kd = _sp(K)
+    Cx, Cs = scipy_matrix(Cx)[crow], scipy_matrix(Cp)[crow][:, scol]
+    Kd = scipy_matrix(K)
     m = Kd.shape[0] - nx
     top = sp.hstack([Kd[:nx, :nx], Fxs, Kd[:nx, nx:]])
     mid = sp.hstack([Cx, Cs, sp.csr_matrix((len(crow), m))])
     bot = sp.hstack([Kd[nx:, :nx], gs, sp.csr_matrix((m, m))])
-    Fpd = _sp(Fp).toarray()
+    Fpd = scipy_matrix(Fp).toarray()
     rhs = np.vstack([Fpd[:nx], np.zeros((len(crow), Fpd.shape[1])), Fpd[nx:]])
     return sp.vstack([top, mid, bot]).tocsc(), rhs, nx + len(scol)
-
-
-def _sp(M: ca.DM) -> "sp.csr_matrix":
-    rows, cols = M.sparsity().get_triplet()
-    return sp.csr_matrix((np.asarray(M.nonzeros()), (rows, cols)), shape=M.shape)

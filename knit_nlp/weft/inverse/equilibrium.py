@@ -134,7 +134,7 @@ class Equilibrium:
         alike with and without contact). Here the KKT system ``kkt``; with contact, the
         active contacts' (``ContactEquilibrium.linear_system``)."""
         K, Fp = self.kkt(x, lam, p)
-        return _csc(K), np.asarray(ca.DM(Fp)), self.n
+        return scipy_matrix(K), np.asarray(ca.DM(Fp)), self.n
 
     def stability(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
                   method: str = "sparse") -> Stability:
@@ -189,10 +189,12 @@ def _penalised_inertia(K: ca.DM, n: int) -> tuple[int, float]:
     return negative, min(factor, RHO_MAX) * scale
 
 
-def _csc(K: ca.DM) -> "scipy.sparse.csc_matrix":
+def scipy_matrix(M: ca.DM) -> "scipy.sparse.csc_matrix":
+    """A sparse CasADi matrix as SciPy's CSC (the one conversion the sensitivities, the
+    stability check and contact_equilibrium use)."""
     import scipy.sparse as sp
-    rows, cols = K.sparsity().get_triplet()
-    return sp.csc_matrix((np.asarray(K.nonzeros()).ravel(), (rows, cols)), shape=K.shape)
+    rows, cols = M.sparsity().get_triplet()
+    return sp.csc_matrix((np.asarray(M.nonzeros()).ravel(), (rows, cols)), shape=M.shape)
 
 
 def _dense(K: ca.DM) -> np.ndarray:
@@ -215,9 +217,8 @@ def _lanczos_smallest(K: ca.DM, n: int, sigma: float = SHIFT) -> float:
     import scipy.sparse as sp
     from scipy.sparse.linalg import LinearOperator, eigsh, splu
 
-    rows, cols = K.sparsity().get_triplet()
     size = K.shape[0]
-    mat = sp.csc_matrix((np.asarray(K.nonzeros()), (rows, cols)), shape=(size, size))
+    mat = scipy_matrix(K)
     lu = splu((mat - sp.diags(np.r_[np.full(n, sigma), np.zeros(size - n)])).tocsc())
 
     def apply(v: np.ndarray) -> np.ndarray:

@@ -267,11 +267,7 @@ def reseat(fab: NaturalFabric, curves: Curves, grid: Grid,
     _, Sb = polish(curves, grid, ca, Sa, cb, Sb, move_a=False)
     top = grid.wales * grid.L
     inside = (Sb > 1e-9 * grid.L) & (Sb < top - 1e-9 * grid.L)     # a true foot, normal to B
-    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb)
-    normal, dist = _normal_gap(curves, grid, ca, Sa, cb, Sb)
-    keep = inside & ~same & (required > 0) & (dist > CROSSING * grid.L)
-    return Pairs(kA[keep], sA[keep], kB[keep], sB[keep], np.where(normal < 0, -1.0, 1.0)[keep],
-                 required[keep], np.abs(normal)[keep]), keep
+    return _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, where=inside)
 
 
 def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float) -> Pairs:
@@ -280,20 +276,13 @@ def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float) -> Pa
     whole line, not only its closest points. Not in designed interlocks (required gap 0: a
     crossing may slide past a sample there), nor within h/4 of a closest-points pair."""
     S = grid.S
-    kA, sA, kB, sB, same, required = _classify(fab, grid, feet.cu, S[feet.iu], feet.cv, feet.Sf)
-    gap0 = feet.dist
-    keep = ~same & (required > 0) & (gap0 < required + reach)
+    same, required = _classify(fab, grid, feet.cu, S[feet.iu], feet.cv, feet.Sf)[4:]
+    keep = ~same & (required > 0) & (feet.dist < required + reach)
     ca, Sa, cb, Sb = feet.cu[keep], S[feet.iu[keep]], feet.cv[keep], feet.Sf[keep]
     _, Sb = polish(curves, grid, ca, Sa, cb, Sb, move_a=False)
     top = grid.wales * grid.L
     inside = (Sb > 1e-9 * grid.L) & (Sb < top - 1e-9 * grid.L)     # a true foot, normal to B
-    ca, Sa, cb, Sb = ca[inside], Sa[inside], cb[inside], Sb[inside]
-    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb)
-    normal, dist = _normal_gap(curves, grid, ca, Sa, cb, Sb)
-    keep = ~same & (required > 0) & (np.abs(normal) < required + reach) & (
-        dist > CROSSING * grid.L)
-    out = Pairs(kA[keep], sA[keep], kB[keep], sB[keep], np.where(normal < 0, -1.0, 1.0)[keep],
-                required[keep], np.abs(normal)[keep])
+    out = _pairs_at(fab, curves, grid, ca[inside], Sa[inside], cb[inside], Sb[inside], reach)[0]
     if len(closest) and len(out):
         # drop samples next to a closest-points pair on the same two loops
         key_c = closest.kA * (1 << 20) + closest.kB
@@ -307,19 +296,34 @@ def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float) -> Pa
                     out.sB[v][:, None] - closest.sB[c][None, :])
                 near[v] = d.min(axis=1) < grid.h / 4
         out = out.select(~near)
-    return out.concat(_box_edges(fab, curves, grid, feet, reach))
+    return out.concat(_box_edges(fab, curves, grid, feet, same, required, reach))
 
 
-def _box_edges(fab, curves, grid, feet: Feet, reach: float) -> Pairs:
+def _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, reach: float = np.inf,
+              where: np.ndarray | None = None) -> tuple[Pairs, np.ndarray]:
+    """Pairs of the points (course, arc) (ca, Sa) and (cb, Sb) that must keep a gap (not one
+    piece of yarn, not in a designed interlock, not crossing) and lie within ``reach`` of it
+    (and in ``where``), with their side and gap; and which of the points made one."""
+    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb)
+    normal, dist = _normal_gap(curves, grid, ca, Sa, cb, Sb)
+    keep = ~same & (required > 0) & (np.abs(normal) < required + reach) & (
+        dist > CROSSING * grid.L)
+    if where is not None:
+        keep &= where
+    return Pairs(kA[keep], sA[keep], kB[keep], sB[keep], np.where(normal < 0, -1.0, 1.0)[keep],
+                 required[keep], np.abs(normal)[keep]), keep
+
+
+def _box_edges(fab, curves, grid, feet: Feet, same: np.ndarray, required: np.ndarray,
+               reach: float) -> Pairs:
     """Pairs at the edges of designed interlock boxes: where a yarn leaves a box its required
     gap jumps from 0 to 2r while the distance is still near its minimum, so the closest
     outside point is the edge itself, between two samples (a 6 x 6 diagonal pull kept every
     sample pair at 2r while the checker, sampling finer, found 0.68 x 2r there). For every two
     consecutive samples of a yarn, one in a box and one out (each against its foot on the
     same strand), the edge is bisected along the yarn, the foot following it, and the first
-    point out is paired with its foot."""
+    point out is paired with its foot (``same``, ``required``: the feet's classification)."""
     S = grid.S
-    _, _, _, _, same, required = _classify(fab, grid, feet.cu, S[feet.iu], feet.cv, feet.Sf)
     inside = ~same & (required <= 0)
     outside = ~same & (required > 0) & (feet.dist < 2 * fab.radius + reach + grid.h)
     key = (feet.cu * (grid.wales * grid.per_loop + 1) + feet.iu) * (grid.courses + 1) + feet.cv
@@ -345,12 +349,7 @@ def _box_edges(fab, curves, grid, feet: Feet, reach: float) -> Pairs:
         out = req > 0
         a_out, Sb_out = np.where(out, mid, a_out), np.where(out, Sb, Sb_out)
         a_in = np.where(out, a_in, mid)
-    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, a_out, cb, Sb_out)
-    normal, dist = _normal_gap(curves, grid, ca, a_out, cb, Sb_out)
-    keep = ~same & (required > 0) & (np.abs(normal) < required + reach) & (
-        dist > CROSSING * grid.L)
-    return Pairs(kA[keep], sA[keep], kB[keep], sB[keep], np.where(normal < 0, -1.0, 1.0)[keep],
-                 required[keep], np.abs(normal)[keep])
+    return _pairs_at(fab, curves, grid, ca, a_out, cb, Sb_out, reach)[0]
 
 
 def _discrete_minima(pts: np.ndarray, ca, ia, cb, ib) -> np.ndarray:
