@@ -107,7 +107,7 @@ class ContactEquilibrium(Equilibrium):
             rep, block = solve_with_contact(self.wnlp, self.solver, self.contact,
                                             WeftParams.from_vector(self.problem, p), x_start=x0)
         else:
-            block = self._block(rep, "one load step with contact from the last control state")
+            block = self._block(rep, "one load step with contact from the last solved state")
         if rep.success and self.contact.last is not None and self._polish(p, rep):
             run = ContactRun(rep, *self.contact.last_pairs)
             block = contact_block(self.problem, self.contact, run, block["route"] + ", polished",

@@ -93,8 +93,13 @@ class SpecimenModel:
         rows = 2 * np.arange(P.shape[1]) + other            # vec(P) is column-major
         return float(P[other] @ w), w @ J[rows]
 
-    def _solve(self, p: np.ndarray, x0: np.ndarray | None, curve: Curve):
-        rep = self.eq.solve(p, x0)
+    def _solve(self, p: np.ndarray, x0: np.ndarray | None, curve: Curve,
+               p0: np.ndarray | None = None):
+        """The equilibrium at p from x0; with ``p0`` (x0's parameters, x0 solved there) a
+        solve with contact is one load step from that state instead of rounds from the
+        paper's solution (measured on c4k's course pull: the same curve to 5 digits, 311
+        IPOPT iterations instead of 410, 28 s instead of 43 s; the paper's model ignores it)."""
+        rep = self.eq.solve(p, x0, origin=None if p0 is None else (x0, p0))
         curve.solves += 1
         curve.iterations += rep.iterations
         return rep
@@ -120,9 +125,10 @@ class SpecimenModel:
                 break
             if remaining - step < MIN_STRAIN_STEP * L0:     # no sliver of a last step
                 step = remaining
+            p_last = self.params(material, us[-1])
             for _ in range(MAX_HALVINGS + 1):
                 u = us[-1] + step
-                rep = self._solve(self.params(material, u), c.xs[-1], c)
+                rep = self._solve(self.params(material, u), c.xs[-1], c, p_last)
                 if rep.success:
                     break
                 step /= 2
@@ -152,7 +158,8 @@ class SpecimenModel:
         c = Curve(base.u.copy(), np.zeros_like(base.u), np.zeros_like(base.u),
                   material=dict(material))
         for k, u in enumerate(base.u):
-            rep = self._solve(self.params(material, u), base.xs[k], c)
+            rep = self._solve(self.params(material, u), base.xs[k], c,
+                              self.params(base.material, u))
             if not rep.success:
                 c.complete, c.reason = False, f"a perturbed solve failed ({rep.status})"
                 return c
