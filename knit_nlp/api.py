@@ -13,6 +13,7 @@ the command line (``cli``) and the studies (``studies``) only read the entry.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Union
@@ -26,7 +27,7 @@ from .jacquard.summary import solve_summary as jacquard_summary
 from .problems import resolve
 from .tomlio import load_toml, type_name
 from .weft import commands as weft_commands, keys as weft_keys, study as weft_study
-from .weft.api import compare as compare_weft, solve as solve_weft
+from .weft.api import check_grids, compare as compare_weft, solve as solve_weft
 from .weft.model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .weft.model.problem import WeftProblem, parse_problem as parse_weft
 from .weft.output.comparison import Comparison
@@ -81,6 +82,7 @@ class Model:
     summary: Callable[..., str]       # (result, paths written) -> what ``solve`` prints
     study: Study
     commands: tuple = ()              # (name, help, arguments, run): the model's own commands
+    compare_grids: Callable[..., list[int]] | None = None   # (grids, problem) -> checked k values
 
 
 def _solve_weft(problem: WeftProblem, reduced: bool | Parametrisation | None = None,
@@ -107,7 +109,7 @@ MODELS: dict[str, Model] = {
         Study(weft_study.prepare_point, weft_study.solve_point, weft_study.study_row, True,
               lambda doc, problem: doc, weft_keys.check, weft_keys.changes,
               weft_study.key_unit),
-        weft_commands.COMMANDS),
+        weft_commands.COMMANDS, check_grids),
     "jacquard": Model(
         "jacquard", parse_jacquard, solve_jacquard, ("solver",), None, None,
         jacquard_commands.document, jacquard_commands.FLAGS, jacquard_commands.solve_options,
@@ -170,14 +172,17 @@ def solve(problem_or_name: Problem | str | Path, *, reduced: bool | Parametrisat
     return model.solve(problem, **given)
 
 
-def compare(problem_or_name: WeftProblem | str | Path, *, warm: bool = False) -> Comparison:
+def compare(problem_or_name: WeftProblem | str | Path, *, warm: bool = False,
+            grids: Sequence[int] = ()) -> Comparison:
     """Full and reduced models of a weft problem side by side (:class:`Comparison`), with a
-    verdict; ``warm``: also solve the full model started from the reduced answer."""
+    verdict; ``warm``: also solve the full model started from the reduced answer; ``grids``:
+    also the even k × k grids for each k, each against the full model (``Comparison.frontier``,
+    ``Comparison.fastest_ok``: the fastest within the verdict's limits)."""
     problem = _problem(problem_or_name)
     model = MODELS[problem.model]
     if model.compare is None:
         raise ValueError(f"compare is for weft problems; {problem.name!r} is a {model.name} problem")
-    return model.compare(problem, warm=warm)
+    return model.compare(problem, warm=warm, grids=grids)
 
 
 def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:

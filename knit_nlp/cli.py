@@ -63,6 +63,10 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--warm", action="store_true",
                          help="also solve the full model started from the reduced answer "
                               "(finds another local minimum; costs about one more full solve)")
+    compare.add_argument("--grids", type=int, nargs="+", default=[], metavar="K",
+                         help="also solve the even K x K reduced grids (2: the corner form) and "
+                              "print accuracy against time for each, with the fastest within "
+                              "the verdict's limits")
     compare.set_defaults(run=_cmd_compare)
     sub.add_parser("list", help="list the named problems").set_defaults(run=_cmd_list)
     _sweep_parser(sub)
@@ -146,9 +150,13 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if model.compare is None:
         raise ProblemError(path, "", "model", f"compare is not offered for {model.name} "
                            f"problems; it is for {', '.join(m.name for m in MODELS.values() if m.compare)}")
+    try:
+        grids = model.compare_grids(args.grids, problem)
+    except ValueError as err:
+        raise ArgumentError(f"--grids {' '.join(map(str, args.grids))}", str(err)) from None
     out = prepare_out(args.out, problem.name, ("compare",))
     check_overwrite(out.glob(f"{problem.name}.*.json"), path, args.force)
-    cmp = model.compare(problem, warm=args.warm)
+    cmp = model.compare(problem, warm=args.warm, grids=grids)
     print(model.compare_summary(cmp, cmp.save(out)))
     return 0 if cmp.success else 1
 

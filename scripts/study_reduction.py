@@ -25,14 +25,15 @@ from knit_nlp.figures import save_figure  # noqa: E402
 from knit_nlp.jsonio import write_csv  # noqa: E402
 from knit_nlp.units import Units  # noqa: E402
 from knit_nlp.weft.api import solve  # noqa: E402
+from knit_nlp.weft.model.parametrisation import spread  # noqa: E402
 from knit_nlp.weft.model.cases import course_pull, diagonal_pull  # noqa: E402
 from knit_nlp.weft.model.parametrisation import Full, Reduced  # noqa: E402
 from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
 
 
 def even(count: int, n: int) -> list[int]:
-    """``count`` representatives spread evenly over 1..n."""
-    return sorted(set(int(round(v)) for v in np.linspace(1, n, min(count, n))))
+    """``count`` representatives spread evenly over 1..n (``parametrisation.spread``)."""
+    return list(spread(count, n))
 
 
 def refined(n: int, near: list[int], count: int = 4) -> list[int]:

@@ -8,7 +8,11 @@ import knit_nlp
 import knit_nlp.weft.api as weft_api
 from knit_nlp.api import MODELS
 from knit_nlp.cli import main
-from knit_nlp.weft.output.comparison import ENERGY_REL_OK, RMS_LOOPS_OK, verdict
+from hypothesis import given, settings, strategies as st
+
+from knit_nlp.weft.api import check_grids
+from knit_nlp.weft.output.comparison import (ENERGY_REL_OK, RMS_LOOPS_OK, Comparison,
+                                            GridRow, verdict)
 
 PULL = """
 [fabric]
@@ -94,8 +98,68 @@ def test_python_compare_takes_warm(monkeypatch):
     seen = {}
     monkeypatch.setitem(MODELS, "weft", dataclasses.replace(
         MODELS["weft"], compare=lambda problem, **options: seen.update(options) or "cmp"))
-    assert knit_nlp.compare("wada_fig7") == "cmp" and seen == {"warm": False}
-    knit_nlp.compare("wada_fig7", warm=True)
-    assert seen == {"warm": True}
+    assert knit_nlp.compare("wada_fig7") == "cmp" and seen == {"warm": False, "grids": ()}
+    knit_nlp.compare("wada_fig7", warm=True, grids=[2, 3])
+    assert seen == {"warm": True, "grids": [2, 3]}
     with pytest.raises(ValueError, match="warm must be True or False"):
         knit_nlp.weft.compare(knit_nlp.load_problem("wada_fig7"), warm="yes")
+
+
+# --- compare --grids: the accuracy-against-time frontier (issue 22, item 2) ---------------------
+
+def test_the_frontier_ends_at_the_full_model_and_starts_at_the_corner_form(write_problem,
+                                                                          tmp_path, capsys):
+    """On a 4 x 5 pull: the grid with every course and wale (k = 5) is the full model (distance
+    1e-6 L, energy ratio 1, within the limits), and k = 2 is the corner form that ``compare``
+    solves as its reduced model, solved again: the same distance and energy ratio (red when the
+    row's energy ratio is taken the other way round, or its distance against another solve)."""
+    r = _compare(write_problem, tmp_path, 4, 5, "--grids", "5", "2", "2")
+    grids = r["frontier"]["grids"]
+    assert [g["k"] for g in grids] == [2, 5]                   # sorted, each once
+    corner, every = grids
+    assert every["courses"] == [1, 2, 3, 4] and every["wales"] == [1, 2, 3, 4, 5]
+    assert every["distance_rms"] < 1e-6 * r["loop_length"]
+    assert abs(every["energy_ratio"] - 1) < 1e-8 and every["ok"] is True
+    assert corner["courses"] == [1, 4] and corner["wales"] == [1, 5]
+    assert abs(corner["distance_rms"] - r["distance"]["rms"]) < 1e-6 * r["loop_length"]
+    assert abs(corner["energy_ratio"] - r["energy_ratio"]) < 1e-8
+    assert corner["ok"] is False
+    assert r["frontier"]["fastest_ok"] == 5
+    printed = capsys.readouterr().out
+    assert "even grids against the full model" in printed
+    assert "fastest grid within the limits: 5 x 5" in printed
+
+
+def _row(k: int, speedup: float, ok: bool | None) -> GridRow:
+    return GridRow(k, [], [], 10 * k, ok is not None, 1.0 / speedup, speedup, 0.0, 0.0, 1.0, ok)
+
+
+def test_fastest_ok_is_the_fastest_row_within_the_limits():
+    rows = [_row(2, 6.0, False), _row(4, 3.0, True), _row(6, 2.0, True), _row(8, 9.0, None)]
+    assert Comparison(None, None, frontier=rows).fastest_ok.k == 4
+    assert Comparison(None, None, frontier=rows[:1]).fastest_ok is None
+
+
+def test_bad_grids_are_refused_in_one_line_before_anything_is_written(write_problem, tmp_path,
+                                                                       capsys):
+    path = write_problem(PULL.format(m=4, n=5), "g45.toml")
+    for k, bad in enumerate((["--grids", "1"], ["--grids", "6"], ["--grids=-3"],
+                             ["--grids", "2", "9"])):
+        out = tmp_path / f"o{k}"
+        assert main(["compare", str(path), "--out", str(out), *bad]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "--grids" in err and "from 2" in err
+        assert not out.exists()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.one_of(st.integers(-3, 9), st.floats(allow_nan=True), st.booleans(),
+                          st.text(max_size=2)), max_size=4))
+def test_check_grids_accepts_exactly_whole_numbers_from_2_to_the_larger_side(grids):
+    problem = knit_nlp.load_problem("wada_fig7")                  # 5 x 5
+    good = all(isinstance(k, int) and not isinstance(k, bool) and 2 <= k <= 5 for k in grids)
+    if good:
+        assert check_grids(grids, problem) == sorted(set(grids))
+    else:
+        with pytest.raises(ValueError, match="grid"):
+            check_grids(grids, problem)

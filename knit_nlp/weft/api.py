@@ -12,13 +12,14 @@ strategy for ``Adaptive(...)``.
 from __future__ import annotations
 
 import numbers
+from collections.abc import Sequence
 
 from ..errors import quoted
 from .model.centrelines import SAMPLES
-from .model.parametrisation import Adaptive, Full, Parametrisation, Reduced
+from .model.parametrisation import Adaptive, Full, Parametrisation, Reduced, even_grid
 from .model.params import WeftParams
 from .model.problem import MAX_CONTINUATION, WeftProblem
-from .output.comparison import Comparison
+from .output.comparison import Comparison, grid_row
 from .output.results import WeftResult
 from .study import study
 
@@ -86,14 +87,35 @@ def _warm_from_reduced(problem: WeftProblem, params: WeftParams | None,
     return red, full
 
 
-def compare(problem: WeftProblem, samples: int = SAMPLES, *, warm: bool = False) -> Comparison:
+def compare(problem: WeftProblem, samples: int = SAMPLES, *, warm: bool = False,
+            grids: Sequence[int] = ()) -> Comparison:
     """Solve the full model and the reduced one (the file's representatives, or the corners);
     ``warm``: also the full one warm-started from the reduced (another local minimum shows as a
-    different energy; it costs about as much as the full solve, so it is off by default)."""
+    different energy; it costs about as much as the full solve, so it is off by default);
+    ``grids``: also the even k × k grids for each k given, each against the full model (the
+    accuracy-against-time frontier, :class:`~.output.comparison.GridRow`)."""
     if not isinstance(warm, bool):
         raise ValueError(f"warm must be True or False; got {quoted(warm)}")
+    ks = check_grids(grids, problem)
     full = solve(problem, Full())
     if warm:
         red, warm_full = _warm_from_reduced(problem, None, None)
-        return Comparison(full, red, warm_full, samples)
-    return Comparison(full, solve(problem, problem.reduction or Reduced()), None, samples)
+    else:
+        red, warm_full = solve(problem, problem.reduction or Reduced()), None
+    frontier = [grid_row(k, full, solve(problem, even_grid(k, problem.courses, problem.wales)),
+                         samples) for k in ks]
+    return Comparison(full, red, warm_full, samples, frontier)
+
+
+def check_grids(grids: Sequence[int], problem: WeftProblem) -> list[int]:
+    """The frontier's k values, sorted and unique: whole numbers from 2 (the corner form) to
+    the larger side of the fabric (every course and wale)."""
+    if isinstance(grids, (str, bytes)) or not isinstance(grids, Sequence):
+        raise ValueError(f"grids must be a list of whole numbers; got {quoted(grids)}")
+    top = max(problem.courses, problem.wales, 2)
+    for k in grids:
+        if isinstance(k, bool) or not isinstance(k, numbers.Integral) or not 2 <= k <= top:
+            raise ValueError(f"each grid k must be a whole number from 2 (the corner form) to "
+                             f"{top} (every loop of this {problem.courses} x {problem.wales} "
+                             f"fabric); got {quoted(k)}")
+    return sorted({int(k) for k in grids})

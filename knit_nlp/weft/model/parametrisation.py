@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Union
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class Full:
@@ -47,6 +49,17 @@ class Reduced:
                                  f"got {list(values)}")
             reps.append(values)
         return Reduced(*reps)
+
+
+def spread(count: int, n: int) -> tuple[int, ...]:
+    """``count`` indices spread evenly over 1..n, first and last included (all n when fewer)."""
+    return tuple(sorted({int(round(v)) for v in np.linspace(1, n, min(count, n))}))
+
+
+def even_grid(k: int, courses: int, wales: int) -> Reduced:
+    """The even k × k grid of an m × n fabric: k representative courses and k wales spread
+    evenly (k = 2: the paper's corner form; every course or wale where k exceeds them)."""
+    return Reduced(spread(k, courses), spread(k, wales))
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Full and reduced models of one problem side by side (``knit-nlp compare``), as a result."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -48,6 +48,45 @@ def verdict(rms: float, loop_length: float, ratio: float, unit: str = "") -> tup
                    f"{loops:.2g} loop lengths, energy {ratio:.3g}x; {limits})")
 
 
+@dataclass(frozen=True)
+class GridRow:
+    """One even k × k reduced grid against the full model (``compare --grids``): the
+    accuracy-against-time frontier, as plain data."""
+
+    k: int
+    courses: list[int]                # the representatives solved (clamped ones added)
+    wales: list[int]
+    n_parameters: int
+    success: bool
+    seconds: float                    # build + solve
+    speedup: float                    # full (build + solve) over this grid's
+    distance_rms: float               # centreline distance to the full solution (length units)
+    distance_max: float
+    energy_ratio: float               # E_grid / E_full
+    ok: bool | None                   # within the verdict's limits (None: a solve failed)
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _cost(r: WeftResult) -> float:
+    """Build + solve time of a result (s)."""
+    return r.build_s + r.report.solve_s
+
+
+def grid_row(k: int, full: WeftResult, reduced: WeftResult, samples: int = SAMPLES) -> GridRow:
+    """The frontier's row of the even k × k grid solved as ``reduced``."""
+    d = np.linalg.norm(full.centrelines(samples) - reduced.centrelines(samples), axis=-1)
+    rms = float(np.sqrt(np.mean(d ** 2)))
+    ratio = _energy_ratio(reduced.energy.total, full.energy.total)
+    reps = reduced.representatives() or {}
+    ok = (verdict(rms, full.problem.L, ratio)[0]
+          if full.success and reduced.success else None)
+    return GridRow(k, list(reps.get("courses", [])), list(reps.get("wales", [])),
+                   reduced.nlp.n_parameters, reduced.success, _cost(reduced),
+                   _cost(full) / _cost(reduced), rms, float(d.max()), ratio, ok)
+
+
 @dataclass(repr=False)
 class Comparison:
     """Full and reduced models of one problem side by side, and (when asked for) the full model
@@ -57,6 +96,7 @@ class Comparison:
     reduced: WeftResult
     full_warm_from_reduced: WeftResult | None = None
     samples: int = SAMPLES
+    frontier: list[GridRow] = field(default_factory=list)   # compare --grids: even k × k grids
 
     @cached_property
     def _distance(self) -> np.ndarray:
@@ -79,9 +119,14 @@ class Comparison:
     @property
     def speedup_reduced(self) -> float:
         """Full (build + solve) time over reduced (build + solve) time."""
-        def cost(r: WeftResult) -> float:
-            return r.build_s + r.report.solve_s
-        return cost(self.full) / cost(self.reduced)
+        return _cost(self.full) / _cost(self.reduced)
+
+    @property
+    def fastest_ok(self) -> GridRow | None:
+        """The fastest grid of the frontier within the verdict's limits (None: none is; then
+        the full model is the one to use)."""
+        good = [g for g in self.frontier if g.ok]
+        return max(good, key=lambda g: g.speedup) if good else None
 
     @property
     def energy_ratio(self) -> float:
@@ -155,6 +200,9 @@ class Comparison:
                             "limits": {"rms_loop_lengths": RMS_LOOPS_OK,
                                        "energy_relative": ENERGY_REL_OK}},
                 "warm": self._warm_json(),
+                **({"frontier": {"grids": [g.to_json() for g in self.frontier],
+                                 "fastest_ok": None if (best := self.fastest_ok) is None
+                                 else best.k}} if self.frontier else {}),
                 **({"adaptive": {**self.reduced.extra["adaptive"], "true_rms": self.distance_rms}}
                    if "adaptive" in self.reduced.extra else {})}
 

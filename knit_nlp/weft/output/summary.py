@@ -80,5 +80,33 @@ def compare_summary(cmp: Comparison, paths: list[Path]) -> str:
     if cmp.full_warm_from_reduced is None:
         lines.append("  full model warm-started from the reduced: not solved (--warm solves it)")
     lines.append("  " + cmp.verdict)
+    lines += _frontier_lines(cmp)
     lines.append("  wrote " + ", ".join(str(p) for p in paths))
     return "\n".join(lines)
+
+
+def _frontier_lines(cmp: Comparison) -> list[str]:
+    """``--grids``: one line per even grid (accuracy against time) and the fastest within the
+    verdict's limits."""
+    if not cmp.frontier:
+        return []
+    pr = cmp.full.problem
+    lines = [f"  even grids against the full model (distances in {pr.units.length}, L = {pr.L:.4g}):",
+             "    k x k   params  build+solve s  speed-up  rms (L)          max      energy ratio  "
+             "within limits"]
+    for g in cmp.frontier:
+        ok = {True: "yes", False: "no", None: "failed"}[g.ok]
+        rms = f"{g.distance_rms:.3g} ({g.distance_rms / pr.L:.2g})"
+        lines.append(f"    {g.k:>2} x {g.k:<2} {g.n_parameters:>8}  {g.seconds:>13.3f}  "
+                     f"{g.speedup:>7.2f}x  {rms:<16} {g.distance_max:>7.3g}  "
+                     f"{g.energy_ratio:>12.4g}  {ok}")
+    best = cmp.fastest_ok
+    if best is None:
+        verdict = "none of these: use the full model"
+    elif best.speedup < 1:
+        verdict = (f"{best.k} x {best.k}, but it is slower than the full model "
+                   f"({best.speedup:.2f}x its speed): use the full model")
+    else:
+        verdict = f"{best.k} x {best.k}, {best.speedup:.2f}x the full model's speed"
+    lines.append(f"  fastest grid within the limits: {verdict}")
+    return lines
