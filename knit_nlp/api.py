@@ -27,7 +27,7 @@ from .jacquard.summary import solve_summary as jacquard_summary
 from .problems import resolve
 from .tomlio import load_toml, type_name
 from .weft import commands as weft_commands, keys as weft_keys, study as weft_study
-from .weft.api import check_grids, compare as compare_weft, solve as solve_weft
+from .weft.api import check_compare, compare as compare_weft, solve as solve_weft
 from .weft.model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .weft.model.problem import WeftProblem, parse_problem as parse_weft
 from .weft.output.comparison import Comparison
@@ -82,7 +82,7 @@ class Model:
     summary: Callable[..., str]       # (result, paths written) -> what ``solve`` prints
     study: Study
     commands: tuple = ()              # (name, help, arguments, run): the model's own commands
-    compare_grids: Callable[..., list[int]] | None = None   # (grids, problem) -> checked k values
+    compare_check: Callable[..., list[int]] | None = None   # (problem, grids) -> checked k values
 
 
 def _solve_weft(problem: WeftProblem, reduced: bool | Parametrisation | None = None,
@@ -109,7 +109,7 @@ MODELS: dict[str, Model] = {
         Study(weft_study.prepare_point, weft_study.solve_point, weft_study.study_row, True,
               lambda doc, problem: doc, weft_keys.check, weft_keys.changes,
               weft_study.key_unit),
-        weft_commands.COMMANDS, check_grids),
+        weft_commands.COMMANDS, check_compare),
     "jacquard": Model(
         "jacquard", parse_jacquard, solve_jacquard, ("solver",), None, None,
         jacquard_commands.document, jacquard_commands.FLAGS, jacquard_commands.solve_options,

@@ -150,8 +150,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if model.compare is None:
         raise ProblemError(path, "", "model", f"compare is not offered for {model.name} "
                            f"problems; it is for {', '.join(m.name for m in MODELS.values() if m.compare)}")
-    try:
-        grids = model.compare_grids(args.grids, problem)
+    try:                                  # before --out is made: nothing written on refusal
+        grids = model.compare_check(problem, args.grids)
+    except ProblemError:
+        raise
     except ValueError as err:
         raise ArgumentError(f"--grids {' '.join(map(str, args.grids))}", str(err)) from None
     out = prepare_out(args.out, problem.name, ("compare",))

@@ -163,3 +163,18 @@ def test_check_grids_accepts_exactly_whole_numbers_from_2_to_the_larger_side(gri
     else:
         with pytest.raises(ValueError, match="grid"):
             check_grids(grids, problem)
+
+
+def test_compare_with_a_yarn_radius_is_refused_before_any_solve(write_problem, tmp_path,
+                                                                  monkeypatch, capsys):
+    """The reduced model has no contact: compare says so at once instead of after the full
+    contact solve (red when the refusal comes from the reduced solve)."""
+    solves = []
+    real = weft_api.solve
+    monkeypatch.setattr(weft_api, "solve", lambda *a, **k: solves.append(a) or real(*a, **k))
+    path = write_problem(PULL.format(m=2, n=3) + "[yarn]\nradius = 0.1\n", "yarn.toml")
+    out = tmp_path / "o"
+    assert main(["compare", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "[yarn] radius" in err and "compare" in err
+    assert solves == [] and not out.exists()

@@ -96,7 +96,7 @@ def compare(problem: WeftProblem, samples: int = SAMPLES, *, warm: bool = False,
     accuracy-against-time frontier, :class:`~.output.comparison.GridRow`)."""
     if not isinstance(warm, bool):
         raise ValueError(f"warm must be True or False; got {quoted(warm)}")
-    ks = check_grids(grids, problem)
+    ks = check_compare(problem, grids)
     full = solve(problem, Full())
     if warm:
         red, warm_full = _warm_from_reduced(problem, None, None)
@@ -105,6 +105,16 @@ def compare(problem: WeftProblem, samples: int = SAMPLES, *, warm: bool = False,
     frontier = [grid_row(k, full, solve(problem, even_grid(k, problem.courses, problem.wales)),
                          samples) for k in ks]
     return Comparison(full, red, warm_full, samples, frontier)
+
+
+def check_compare(problem: WeftProblem, grids: Sequence[int] = ()) -> list[int]:
+    """What ``compare`` checks before solving: the problem has no yarn radius (the reduced
+    model has no contact: :func:`~.solving.contact.solve.refuse`) and the grids
+    (:func:`check_grids`, returned)."""
+    if problem.yarn is not None:
+        from .solving.contact.solve import refuse     # scipy.spatial only with contact
+        raise refuse(problem, "compare (its reduced model)")
+    return check_grids(grids, problem)
 
 
 def check_grids(grids: Sequence[int], problem: WeftProblem) -> list[int]:
