@@ -242,3 +242,32 @@ def test_calibrate_command_writes_its_three_files(tmp_path, capsys):
 def _write(folder, text, name="spec.toml"):
     from calibration_files import write_spec
     return write_spec(folder, text, name)
+
+
+def _first_trial(x0: list[float]) -> float:
+    """The factor between the first trial value of an almost undetermined value ``a`` (its
+    residual changes by 1e-6 per unit of log a, as k_a's at the rigid limit) and its start."""
+    from knit_nlp.weft.inverse.calibration.fit import fit_log
+    a0, b0 = x0
+    seen = []
+
+    def residual(v: np.ndarray) -> np.ndarray:
+        seen.append(v.copy())
+        return np.array([v[1] / b0 - 1.2, 0.3 - 1e-6 * np.log(v[0] / a0), 0.1 * (v[1] / b0 - 1.1)])
+
+    def jacobian(v: np.ndarray) -> np.ndarray:                   # d r / d log v
+        return np.array([[0.0, v[1] / b0], [-1e-6, 0.0], [0.0, 0.1 * v[1] / b0]])
+
+    fit_log(["a", "b"], np.array(x0), residual, jacobian)
+    return float(seen[1][0] / a0)
+
+
+def test_the_fits_first_step_does_not_depend_on_the_units():
+    """The same fit started at values 1, 1 and at 3.5e-4, 7.6e-3 (other units) takes the same
+    first step, a factor of about 41 in the undetermined value. Over log values (not relative
+    to the start) SciPy's first trust radius grew with |log start|: 11 299 times in the second
+    units (the acrylic spec's k_a went 2.6e4 times its start in its first step, into contact
+    solves that crawled)."""
+    first = [_first_trial(x0) for x0 in ([1.0, 1.0], [3.5e-4, 7.6e-3])]
+    assert first[0] == pytest.approx(first[1], rel=1e-9)
+    assert 1 < first[0] < np.exp(4)
