@@ -120,12 +120,16 @@ def check_compare(problem: WeftProblem, grids: Sequence[int] = ()) -> list[int]:
 def check_grids(grids: Sequence[int], problem: WeftProblem) -> list[int]:
     """The frontier's k values, sorted and unique: whole numbers from 2 (the corner form) to
     the larger side of the fabric (every course and wale)."""
-    if isinstance(grids, (str, bytes)) or not isinstance(grids, Sequence):
-        raise ValueError(f"grids must be a list of whole numbers; got {quoted(grids)}")
+    try:
+        if isinstance(grids, (str, bytes)):
+            raise TypeError
+        items = list(grids)
+    except TypeError:
+        raise ValueError(f"grids must be a list of whole numbers; got {quoted(grids)}") from None
     top = max(problem.courses, problem.wales, 2)
-    for k in grids:
+    for k in items:
         if isinstance(k, bool) or not isinstance(k, numbers.Integral) or not 2 <= k <= top:
             raise ValueError(f"each grid k must be a whole number from 2 (the corner form) to "
                              f"{top} (every loop of this {problem.courses} x {problem.wales} "
                              f"fabric); got {quoted(k)}")
-    return sorted({int(k) for k in grids})
+    return sorted({int(k) for k in items})

@@ -123,8 +123,9 @@ class Comparison:
 
     @property
     def fastest_ok(self) -> GridRow | None:
-        """The fastest grid of the frontier within the verdict's limits (None: none is; then
-        the full model is the one to use)."""
+        """The fastest grid of the frontier within the verdict's limits (None: none is, and the
+        full model is the one to use; where its ``speedup`` is below 1 it is slower than the
+        full model, which is then the one to use too)."""
         good = [g for g in self.frontier if g.ok]
         return max(good, key=lambda g: g.speedup) if good else None
 
