@@ -112,7 +112,7 @@ def test_the_frontier_ends_at_the_full_model_and_starts_at_the_corner_form(write
     """On a 4 x 5 pull: the grid with every course and wale (k = 5) is the full model (distance
     1e-6 L, energy ratio 1, within the limits), and k = 2 is the corner form that ``compare``
     solves as its reduced model, solved again: the same distance and energy ratio (red when the
-    row's energy ratio is taken the other way round, or its distance against another solve)."""
+    row compares another solve than its grid's with the full model)."""
     r = _compare(write_problem, tmp_path, 4, 5, "--grids", "5", "2", "2")
     grids = r["frontier"]["grids"]
     assert [g["k"] for g in grids] == [2, 5]                   # sorted, each once

@@ -75,16 +75,14 @@ def _cost(r: WeftResult) -> float:
 
 
 def grid_row(k: int, full: WeftResult, reduced: WeftResult, samples: int = SAMPLES) -> GridRow:
-    """The frontier's row of the even k × k grid solved as ``reduced``."""
-    d = np.linalg.norm(full.centrelines(samples) - reduced.centrelines(samples), axis=-1)
-    rms = float(np.sqrt(np.mean(d ** 2)))
-    ratio = _energy_ratio(reduced.energy.total, full.energy.total)
-    reps = reduced.representatives() or {}
-    ok = (verdict(rms, full.problem.L, ratio)[0]
-          if full.success and reduced.success else None)
+    """The frontier's row of the even k × k grid solved as ``reduced``: its
+    :class:`Comparison` with the full model, as plain data."""
+    cmp = Comparison(full, reduced, None, samples)
+    reps = cmp.representatives or {}
     return GridRow(k, list(reps.get("courses", [])), list(reps.get("wales", [])),
                    reduced.nlp.n_parameters, reduced.success, _cost(reduced),
-                   _cost(full) / _cost(reduced), rms, float(d.max()), ratio, ok)
+                   cmp.speedup_reduced, cmp.distance_rms, cmp.distance_max, cmp.energy_ratio,
+                   cmp.reduced_ok)
 
 
 @dataclass(repr=False)
