@@ -16,9 +16,10 @@ keys changed in memory, so the table says exactly what differs:
 - c4  as c on b4's smaller specimens (4 loops on the shorter sides): c's own 6-loop specimens
       need hours with contact (docs/real_fabric.md, "Run c")
 - c4k as c4 with k_a held at 3.5e4 N/mm (where every fit without contact leaves it: at its bound,
-      undetermined) and k_b, length_scale fitted from b4's answer (0.00623 N/mm, 760 mm): started
-      from the paper's values, c4's trust region first tried k_a 10⁴ times larger and its contact
-      solves crawled (docs/real_fabric.md, "Run c")
+      undetermined) and k_b, length_scale fitted from b4's answer (0.00623 N/mm, 760 mm): c4
+      (from the paper's values) was still fitting after 55 minutes, and from b4's answer with
+      k_a fitted too the first step took k_a 10⁴ times its start, where the contact solves
+      crawled (docs/real_fabric.md, "Run c")
 - b4k as c4k without contact (the same start and fitted values: c4k's same-run reference)
 - d   k_a, k_b and length_scale fitted on x and y together
 - b4, b8, b10   as b with 4, 8 and 10 loops on the specimens' shorter sides (b: 6)
