@@ -43,6 +43,12 @@ WIDEST = 0.4               # the reach is widened (x2 per failed step) up to thi
 # with nothing else to stop it) still widens to WIDEST.
 WIDE_CROSSED = 0.04
 MOVED = 0.5                # contact points that moved less than this many samples have settled
+# a pair the search finds within this many samples of a pushing pair's points (s_A, s_B) is that
+# contact; a pushing pair with none that close stays in the next solve (_held). With one sample
+# (the old rule) a line contact on the 4-loop wale pull cycled between two minima 0.035 samples
+# apart: each round replaced the pair that pushed by the search's other one, the yarns rolled
+# back, and the shortfall grew (5e-4 to 1.1e-3 over 12 rounds, then the reach was widened)
+SAME = 0.01
 FLIP = 1e-6               # a pair now this far (relative to L) on its other side passed through
 CROSSED = "Contact_Crossing"        # the status of a step that let yarns cross
 SPARE = 0.5                # extra slots per pair of loops, relative, when (re)building
@@ -261,9 +267,10 @@ class ContactSolver:
                         self.log(f"  restart: {int(deep.sum())} pairs met deep inside their "
                                  f"gap; from the step's start with {len(more)} pairs")
                     continue
-            held = self._hold(xn, _held(pairs, lam, found, self.grid.h,
-                                        10 * self.base.problem.solver.tol))
-            moved = final and _moved((pairs, lam), found.concat(held), self.grid.h * MOVED)
+            floor = 10 * self.base.problem.solver.tol
+            held = self._hold(xn, _held(pairs, lam, found, self.grid.h * SAME, floor))
+            moved = final and _moved((pairs, lam), found.concat(held), self.grid.h * MOVED,
+                                     floor)
             x, warm = xn, (rep.lam_g[:self.base.n_constraints], pairs, lam)
             report.x, report.objective = x, rep.objective
             report.lam_g = rep.lam_g[:self.base.n_constraints]
@@ -381,10 +388,19 @@ def _match(old: Pairs, new: Pairs, tol: float) -> tuple[np.ndarray, np.ndarray]:
     return idx, dist
 
 
-def _moved(last: tuple[Pairs, np.ndarray], pairs: Pairs, tol: float) -> bool:
-    """Whether a pair that pushed in the last solve has moved along the yarns by more than tol."""
+def _pushing(lam: np.ndarray, floor: float) -> np.ndarray:
+    """Which pairs pushed in a solve: −λ above ``floor`` and 1e-6 of the largest (IPOPT leaves
+    every inequality a tiny multiplier)."""
+    force = -np.asarray(lam)
+    return force > max(1e-6 * float(force.max(initial=0.0)), floor)
+
+
+def _moved(last: tuple[Pairs, np.ndarray], pairs: Pairs, tol: float, floor: float) -> bool:
+    """Whether a pair that pushed in the last solve (:func:`_pushing`) has moved along the yarns
+    by more than tol. (With every λ < 0 counted, pairs that did not push kept the 4-loop wale
+    pull's last step "moving" through all its rounds with no pair short of its gap.)"""
     old, lam = last
-    active = np.nonzero(lam < 0)[0]
+    active = np.nonzero(_pushing(lam, floor))[0]
     if active.size == 0 or len(pairs) == 0:
         return False
     idx, dist = _match(pairs, old.select(active), tol)
@@ -392,17 +408,16 @@ def _moved(last: tuple[Pairs, np.ndarray], pairs: Pairs, tol: float) -> bool:
 
 
 def _held(used: Pairs, lam: np.ndarray, found: Pairs, tol: float, floor: float) -> Pairs:
-    """The pairs that pushed in the last solve (−λ above ``floor`` and 1e-6 of the largest:
-    IPOPT leaves every inequality a tiny multiplier) and that the new search has no pair
-    within tol of: they stay for the next solve, A's point against its foot on B now
-    (``reseat``: the distance from that point of A to yarn B, a true requirement). Without them
+    """The pairs that pushed in the last solve (:func:`_pushing`) and that the new search has
+    no pair within tol of (``SAME``): they stay for the next solve, A's point against its foot
+    on B now (``reseat``: the distance from that point of A to yarn B, a true requirement).
+    Without them
     a contact whose closest points jumped (two near minima) was dropped, its yarns came
     together in the next solve, and the rounds cycled (the 5 x 5 diagonal pull: 12 rounds,
     short 0.5, then 1e-4, then 0.5 ...). Kept at their old points they held the yarns apart
     wider than 2r (a 12 x 12 stretch: smallest gap 1.08 x 2r, no contact of the search
     active)."""
-    force = -np.asarray(lam)
-    active = used.select(force > max(1e-6 * float(force.max(initial=0.0)), floor))
+    active = used.select(_pushing(lam, floor))
     if len(active) == 0:
         return Pairs.empty()
     _, dist = _match(found, active, np.inf)
