@@ -41,7 +41,11 @@ class Clock:
 
 class IterationLine(ca.Callback):
     """Called by ``nlpsol`` after every IPOPT iteration with the current iterate; rewrites one
-    line: iterates so far (each solve's first is its start), objective, largest constraint residual."""
+    line: iterates so far (each solve's first is its start), objective, largest constraint residual.
+    It also stops IPOPT (``User_Requested_Stop``) once the clock passes :attr:`deadline` (a
+    ``time.perf_counter`` value set by the caller before each solve): several solves sharing one
+    ``[solver] max_time`` budget each get IPOPT's own ``max_wall_time`` of the whole budget, so
+    without it a solve started late overran the budget by up to that much."""
 
     def __init__(self, nx: int, ng: int, stream: TextIO | None = None, *,
                  quiet_for: float = 0.0, budget: float = float("inf")) -> None:
@@ -49,6 +53,7 @@ class IterationLine(ca.Callback):
         self.nx, self.ng, self.count = nx, ng, 0
         self.stream = stream or sys.stderr
         self.clock, self.budget = Clock(quiet_for), budget
+        self.deadline = float("inf")
         self.start()
         self.construct("iteration_line", {})
 
@@ -81,6 +86,8 @@ class IterationLine(ca.Callback):
 
     def eval(self, arg: list[ca.DM]) -> list[int]:
         self.count += 1
+        if time.perf_counter() >= self.deadline:
+            return [1]
         took = self.clock.due()
         if took is None:
             return [0]

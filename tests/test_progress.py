@@ -63,9 +63,15 @@ def test_a_long_solve_shows_progress_without_verbose(monkeypatch, capsys, tmp_pa
 
 
 def test_study_workers_keep_quiet():
-    """A sweep has its own progress line: the solver its workers build installs none."""
+    """A sweep has its own progress line: the line of the solver its workers build never
+    writes (its callback only keeps the deadline), even a million seconds into a solve."""
     built = prepare_point(load_toml(PROBLEMS / "wada_fig7.toml"))
-    assert built.solver.progress is None
+    line = built.solver.progress
+    line.stream = io.StringIO()
+    line.clock.t0 -= 1e6
+    line.clock.shown -= 1e6
+    assert line.eval([ca.DM([1.0]), ca.DM(2.0), ca.DM([0.5])]) == [0]
+    assert line.stream.getvalue() == ""
 
 
 def test_a_long_control_reports_each_outer_iteration(monkeypatch, capsys, tmp_path):
@@ -81,3 +87,30 @@ def test_a_long_jacquard_newton_solve_shows_progress(monkeypatch, capsys, tmp_pa
     monkeypatch.setattr("knit_nlp.jacquard.newton.QUIET_FOR", 0.0)
     assert main(["solve", "jacquard_bench_100", "--out", str(tmp_path)]) == 0
     assert "Newton iteration 1: max |dE/dx|" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("verbose", [None, False])
+def test_a_solve_ends_at_the_shared_deadline_not_a_whole_budget_later(verbose):
+    """Solves that share one [solver] max_time (contact rounds, continuation, fits) each had
+    IPOPT's own max_wall_time of the whole budget: a 30 x 30 contact pull with a 1 200 s budget
+    ran 2 165 s (its fifth IPOPT solve started at 975 s). The deadline now ends the solve in progress: a 20 x 20 pull (13 iterations,
+    about 1 s) given 0.1 s left stops after at most a couple of iterations, reported as out of
+    time; with time enough the same solver converges."""
+    import time
+
+    from knit_nlp.outcome import OUT_OF_TIME
+    from knit_nlp.weft.model.cases import diagonal_pull
+    from knit_nlp.weft.model.params import WeftParams
+    from knit_nlp.weft.model.problem import parse_problem
+    from knit_nlp.weft.solving.solve import WeftSolver
+    from knit_nlp.weft.transcription.full import build_nlp
+
+    pr = parse_problem(diagonal_pull(20), "pull 20")
+    nlp = build_nlp(pr)
+    solver = WeftSolver(nlp, verbose=verbose)
+    p = WeftParams.of(pr).vector()
+    solver.deadline = time.perf_counter() + 0.1
+    late = solver.once(p, nlp.x0)
+    assert late.status == OUT_OF_TIME and not late.success and late.iterations <= 3
+    solver.deadline = time.perf_counter() + 600.0
+    assert solver.once(p, nlp.x0).success

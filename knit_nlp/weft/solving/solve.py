@@ -91,12 +91,12 @@ class WeftSolver:
                                    **{**MODEL_IPOPT.get(wnlp.model, {}), **(ipopt or {})}),
                    **wnlp.nlpsol_options}
         # verbose: every iterate; False: a progress line once a solve outlasts QUIET_FOR;
-        # None: never (a study's workers, whose runner keeps its own progress line)
-        self.progress = None if verbose is None else IterationLine(
-            wnlp.n_variables, wnlp.n_constraints, quiet_for=0.0 if verbose else QUIET_FOR,
-            budget=opts.max_time)
-        if self.progress is not None:
-            options["iteration_callback"] = self.progress
+        # None: never (a study's workers, whose runner keeps its own progress line). Always
+        # there: it ends a solve at the shared deadline (IterationLine.deadline)
+        quiet = float("inf") if verbose is None else 0.0 if verbose else QUIET_FOR
+        self.progress = IterationLine(wnlp.n_variables, wnlp.n_constraints, quiet_for=quiet,
+                                      budget=opts.max_time)
+        options["iteration_callback"] = self.progress
         self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, options)
         self.setup_s = time.perf_counter() - t0
         self.start_clock()
@@ -119,10 +119,13 @@ class WeftSolver:
             return SolveReport(False, OUT_OF_TIME, x0, np.zeros(self.wnlp.n_constraints),
                                np.nan, 0, 0.0)
         warm = {} if lam_g0 is None else {"lam_g0": lam_g0}
+        self.progress.deadline = self.deadline        # callers may move the deadline
         sol = self.solver(x0=x0, p=p, lbg=self.wnlp.lbg if lbg is None else lbg,
                           ubg=self.wnlp.ubg if ubg is None else ubg, **warm)
         stats = self.solver.stats()
         status = str(stats["return_status"])
+        if status == "User_Requested_Stop" and time.perf_counter() >= self.deadline:
+            status = OUT_OF_TIME                    # stopped at the deadline (IterationLine)
         return SolveReport(succeeded(status), status, np.asarray(sol["x"]).ravel(),
                            np.asarray(sol["lam_g"]).ravel(), float(sol["f"]),
                            int(stats["iter_count"]), time.perf_counter() - t0,
