@@ -93,9 +93,9 @@ def test_a_long_jacquard_newton_solve_shows_progress(monkeypatch, capsys, tmp_pa
 def test_a_solve_ends_at_the_shared_deadline_not_a_whole_budget_later(verbose):
     """Solves that share one [solver] max_time (contact rounds, continuation, fits) each had
     IPOPT's own max_wall_time of the whole budget: a 30 x 30 contact pull with a 1 200 s budget
-    ran 2 165 s (its fifth IPOPT solve started at 975 s). The deadline now ends the solve in progress: a 20 x 20 pull (13 iterations,
-    about 1 s) given 0.1 s left stops after at most a couple of iterations, reported as out of
-    time; with time enough the same solver converges."""
+    ran 2 165 s (its fifth IPOPT solve started at about 970 s). The deadline now ends the solve
+    in progress: a 20 x 20 pull (13 iterations, about 1 s) given 0.1 s left stops after at most
+    a few iterations, reported as out of time; with time enough the same solver converges."""
     import time
 
     from knit_nlp.outcome import OUT_OF_TIME
