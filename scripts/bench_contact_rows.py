@@ -21,12 +21,12 @@ def _timed(f: ca.Function, args: tuple, repeats: int) -> float:
     return (time.perf_counter() - t0) / repeats * 1e3
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=10)
     ap.add_argument("--slots", type=int, default=2900)
     ap.add_argument("--repeats", type=int, default=20)
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     from knit_nlp.weft.model.cases import diagonal_pull
     from knit_nlp.weft.model.problem import parse_problem
     from knit_nlp.weft.transcription.contact import build_contact_nlp
