@@ -411,11 +411,10 @@ def _held(used: Pairs, lam: np.ndarray, found: Pairs, tol: float, floor: float) 
     """The pairs that pushed in the last solve (:func:`_pushing`) and that the new search has
     no pair within tol of (``SAME``): they stay for the next solve, A's point against its foot
     on B now (``reseat``: the distance from that point of A to yarn B, a true requirement).
-    Without them
-    a contact whose closest points jumped (two near minima) was dropped, its yarns came
-    together in the next solve, and the rounds cycled (the 5 x 5 diagonal pull: 12 rounds,
-    short 0.5, then 1e-4, then 0.5 ...). Kept at their old points they held the yarns apart
-    wider than 2r (a 12 x 12 stretch: smallest gap 1.08 x 2r, no contact of the search
+    Without them a contact whose closest points jumped (two near minima) was dropped, its
+    yarns came together in the next solve, and the rounds cycled (the 5 x 5 diagonal pull: 12
+    rounds, short 0.5, then 1e-4, then 0.5 ...). Kept at their old points they held the yarns
+    apart wider than 2r (a 12 x 12 stretch: smallest gap 1.08 x 2r, no contact of the search
     active)."""
     active = used.select(_pushing(lam, floor))
     if len(active) == 0:
