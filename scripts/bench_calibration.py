@@ -21,6 +21,8 @@ keys changed in memory, so the table says exactly what differs:
       k_a fitted too the first step took k_a 10⁴ times its start, where the contact solves
       crawled (docs/real_fabric.md, "Run c")
 - b4k as c4k without contact (the same start and fitted values: c4k's same-run reference)
+- ck  as c4k on c's own specimens (b's 6-loop ones), from b's answer (0.00912 N/mm, 577 mm):
+      run c on the specimens of run b, its reference
 - d   k_a, k_b and length_scale fitted on x and y together
 - b4, b8, b10   as b with 4, 8 and 10 loops on the specimens' shorter sides (b: 6)
 - bc  as b with the aspect ratios from the clamps (clamp separation over the specimen's width at
@@ -56,8 +58,9 @@ from knit_nlp.weft.inverse.calibration.calibrate import Calibration  # noqa: E40
 
 SPEC = ROOT / "problems" / "real_fabric" / "acrylic_fit_x.toml"
 PAPER = {"k_a": 100.0, "k_b": 1.0}          # Wada et al.'s k L² / R_f (k_a = 1, k_b = 0.01, R_f = 1, L = 10)
-RUNS = ("a0", "a", "b", "bx", "c", "c4", "c4k", "b4k", "d", "b4", "b8", "b10", "bc", "bfd")
+RUNS = ("a0", "a", "b", "bx", "c", "c4", "c4k", "b4k", "ck", "d", "b4", "b8", "b10", "bc", "bfd")
 B4 = {"k_a": 3.5e4, "k_b": 0.00623, "length_scale": 760.0}   # b4's answer (docs/real_fabric.md)
+B = {"k_a": 3.5e4, "k_b": 0.00912, "length_scale": 577.0}    # b's answer
 
 
 def _paper(doc: dict) -> dict:
@@ -84,10 +87,10 @@ def _clamp_aspects(doc: dict) -> dict:
     return doc
 
 
-def _from_b4(doc: dict) -> None:
-    """k_a held at b4's value, k_b and length_scale fitted from b4's answer."""
-    doc["material"].update(k_a=B4["k_a"], k_b=B4["k_b"])
-    doc["calibrate"].update(fit=["k_b", "length_scale"], length_scale=B4["length_scale"])
+def _from(doc: dict, answer: dict) -> None:
+    """k_a held at an answer's value, k_b and length_scale fitted from that answer."""
+    doc["material"].update(k_a=answer["k_a"], k_b=answer["k_b"])
+    doc["calibrate"].update(fit=["k_b", "length_scale"], length_scale=answer["length_scale"])
 
 
 def variant(name: str) -> dict:
@@ -101,15 +104,17 @@ def variant(name: str) -> dict:
         cal["fit"] = ["length_scale"]
     elif name == "bx":
         cal["strains"] = ["axial"]
-    elif name in ("c", "c4", "c4k"):
+    elif name in ("c", "c4", "c4k", "ck"):
         doc["yarn"] = {"radius": 0.74}
-        if name != "c":
+        if name in ("c4", "c4k"):
             cal["min_loops"] = 4
         if name == "c4k":
-            _from_b4(doc)
+            _from(doc, B4)
+        if name == "ck":
+            _from(doc, B)
     elif name == "b4k":
         cal["min_loops"] = 4
-        _from_b4(doc)
+        _from(doc, B4)
     elif name == "d":
         for test in doc["test"]:
             test["use"] = "fit"

@@ -1,7 +1,7 @@
-"""How contact rounds end (docs/contact.md, "Cost (measured)"), counted on small diagonal pulls,
-not timed: a step whose solve meets pairs it had no slot for deep inside their gap is solved
-again from its start with them, and a contact that pushed stays in the next solve when the
-pair search loses it (else the rounds cycle)."""
+"""How contact rounds end (docs/contact.md, "Cost (measured)"), counted on small diagonal pulls
+and a floppy wale pull, not timed: a step whose solve meets pairs it had no slot for deep inside
+their gap is solved again from its start with them, and a contact that pushed stays in the next
+solve unless the pair search finds it again at its own points (else the rounds cycle)."""
 from __future__ import annotations
 
 import dataclasses
