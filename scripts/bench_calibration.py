@@ -23,8 +23,8 @@ keys changed in memory, so the table says exactly what differs:
 - b4k as c4k without contact (the same start and fitted values: c4k's same-run reference)
 - ck  as c4k on c's own specimens (b's 6-loop ones), from b's answer (0.00912 N/mm, 577 mm):
       run c on the specimens of run b, its reference; its fit takes about half an hour and its
-      y curve stalled at wale strain 0.75 (docs/real_fabric.md, "Run c"): not in the default
-      runs' reach either
+      y curve stalled at wale strain 0.75 (docs/real_fabric.md, "Run c"); with c and c4 it
+      makes the default (all runs) take hours
 - d   k_a, k_b and length_scale fitted on x and y together
 - b4, b8, b10   as b with 4, 8 and 10 loops on the specimens' shorter sides (b: 6)
 - bc  as b with the aspect ratios from the clamps (clamp separation over the specimen's width at
