@@ -71,8 +71,7 @@ class WeftStudy:
         if start_from is not None:
             x0 = self.nlp.lift(start_from.coefficients, start_from.starts)
         rep = self.solve(params, x0, continuation)
-        if self.solver.progress is not None:
-            self.solver.progress.done()
+        self.solver.progress.done()
         return self.result(rep, params)
 
 

@@ -104,10 +104,9 @@ class WeftSolver:
 
     def start_clock(self) -> None:
         """Start the wall-clock budget ``[solver] max_time`` shared by the solves that follow
-        (each IPOPT call also stops itself at ``max_wall_time`` = max_time)."""
+        (:meth:`once` ends a solve at this deadline through the iteration callback)."""
         self.deadline = time.perf_counter() + self.wnlp.problem.solver.max_time
-        if getattr(self, "progress", None) is not None:
-            self.progress.start()
+        self.progress.start()
 
     def once(self, p: np.ndarray, x0: np.ndarray, *, lbg: np.ndarray | None = None,
              ubg: np.ndarray | None = None, lam_g0: np.ndarray | None = None) -> SolveReport:
