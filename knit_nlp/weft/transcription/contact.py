@@ -7,8 +7,11 @@ variables, like nlp.py lifts clamped points:
 
     P_A − X_kA − I(a_kA; s_A) = 0,   P_B − X_kB − I(a_kB; s_B) = 0,   Θ − φ(s_B)·a_kB = 0,
 
-with I(a; s) = ∫₀ˢ (cos θ, sin θ) du, θ = φ(u)·a (eqs. 1, 14-15), by the composite rule of
-``curves.py`` scaled to [0, s]; and one inequality row, the signed normal gap
+with I(a; s) = ∫₀ˢ (cos θ, sin θ) du, θ = φ(u)·a (eqs. 1, 14-15), by the cell rule of
+``curves.py``: I = Σ_{i<j} ΔI_i(a) + ∫_{s_j}^{s}, the whole cells' increments ΔI_i computed
+once per loop and shared by every slot on it (picked by a 0/1 mask per slot, U_i = [i < j],
+also a parameter), the partial cell by NODES nodes per point (measured: 6x fewer operations per
+slot than a rule on all of [0, s]); and one inequality row, the signed normal gap
 
     g_c = σ (P_A − P_B)·N(Θ) ≥ required_c,    N(Θ) = (−sin Θ, cos Θ),
 
@@ -16,9 +19,12 @@ the distance between the two points when P_A − P_B is normal to yarn B (the ou
 (s_A, s_B) on the closest points). A slot not in use gets the bound −∞.
 
 Derivatives (everything else in the NLP is handled by derivatives.py):
-- ∂I/∂a = s Σ_q w_q (−sin θ_q, cos θ_q) φ(s ξ_q)ᵀ;  λᵀ of the lifting rows adds
-  Σ_q s w_q (λ_x cos θ_q + λ_y sin θ_q) φ_q φ_qᵀ to loop k's coefficient block (the block the
-  bending energy and eq. (1) already fill: no new sparsity);
+- ∂I/∂a = Σ_i U_i ∂ΔI_i/∂a + ℓ Σ_q w_q (−sin θ_q, cos θ_q) φ(s_j + ℓ ξ_q)ᵀ, ℓ = s − s_j, with
+  ∂ΔI_i/∂a = h Σ_q w_q (−sin θ_iq, cos θ_iq) φ_iqᵀ per loop;  λᵀ of the lifting rows adds
+  Σ_q ℓ w_q (λ_x cos θ_q + λ_y sin θ_q) φ_q φ_qᵀ per slot and Σ_iq h w_q (Ω_x,i cos θ_iq +
+  Ω_y,i sin θ_iq) φ_iq φ_iqᵀ per loop (Ω_i = Σ of U_i λ over the slots' sides on the loop) to
+  loop k's coefficient block (the block the bending energy and eq. (1) already fill: no new
+  sparsity);
 - ∂g/∂P_A = σN, ∂g/∂P_B = −σN, ∂g/∂Θ = −σ (P_A − P_B)·T;  ∂²g/∂P_A∂Θ = −σT,
   ∂²g/∂P_B∂Θ = σT, ∂²g/∂Θ² = −g  (T = (cos Θ, sin Θ)).
 """
@@ -31,7 +37,7 @@ import numpy as np
 
 from ...layout import Layout
 from ..model.basis import n_coeffs
-from ..model.contact.curves import Curves, unit_rule
+from ..model.contact.curves import Curves, basis_at, cell_of, cell_rule
 from .derivatives import _block_triu_sparsity, _triu_pairs, closed_form_derivatives
 from .full import FullNLP
 
@@ -44,7 +50,7 @@ class ContactNLP:
     """The full weft NLP of ``base`` with contact slots appended (variables, parameters, rows).
 
     Variables: base x, then per slot (P_A, P_B, Θ). Parameters: base p, then s_A, s_B, σ of
-    every slot. Rows: base g, then the lifting rows (5 per slot), then the gap rows (1 per slot).
+    every slot, then the cell masks U of A's and of B's points (cells × slots each). Rows: base g, then the lifting rows (5 per slot), then the gap rows (1 per slot).
     """
 
     base: FullNLP
@@ -90,8 +96,12 @@ class ContactNLP:
 
     def parameters(self, p_base: np.ndarray, sA: np.ndarray, sB: np.ndarray,
                    sigma: np.ndarray) -> np.ndarray:
-        """The NLP's parameter vector."""
-        return np.concatenate([p_base, sA, sB, sigma])
+        """The NLP's parameter vector (the cell masks computed from s_A and s_B)."""
+        pr = self.problem
+        M = cell_rule(pr.t)[0]
+        masks = [(np.arange(M)[:, None] < cell_of(s, pr.L, pr.t)[None, :]).astype(float)
+                 for s in (sA, sB)]
+        return np.concatenate([p_base, sA, sB, sigma] + [m.ravel(order="F") for m in masks])
 
     def bounds(self, required: np.ndarray, used: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """lbg, ubg: the base rows' own bounds, equalities for the lifting rows, gap ≥ required
@@ -139,12 +149,15 @@ def build_contact_nlp(base: FullNLP, kA: np.ndarray, kB: np.ndarray) -> ContactN
     kA, kB = np.asarray(kA, dtype=int), np.asarray(kB, dtype=int)
     n, nx0, ng0, np0 = len(kA), base.n_variables, base.n_constraints, base.p.size
     x = ca.MX.sym("x", nx0 + VARS * n)
-    p = ca.MX.sym("p", np0 + 3 * n)
+    M = cell_rule(base.problem.t)[0]
+    extra = (3 + 2 * M) * n
+    p = ca.MX.sym("p", np0 + extra)
     xb, pb = x[:nx0], p[:np0]
     f_base = ca.Function("f_base", [base.nlp["x"], base.nlp["p"]], [base.nlp["f"]])
     g_base = ca.Function("g_base", [base.nlp["x"], base.nlp["p"]], [base.nlp["g"]])
-    sA, sB, sigma = p[np0:np0 + n], p[np0 + n:np0 + 2 * n], p[np0 + 2 * n:]
-    geo = _Geometry(base, x, sA, sB, sigma, kA, kB)
+    sA, sB, sigma = p[np0:np0 + n], p[np0 + n:np0 + 2 * n], p[np0 + 2 * n:np0 + 3 * n]
+    masks = ca.reshape(p[np0 + 3 * n:], M, 2 * n)
+    geo = _Geometry(base, x, sA, sB, sigma, kA, kB, (masks[:, :n], masks[:, n:]))
     g = ca.vertcat(g_base(xb, pb), geo.lift_rows, geo.gap)
     xl = Layout()
     for name, (_, _, shape) in base.x.blocks.items():
@@ -157,17 +170,17 @@ def build_contact_nlp(base: FullNLP, kA: np.ndarray, kB: np.ndarray) -> ContactN
     gap_rows = gl.add("contact_gap", n, 1)
     nlp = {"x": x, "p": p, "f": f_base(xb, pb), "g": g}
     derivs = _derivatives(base, geo, x, p, g, nx0, ng0, n)
-    return ContactNLP(base, kA, kB, nlp, derivs, xl, gl, gap_rows, extra_p=3 * n,
+    return ContactNLP(base, kA, kB, nlp, derivs, xl, gl, gap_rows, extra_p=extra,
                       jacobian=derivs["jac_g"])
 
 
 class _Geometry:
     """Symbolic pieces shared by the rows and their derivatives, vectorised over the points
     (nodes × points matrices; measured 2x faster to evaluate than a small SX Function mapped
-    over the points)."""
+    over the points), and the loops' whole-cell increments (nodes × loops)."""
 
     def __init__(self, base: FullNLP, x: ca.MX, sA: ca.MX, sB: ca.MX, sigma: ca.MX,
-                 kA: np.ndarray, kB: np.ndarray) -> None:
+                 kA: np.ndarray, kB: np.ndarray, masks: tuple[ca.MX, ca.MX]) -> None:
         pr = base.problem
         n, nx0 = len(kA), base.n_variables
         nc, N, L, t = n_coeffs(pr.t), pr.n_loops, pr.L, pr.t
@@ -175,22 +188,30 @@ class _Geometry:
         X = ca.reshape(x[base.x.slice("starts")], 2, N)
         z = ca.reshape(x[nx0:], VARS, n)
         self.n, self.nc, self.kA, self.kB = n, nc, kA, kB
-        xi, w = unit_rule(t)
+        M, xi, w = cell_rule(t)
         self.w = ca.DM(w)
+        self.cells = _Cells(A, L, t)
         self.sides = []
         Q = len(xi)
-        for k, s in ((kA, sA), (kB, sB)):
+        for k, s, U in ((kA, sA, masks[0]), (kB, sB, masks[1])):
             srow = ca.transpose(s)
-            nodes = ca.mtimes(ca.DM(xi), srow)                         # Q × n
+            sj = (L / M) * ca.sum1(U)                                  # cell starts, 1 × n
+            ell = srow - sj
+            nodes = ca.repmat(sj, Q, 1) + ca.mtimes(ca.DM(xi), ell)    # Q × n
             phis = _basis(nodes, L, t)                                 # nc matrices Q × n
             Ak = A[:, k.tolist()]                                      # nc × n
             theta = sum(phis[c] * ca.repmat(Ak[c, :], Q, 1) for c in range(nc))
             cos, sin = ca.cos(theta), ca.sin(theta)
-            I = ca.vertcat(srow * ca.mtimes(self.w.T, cos), srow * ca.mtimes(self.w.T, sin))
-            ws = ca.repmat(self.w, 1, n) * ca.repmat(srow, Q, 1)        # s·w_q, Q × n
-            dIx = ca.vertcat(*[-ca.sum1(ws * sin * phis[c]) for c in range(nc)])
-            dIy = ca.vertcat(*[ca.sum1(ws * cos * phis[c]) for c in range(nc)])
-            self.sides.append((k, s, (ws, cos, sin, phis), I, dIx, dIy, X[:, k.tolist()]))
+            kl = k.tolist()
+            whole = self.cells
+            I = ca.vertcat(ca.sum1(U * whole.dx[:, kl]) + ell * ca.mtimes(self.w.T, cos),
+                           ca.sum1(U * whole.dy[:, kl]) + ell * ca.mtimes(self.w.T, sin))
+            ws = ca.repmat(self.w, 1, n) * ca.repmat(ell, Q, 1)         # ℓ·w_q, Q × n
+            dIx = ca.vertcat(*[ca.sum1(U * whole.ddx[c][:, kl]) - ca.sum1(ws * sin * phis[c])
+                               for c in range(nc)])
+            dIy = ca.vertcat(*[ca.sum1(U * whole.ddy[c][:, kl]) + ca.sum1(ws * cos * phis[c])
+                               for c in range(nc)])
+            self.sides.append((k, U, (ws, cos, sin, phis), I, dIx, dIy, X[:, kl]))
         PA, PB, Th = z[0:2, :], z[2:4, :], z[4, :]
         self.phiB = ca.vertcat(*_basis(ca.transpose(sB), L, t))          # nc × n
         theta_B = ca.sum1(self.phiB * A[:, kB.tolist()])
@@ -202,6 +223,35 @@ class _Geometry:
         self.d = PA - PB
         self.sigma = ca.transpose(sigma)
         self.gap = ca.vec(self.sigma * ca.sum1(self.d * self.N))
+
+
+class _Cells:
+    """Every loop's whole-cell increments ΔI_i = ∫ over cell i of (cos θ, sin θ) (M × N for
+    x and y) and their derivatives by each coefficient (nc matrices M × N each): the cells'
+    nodes are fixed, so φ there is a constant matrix and θ = Φ a one product for all loops."""
+
+    def __init__(self, A: ca.MX, L: float, t: int) -> None:
+        M, xi, w = cell_rule(t)
+        h = L / M
+        u = ((np.arange(M)[:, None] + xi[None, :]) * h).ravel()         # M·Q nodes
+        self.phi = basis_at(u, L, t)                                   # M·Q × nc
+        theta = ca.mtimes(ca.DM(self.phi), A)                          # M·Q × N
+        self.cos, self.sin = ca.cos(theta), ca.sin(theta)
+        self.rep = np.kron(np.eye(M), h * w[:, None])                  # M·Q × M: h w_q
+        W = ca.DM(self.rep.T)                                          # M × M·Q
+        self.dx, self.dy = ca.mtimes(W, self.cos), ca.mtimes(W, self.sin)
+        self.ddx = [-ca.mtimes(ca.DM(self.rep.T * self.phi[:, c]), self.sin)
+                    for c in range(self.phi.shape[1])]
+        self.ddy = [ca.mtimes(ca.DM(self.rep.T * self.phi[:, c]), self.cos)
+                    for c in range(self.phi.shape[1])]
+
+    def hessian_blocks(self, omega_x: ca.MX, omega_y: ca.MX, iu, ju) -> ca.MX:
+        """Σ_iq h w_q (Ω_x,i cos θ_iq + Ω_y,i sin θ_iq) φ_c φ_d at the cells' nodes, for the
+        upper-triangle pairs (c, d) = (iu, ju): pairs × N."""
+        R = ca.DM(self.rep)
+        coef = ca.mtimes(R, omega_x) * self.cos + ca.mtimes(R, omega_y) * self.sin
+        pp = ca.DM(np.stack([self.phi[:, i] * self.phi[:, j] for i, j in zip(iu, ju)]))
+        return ca.mtimes(pp, coef)
 
 
 def _basis(u: ca.MX, L: float, t: int) -> list[ca.MX]:
@@ -277,12 +327,18 @@ def _contact_hessian(base: FullNLP, geo: _Geometry, lam_lift: ca.MX, lam_gap: ca
     lam = ca.reshape(lam_lift, LIFT, n)
     iu, ju = _triu_pairs(nc)
     blocks = ca.MX(len(iu), N)
-    for side, (k, s, (ws, cos, sin, phis), *_rest) in enumerate(geo.sides):
+    M = geo.cells.dx.shape[0]
+    omega_x, omega_y = ca.MX(M, N), ca.MX(M, N)
+    for side, (k, U, (ws, cos, sin, phis), *_rest) in enumerate(geo.sides):
         Q = ws.shape[0]
         lx, ly = lam[2 * side, :], lam[2 * side + 1, :]
         omega = ws * (ca.repmat(lx, Q, 1) * cos + ca.repmat(ly, Q, 1) * sin)   # Q × n
         per_point = ca.vertcat(*[ca.sum1(omega * phis[i] * phis[j]) for i, j in zip(iu, ju)])
-        blocks += ca.mtimes(per_point, _scatter(k, N))                 # sum points per loop
+        scatter = _scatter(k, N)
+        blocks += ca.mtimes(per_point, scatter)                        # sum points per loop
+        omega_x += ca.mtimes(U * ca.repmat(lx, M, 1), scatter)          # Ω per loop and cell
+        omega_y += ca.mtimes(U * ca.repmat(ly, M, 1), scatter)
+    blocks += geo.cells.hessian_blocks(omega_x, omega_y, iu, ju)
     H_blocks = ca.MX(_block_triu_sparsity(N, nc, coeff0, nx), ca.vec(blocks))
     slot = np.arange(n)
     th = nx0 + VARS * slot + 4

@@ -1,38 +1,45 @@
-"""Loop centrelines at arbitrary material points, on numbers: the positions of eq. (1) by a
-composite Gauss-Legendre rule scaled to [0, s], the same rule the contact rows of the NLP use
-(so lifted contact points start exactly on their rows), and their tangent angles.
+"""Loop centrelines at arbitrary material points, on numbers: the positions of eq. (1) by the
+cell rule below, the same rule the contact rows of the NLP use (so lifted contact points start
+exactly on their rows), and their tangent angles.
 
-P(k, s) = X_k + ∫₀ˢ (cos θ_k, sin θ_k) du with θ_k(u) = φ(u)·a_k (eqs. 14-15): the integral is
-s·Σ_q w_q (cos θ_k(s ξ_q), sin θ_k(s ξ_q)) with nodes ξ_q and weights w_q of :func:`panels`
-equal panels of ``NODES`` Gauss nodes on [0, 1].
-s may lie a little outside [0, L] (the formula continues the loop smoothly); contact uses that
-for feet just past a loop's end.
+P(k, s) = X_k + ∫₀ˢ (cos θ_k, sin θ_k) du with θ_k(u) = φ(u)·a_k (eqs. 14-15). [0, L] is cut
+into :func:`cells` equal cells of width h; s lies in cell j = ⌊s/h⌋ (clipped to the first and
+last), and the integral is the sum of the whole cells before j (each by ``NODES`` Gauss nodes,
+shared by every point of the loop) plus the partial cell [j h, s] by ``NODES`` Gauss nodes
+scaled to it. s may lie a little outside [0, L] (the formula continues the loop smoothly);
+contact uses that for feet just past a loop's end.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 
-NODES = 12          # Gauss-Legendre nodes per panel
+NODES = 8           # Gauss-Legendre nodes per cell
 
 
-def panels(t: int) -> int:
-    """Equal panels on [0, s] for t harmonics: 4 for t <= 3, growing with t. Measured on loops
-    with random coefficients of all harmonics (t = 3, L = 10, s up to L): 4 panels of 12 nodes
-    err by 2e-9, 8 panels of 12 by 3e-15 (4 of 8: 1.6e-5)."""
-    return max(4, -(-4 * t // 3))
+def cells(t: int) -> int:
+    """Equal cells on [0, L] for t harmonics: 8 for t <= 3, growing with t. Measured on loops
+    with θ = 2 sin(2πu/L) (the natural jersey's) plus random coefficients of every harmonic
+    (sd 0.4; t = 3, L = 10, s in [-0.3, L + 0.3]): 8 cells of 8 nodes err by 1.6e-8, as the
+    composite rule on [0, s] this replaced (4 panels of 12 nodes: 3.7e-8); 8 cells of 6 nodes
+    by 5.5e-6."""
+    return max(8, -(-8 * t // 3))
 
 
 @lru_cache(maxsize=16)
-def unit_rule(t: int) -> tuple[np.ndarray, np.ndarray]:
-    """Nodes ξ and weights w of the composite rule on [0, 1] (Σ w = 1) for t harmonics."""
-    panels_, nodes = panels(t), NODES
-    x, w = np.polynomial.legendre.leggauss(nodes)
-    left = np.arange(panels_)[:, None] / panels_
-    xi = (left + (x[None, :] + 1.0) / (2 * panels_)).ravel()
-    return xi, np.tile(w / (2 * panels_), panels_)
+def cell_rule(t: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """Cells M, and nodes ξ and weights w of one cell's rule on [0, 1] (Σ w = 1)."""
+    x, w = np.polynomial.legendre.leggauss(NODES)
+    return cells(t), (x + 1.0) / 2.0, w / 2.0
+
+
+def cell_of(s: np.ndarray, L: float, t: int) -> np.ndarray:
+    """The cell j of each material point s (integers; points before 0 or past L take the
+    first or last cell)."""
+    M = cells(t)
+    return np.clip(np.floor(np.asarray(s, dtype=float) * M / L), 0, M - 1).astype(int)
 
 
 def basis_at(u: np.ndarray, L: float, t: int) -> np.ndarray:
@@ -76,15 +83,29 @@ class Curves:
         """θ'_k(s), the signed curvature."""
         return np.einsum("...c,...c->...", dbasis_at(s, self.L, self.t), self.coeffs[k])
 
+    @cached_property
+    def prefix(self) -> np.ndarray:
+        """∫ from 0 to each cell's start, every loop: (N, cells + 1, 2), by the cell rule."""
+        M, xi, w = cell_rule(self.t)
+        h = self.L / M
+        u = (np.arange(M)[:, None] + xi) * h                          # (M, Q)
+        theta = np.einsum("mqc,nc->nmq", basis_at(u, self.L, self.t), self.coeffs)
+        inc = h * np.stack([np.cos(theta) @ w, np.sin(theta) @ w], axis=-1)
+        return np.concatenate([np.zeros((len(self.coeffs), 1, 2)), np.cumsum(inc, axis=1)],
+                              axis=1)
+
     def points(self, k: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """Positions P(k, s), shape k.shape + (2,), by the composite rule on [0, s]."""
+        """Positions P(k, s), shape k.shape + (2,), by the cell rule."""
         k, s = np.broadcast_arrays(np.asarray(k), np.asarray(s, dtype=float))
-        xi, w = unit_rule(self.t)
-        nodes = s[..., None] * xi                                    # (..., Q)
+        M, xi, w = cell_rule(self.t)
+        j = cell_of(s, self.L, self.t)
+        sj = j * (self.L / M)
+        length = s - sj
+        nodes = sj[..., None] + length[..., None] * xi                # (..., Q)
         theta = np.einsum("...qc,...c->...q", basis_at(nodes, self.L, self.t),
                           self.coeffs[k])
-        disp = s[..., None] * np.stack([np.cos(theta) @ w, np.sin(theta) @ w], axis=-1)
-        return self.starts[k] + disp
+        part = length[..., None] * np.stack([np.cos(theta) @ w, np.sin(theta) @ w], axis=-1)
+        return self.starts[k] + (self.prefix[k, j] + part)
 
     def frames(self, k: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, unit tangents and signed curvatures at (k, s)."""
