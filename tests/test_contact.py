@@ -196,6 +196,26 @@ def test_natural_gaps_of_the_jersey_preset():
     assert float(fab.table((0, 0)).natural_gap.min()) == pytest.approx(0.529, abs=2e-3)
 
 
+@pytest.mark.parametrize("radius", [0.15, 0.5])
+def test_natural_tables_skip_only_offsets_whose_pieces_are_all_apart(monkeypatch, radius):
+    """The shortcut for far loop offsets (every piece more than 2r apart, no designed box
+    reaching in) gives the same required gaps, min(2r, natural gap), as the full table."""
+    pr = parse_problem(unclamped(3, 3), "x")
+    offsets = [(di, dj) for di in range(-2, 3) for dj in range(-3, 4)]
+    fast = NaturalFabric._new(pr, radius)
+    quick = {o: np.minimum(2 * radius, fast.table(o).natural_gap) for o in offsets}
+    import knit_nlp.weft.model.contact.natural as natural
+    monkeypatch.setattr(natural, "_box_distance", lambda a, b: 0.0)
+    slow = NaturalFabric._new(pr, radius)
+    skipped = 0
+    for o in offsets:
+        full = np.minimum(2 * radius, slow.table(o).natural_gap)
+        np.testing.assert_array_equal(quick[o], full)
+        assert fast.table(o).interlocks == slow.table(o).interlocks
+        skipped += fast.table(o).natural_gap.strides == (0, 0)
+    assert skipped >= 10                                   # the shortcut is taken
+
+
 def test_positions_by_the_cell_rule_match_adaptive_quadrature():
     """Curves.points (the rule the contact rows use) against scipy's adaptive quadrature of
     eq. (1) on loops like the natural jersey's with every harmonic perturbed, at points in

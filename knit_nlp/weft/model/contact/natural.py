@@ -32,6 +32,7 @@ SLIDE = 0.1                # minimal designed-zone half-width, in loop lengths (
 EXCLUSION = 1.0            # same-yarn pieces closer than EXCLUSION·π·r along the yarn are one
 NEIGHBOURHOOD = 0.05       # half-width (loop lengths) of the natural-gap min over nearby pieces
 GRID_SAG = 0.5             # |curvature| / 4 bound of the grid's allowance (1 / length units)
+SHARED = 8                 # natural fabrics kept (each with its tables) for later solves
 
 
 @dataclass(frozen=True)
@@ -68,7 +69,20 @@ class NaturalFabric:
 
     @classmethod
     def of(cls, problem, radius: float) -> "NaturalFabric":
-        """From a weft problem's natural loop and a yarn radius."""
+        """From a weft problem's natural loop and a yarn radius; one shared instance (and its
+        tables) per natural loop and radius, so the solves of a study, a fit or a control
+        build each table once (a table costs 30-100 ms)."""
+        nat = problem.natural
+        key = (nat.length, nat.harmonics, tuple(np.ravel(nat.coeffs).tolist()),
+               nat.wale_spacing, nat.rise, nat.course_spacing, float(radius))
+        if key not in _SHARED:
+            if len(_SHARED) >= SHARED:
+                _SHARED.pop(next(iter(_SHARED)))
+            _SHARED[key] = cls._new(problem, radius)
+        return _SHARED[key]
+
+    @classmethod
+    def _new(cls, problem, radius: float) -> "NaturalFabric":
         nat = problem.natural
         s = np.linspace(0.0, nat.length, GRID)
         return cls(nat.length, nat.xy(s), np.array([nat.wale_spacing, nat.rise]),
@@ -101,6 +115,11 @@ class NaturalFabric:
     def _build(self, offset: tuple[int, int]) -> OffsetTable:
         di, dj = offset
         a, b = self.xy, self.xy + self.shift(np.array(di), np.array(dj))
+        reaching = self._reaching(offset)
+        if not reaching and _box_distance(a, b) > 2 * self.radius + self.L / 100:
+            # every piece pair is naturally more than 2r apart and none is designed: the
+            # required gap is 2r throughout (measured: most offsets a search meets)
+            return OffsetTable(offset, np.broadcast_to(np.float32(np.inf), (GRID, GRID)), ())
         dist = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=-1)
         s = self.s
         same = np.zeros_like(dist, dtype=bool)
@@ -108,7 +127,7 @@ class NaturalFabric:
             same = np.abs(dj * self.L + s[None, :] - s[:, None]) < self.exclusion
         interlocks = self._own_interlocks(offset)
         designed = np.zeros_like(same)
-        for lock in self._reaching(offset):
+        for lock in reaching:
             ia = (s >= lock.a[0]) & (s <= lock.a[1])
             ib = (s >= lock.b[0]) & (s <= lock.b[1])
             designed |= ia[:, None] & ib[None, :]
@@ -127,6 +146,9 @@ class NaturalFabric:
         if offset not in self._locks:
             a = self.xy
             b = self.xy + self.shift(np.array(offset[0]), np.array(offset[1]))
+            if _box_distance(a, b) > 2 * self.radius:
+                self._locks[offset] = []           # no crossing, no lens: boxes apart
+                return []
             dist = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=-1)
             self._locks[offset] = _interlocks(self, a, b, dist)
         return self._locks[offset]
@@ -166,6 +188,16 @@ class NaturalFabric:
         """How many times the natural loops of an offset cross (0 for the shared end of two
         neighbours in a course)."""
         return sum(len(lock.crossings) for lock in self._own_interlocks(offset))
+
+
+_SHARED: dict[tuple, "NaturalFabric"] = {}
+
+
+def _box_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Distance between the bounding boxes of two polylines (0 where they overlap): a lower
+    bound of every distance between their points."""
+    gap = np.maximum(np.maximum(a.min(0) - b.max(0), b.min(0) - a.max(0)), 0.0)
+    return float(np.hypot(*gap))
 
 
 def natural_crossings(a: np.ndarray, b: np.ndarray, s: np.ndarray
