@@ -45,6 +45,9 @@ def main(argv: list[str] | None = None) -> None:
     x = c.lift(base.x0, sA, sB)
     p = c.parameters(pb, sA, sB, np.ones(n))
     lam = rng.normal(size=c.n_constraints)
+    # DM inputs: IPOPT hands CasADi its own arrays; numpy ones would add their conversion
+    # (about 3.5 ms at 2,900 slots) to every timing
+    x, p, lam, pb = ca.DM(x), ca.DM(p), ca.DM(lam), ca.DM(pb)
     g = ca.Function("g", [c.nlp["x"], c.nlp["p"]], [c.nlp["g"]])
     g_base = ca.Function("g", [base.nlp["x"], base.nlp["p"]], [base.nlp["g"]])
     d = c.nlpsol_options

@@ -34,13 +34,17 @@ def _pairs(n: int) -> Pairs:
 
 
 def test_the_slot_pool_shrinks_when_far_larger_than_its_pairs_need():
-    """200 pairs, then 10: the pool of 300 slots (a widened search's) is rebuilt for the 10
-    (with SPARE), not kept; a small change after that reuses the pool (it used to grow only)."""
+    """200 pairs, then 10: the pool of a widened search is rebuilt for the 10 (with SPARE),
+    not kept; a change the pool still holds reuses it (it used to grow only)."""
     contact, _ = _solver()
-    assert contact._slots(_pairs(200)) and contact.cnlp.n_slots == 300
-    assert contact._slots(_pairs(10)) and contact.cnlp.n_slots == 15
-    assert not contact._slots(_pairs(12)) and contact.cnlp.n_slots == 15
-    assert contact._slots(_pairs(40)) and contact.cnlp.n_slots == 60
+
+    def pool(n: int) -> int:
+        return int(np.ceil(n * (1 + rounds.SPARE)))
+
+    assert contact._slots(_pairs(200)) and contact.cnlp.n_slots == pool(200)
+    assert contact._slots(_pairs(10)) and contact.cnlp.n_slots == pool(10)
+    assert not contact._slots(_pairs(pool(10))) and contact.cnlp.n_slots == pool(10)
+    assert contact._slots(_pairs(40)) and contact.cnlp.n_slots == pool(40)
 
 
 def _reaches(status: str) -> list[float]:

@@ -51,8 +51,12 @@ MOVED = 0.5                # contact points that moved less than this many sampl
 SAME = 0.01
 FLIP = 1e-6               # a pair now this far (relative to L) on its other side passed through
 CROSSED = "Contact_Crossing"        # the status of a step that let yarns cross
-SPARE = 0.5                # extra slots per pair of loops, relative, when (re)building
-SHRINK = 2.0               # a pool above this many times the pairs' need (with SPARE) is rebuilt
+# every slot, used or not, costs its rows in every evaluation and its 5 variables and 6 rows in
+# every KKT factorisation, and a rebuild is cheap (0.2 s at 3,000 slots): measured on the 10 x
+# 10 diagonal pull, SPARE 0.5 / SHRINK 2 held 2.85 slots per pair (16.1 s), 0.1 / 1.2 held
+# 1.4 (10.0 s), 0 / 1 (a rebuild nearly every round) 7.9 s but 6 x 6 in 7.5 s against 4.3 s
+SPARE = 0.1                # extra slots per pair of loops, relative, when (re)building
+SHRINK = 1.2               # a pool above this many times the pairs' need (with SPARE) is rebuilt
 MIN_POOL = 64              # ... but a pool of this many slots is never too large
 # a solve that ends with pairs below (1 - DEEP) of their required gap (pairs it had no slot for,
 # out of reach at the step's start: the yarns nearly crossed) restarts the step from its start
