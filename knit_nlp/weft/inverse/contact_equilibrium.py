@@ -41,7 +41,7 @@ from ..solving.contact.rounds import ContactRun, ContactSolver
 from ..solving.contact.solve import ACTIVE, contact_block, solve_with_contact
 from ..solving.solve import SolveReport
 from ..model.basis import n_coeffs
-from ..transcription.contact import VARS, ContactNLP, _basis
+from ..transcription.contact import ContactNLP, _basis
 from .equilibrium import Equilibrium, scipy_matrix
 
 KEEP = 16                  # solved contact states remembered (by base solution) for the KKT
@@ -158,7 +158,7 @@ class ContactEquilibrium(Equilibrium):
         nb = self.wnlp.n_variables
         if rep.success and last is not None and np.array_equal(last[2][:nb], rep.x):
             cnlp, pc, xc, lamc, used, sigma, required = last
-            active = active_gaps(cnlp.gaps(xc, sigma), required, lamc[cnlp.gap_rows], used,
+            active = active_gaps(cnlp.gaps(xc, pc), required, lamc[cnlp.gap_rows], used,
                                  self.problem.solver.tol)
             state = ContactState(cnlp, pc, xc, lamc, active, block)
         self.states[key] = state
@@ -257,15 +257,15 @@ def sliding_function(c: ContactNLP) -> ca.Function:
     base, n = c.base, c.n_slots
     pr = base.problem
     x, p = c.nlp["x"], c.nlp["p"]
-    nc, N, nb = n_coeffs(pr.t), pr.n_loops, base.n_variables
+    nc, N = n_coeffs(pr.t), pr.n_loops
     A = ca.reshape(x[base.x.slice("coeffs")], nc, N)
-    z = ca.reshape(x[nb:], VARS, n)
+    PA, PB, Th = c.points(x, p)
     sA = p[base.p.size:base.p.size + n]
     phis = _basis(ca.transpose(sA), pr.L, pr.t)
     theta_A = sum(phis[k] * A[k, c.kA.tolist()] for k in range(nc))
-    d = z[0:2, :] - z[2:4, :]
+    d = PA - PB
     C = ca.vec(ca.vertcat(d[0, :] * ca.cos(theta_A) + d[1, :] * ca.sin(theta_A),
-                          d[0, :] * ca.cos(z[4, :]) + d[1, :] * ca.sin(z[4, :])))
+                          d[0, :] * ca.cos(Th) + d[1, :] * ca.sin(Th)))
     gc = c.nlp["g"][base.n_constraints:]
     lam = ca.MX.sym("lam_c", gc.numel())
     Fc = ca.vertcat(ca.gradient(ca.dot(lam, gc), x), gc)
