@@ -15,6 +15,7 @@ from knit_nlp.weft.inverse.calibration.spec import spec_path
 from knit_nlp.weft.inverse.calibration.calibrate import GOAL_MARGIN, Calibration
 from knit_nlp.weft.model.cases import diagonal_pull
 from knit_nlp.weft.model.problem import Yarn, parse_problem
+from knit_nlp.weft.solving.contact import rounds
 from knit_nlp.weft.solving.contact.rounds import ContactSolver
 from knit_nlp.weft.study import ContactStudy
 
@@ -48,6 +49,22 @@ def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_sta
     again = [(a, b) for a, b in zip(starts, starts[1:]) if b[0] == a[0] + ", round 2"
              and np.array_equal(a[1], b[1])]
     assert again and again[0][1][2] > again[0][0][2]
+
+
+def test_a_step_still_deep_after_its_restarts_fails_and_is_retried_not_continued(monkeypatch):
+    """4 x 4 pull with no restarts allowed: the step whose solve met pairs deep inside their
+    gap fails (Contact_Deep_Pairs) and is searched wider and halved, instead of being
+    continued from the nearly crossed state (on the 30 x 30 pull: 370+ IPOPT iterations and
+    the energy 100x up); the pull still ends clean."""
+    monkeypatch.setattr(rounds, "RESTARTS", 0)
+    st = _study(4, 120.0)
+    said: list[str] = []
+    st.contact.log = lambda m: said.append(m if isinstance(m, str) else "")
+    res = st.run()
+    block = res.extra["contact"]
+    assert any("still deep inside their gap" in m for m in said)
+    assert res.success and block["new_crossings"] == 0
+    assert block["smallest_gap_over_2r"] >= 1 - 1e-4
 
 
 def test_rounds_do_not_cycle_when_the_search_loses_a_pushing_contact():

@@ -51,6 +51,7 @@ MOVED = 0.5                # contact points that moved less than this many sampl
 SAME = 0.01
 FLIP = 1e-6               # a pair now this far (relative to L) on its other side passed through
 CROSSED = "Contact_Crossing"        # the status of a step that let yarns cross
+DEEP_PAIRS = "Contact_Deep_Pairs"   # ... and of one still nearly crossed after its restarts
 # every slot, used or not, costs its rows in every evaluation and its 5 variables and 6 rows in
 # every KKT factorisation, and a rebuild is cheap (0.2 s at 3,000 slots): measured on the 10 x
 # 10 diagonal pull, SPARE 0.5 / SHRINK 2 held 2.85 slots per pair (16.1 s), 0.1 / 1.2 held
@@ -61,7 +62,8 @@ MIN_POOL = 64              # ... but a pool of this many slots is never too larg
 # a solve that ends with pairs below (1 - DEEP) of their required gap (pairs it had no slot for,
 # out of reach at the step's start: the yarns nearly crossed) restarts the step from its start
 # with those pairs, at most RESTARTS times a step: on the 6 x 6 pull continuing from the nearly
-# crossed state took 100-220 IPOPT iterations a round and still let yarns cross
+# crossed state took 100-220 IPOPT iterations a round and still let yarns cross. A step still
+# nearly crossed after its restarts fails (DEEP_PAIRS): searched once wider, then halved
 DEEP = 0.5
 RESTARTS = 2
 
@@ -261,7 +263,16 @@ class ContactSolver:
                     self.log(self.why)
                 return None
             deep = found.gap < found.required * (1 - DEEP)
-            if deep.any() and restarts < RESTARTS:
+            if deep.any() and restarts == RESTARTS:
+                # still nearly crossed after the restarts: continuing from here took 370+
+                # IPOPT iterations a round on the 30 x 30 pull and drove the energy 100x up;
+                # a shorter step (after one wider search) is cheaper
+                report.status = DEEP_PAIRS
+                if self.log is not None:
+                    self.log(f"  {int(deep.sum())} pairs still deep inside their gap after "
+                             f"{RESTARTS} restarts: the step fails")
+                return None
+            if deep.any():
                 more = self._restart(start, found.select(deep))
                 if more is not None:
                     restarts += 1
@@ -325,7 +336,7 @@ class ContactSolver:
             if out is None:
                 # first widen the reach (a pair farther away may be what the step needed:
                 # a body pushed by a load has nothing else to stop it), then halve the step
-                widest = WIDE_CROSSED if report.status == CROSSED else WIDEST
+                widest = WIDE_CROSSED if report.status in (CROSSED, DEEP_PAIRS) else WIDEST
                 if self.reach < widest * self.base.problem.L:
                     self.reach *= 2
                     pairs = self.pairs(x)
