@@ -68,7 +68,7 @@ def test_a_step_that_let_yarns_cross_is_halved_after_one_widening():
     L = 10.0
     crossed = _reaches(rounds.CROSSED)
     assert max(crossed) == rounds.WIDE_CROSSED * L and len(crossed) == 3   # widen once, halve
-    deep = _reaches(rounds.DEEP_PAIRS)                        # nearly crossed: the same
-    assert max(deep) == rounds.WIDE_CROSSED * L and len(deep) == 3
+    deep = _reaches(rounds.DEEP_PAIRS)                        # nearly crossed: halve at once
+    assert deep == [rounds.REACH * L] * 2
     diverged = _reaches("Diverging_Iterates")
     assert max(diverged) >= rounds.WIDEST * L                 # nothing stops it: widen further

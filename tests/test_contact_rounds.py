@@ -53,8 +53,8 @@ def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_sta
 
 def test_a_step_still_deep_after_its_restarts_fails_and_is_retried_not_continued(monkeypatch):
     """4 x 4 pull with no restarts allowed: the step whose solve met pairs deep inside their
-    gap fails (Contact_Deep_Pairs) and is searched wider and halved, instead of being
-    continued from the nearly crossed state (on the 30 x 30 pull: 370+ IPOPT iterations and
+    gap fails (Contact_Deep_Pairs) and is halved, instead of being continued from the nearly
+    crossed state (on the 30 x 30 pull: 370+ IPOPT iterations and
     the energy 100x up); the pull still ends clean."""
     monkeypatch.setattr(rounds, "RESTARTS", 0)
     st = _study(4, 120.0)
