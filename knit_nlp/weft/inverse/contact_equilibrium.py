@@ -7,11 +7,11 @@ rounds or load steps with contact), or, inside the control iteration, one load s
 from the last solved state (``origin``) to the new actuation, halved where yarns would cross —
 the path the clamps actually travel. The contact solver keeps (``ContactSolver.last``) the
 last accepted solve of the contact NLP: its slots (material points s_A, s_B and sides σ), its
-full solution (base variables and the slots' lifted P_A, P_B, Θ) and multipliers.
+solution (the base variables: the contact rows lift nothing) and multipliers.
 
-Sensitivities: the KKT system of that contact NLP at its solution, with the lifting rows as
-equalities, the active gap rows (force −λ beyond ``ACTIVE`` of the largest, as the result's
-``contact`` block counts them) as equalities and the inactive gap rows dropped — the standard
+Sensitivities: the KKT system of that contact NLP at its solution, with the active gap rows
+(force −λ beyond ``ACTIVE`` of the largest, as the result's ``contact`` block counts them) as
+equalities and the inactive gap rows dropped — the standard
 sensitivity of an inequality-constrained minimum under strict complementarity, valid while the
 active set does not change. The parameters of control (clamp targets, rigid motions) enter only
 the base rows, so ∂F/∂p is the base NLP's, padded with zeros for the slots' rows. The active
@@ -21,7 +21,7 @@ curvature, times the contact force, enters K — fixed points give dx/dp 7 % off
 differences on the squeezed loop, sliding ones 4e-5 (``sliding_system``).
 
 Stability: the Lagrangian Hessian of the contact NLP (points held) reduced to the null space of
-the Jacobian of the base equalities, the lifting rows and the active gap rows
+the Jacobian of the base equalities and the active gap rows
 (``reduced_stability``).
 """
 from __future__ import annotations
@@ -213,8 +213,7 @@ class ContactEquilibrium(Equilibrium):
         return self._slide_fn
 
     def system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray) -> tuple[ca.DM, ca.DM, int]:
-        """The contact NLP's KKT matrix on the base rows, the lifting rows and the active gap
-        rows; ∂F/∂p (base parameters) and the size of its Hessian block. Without a contact
+        """The contact NLP's KKT matrix on the base rows and the active gap rows; ∂F/∂p (base parameters) and the size of its Hessian block. Without a contact
         solve behind x (the paper's solution had no contact), the base system."""
         st = self.state(x)
         if st is None or not st.active.any():

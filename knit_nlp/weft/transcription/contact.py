@@ -209,7 +209,7 @@ class _Geometry:
 class _Cells:
     """Every loop's whole-cell increments ΔI_i = ∫ over cell i of (cos θ, sin θ) (M × N for
     x and y) and their derivatives by each coefficient (nc matrices M × N each): the cells'
-    nodes are fixed, so φ there is a constant matrix and θ = Φ a one product for all loops."""
+    nodes are fixed, so φ there is a constant matrix and θ = Φ·A one product for all loops."""
 
     def __init__(self, A: ca.MX, L: float, t: int) -> None:
         M, xi, w = cell_rule(t)
