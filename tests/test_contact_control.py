@@ -59,7 +59,7 @@ def test_sensitivities_with_an_active_contact_match_central_differences(jammed):
 
 
 def test_stability_with_an_active_contact(jammed):
-    """The reduced Hessian on the null space of the base and active gap rows: the
+    """The reduced Hessian on the null space of the base, lifting and active gap rows: the
     sparse method (inertia, then Lanczos) agrees with the dense null-space basis."""
     eq, rep, p, _, _ = jammed
     sparse, dense = (eq.stability(rep.x, rep.lam_g, p, m) for m in ("sparse", "dense"))

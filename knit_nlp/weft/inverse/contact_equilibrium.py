@@ -7,11 +7,11 @@ rounds or load steps with contact), or, inside the control iteration, one load s
 from the last solved state (``origin``) to the new actuation, halved where yarns would cross —
 the path the clamps actually travel. The contact solver keeps (``ContactSolver.last``) the
 last accepted solve of the contact NLP: its slots (material points s_A, s_B and sides σ), its
-solution (the base variables: the contact rows lift nothing) and multipliers.
+full solution (base variables and the slots' lifted P_A, P_B, Θ) and multipliers.
 
-Sensitivities: the KKT system of that contact NLP at its solution, with the active gap rows
-(force −λ beyond ``ACTIVE`` of the largest, as the result's ``contact`` block counts them) as
-equalities and the inactive gap rows dropped — the standard
+Sensitivities: the KKT system of that contact NLP at its solution, with the lifting rows as
+equalities, the active gap rows (force −λ beyond ``ACTIVE`` of the largest, as the result's
+``contact`` block counts them) as equalities and the inactive gap rows dropped — the standard
 sensitivity of an inequality-constrained minimum under strict complementarity, valid while the
 active set does not change. The parameters of control (clamp targets, rigid motions) enter only
 the base rows, so ∂F/∂p is the base NLP's, padded with zeros for the slots' rows. The active
@@ -21,7 +21,7 @@ curvature, times the contact force, enters K — fixed points give dx/dp 7 % off
 differences on the squeezed loop, sliding ones 4e-5 (``sliding_system``).
 
 Stability: the Lagrangian Hessian of the contact NLP (points held) reduced to the null space of
-the Jacobian of the base equalities and the active gap rows
+the Jacobian of the base equalities, the lifting rows and the active gap rows
 (``reduced_stability``).
 """
 from __future__ import annotations
@@ -41,7 +41,7 @@ from ..solving.contact.rounds import ContactRun, ContactSolver
 from ..solving.contact.solve import ACTIVE, contact_block, solve_with_contact
 from ..solving.solve import SolveReport
 from ..model.basis import n_coeffs
-from ..transcription.contact import ContactNLP, _basis
+from ..transcription.contact import VARS, ContactNLP, _basis
 from .equilibrium import Equilibrium, scipy_matrix
 
 KEEP = 16                  # solved contact states remembered (by base solution) for the KKT
@@ -161,7 +161,7 @@ class ContactEquilibrium(Equilibrium):
         nb = self.wnlp.n_variables
         if rep.success and last is not None and np.array_equal(last[2][:nb], rep.x):
             cnlp, pc, xc, lamc, used, sigma, required = last
-            active = active_gaps(cnlp.gaps(xc, pc), required, lamc[cnlp.gap_rows], used,
+            active = active_gaps(cnlp.gaps(xc, sigma), required, lamc[cnlp.gap_rows], used,
                                  self.problem.solver.tol)
             state = ContactState(cnlp, pc, xc, lamc, active, block)
         self.states[key] = state
@@ -216,7 +216,8 @@ class ContactEquilibrium(Equilibrium):
         return self._slide_fn
 
     def system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray) -> tuple[ca.DM, ca.DM, int]:
-        """The contact NLP's KKT matrix on the base rows and the active gap rows; ∂F/∂p (base parameters) and the size of its Hessian block. Without a contact
+        """The contact NLP's KKT matrix on the base rows, the lifting rows and the active gap
+        rows; ∂F/∂p (base parameters) and the size of its Hessian block. Without a contact
         solve behind x (the paper's solution had no contact), the base system."""
         st = self.state(x)
         if st is None or not st.active.any():
@@ -259,15 +260,15 @@ def sliding_function(c: ContactNLP) -> ca.Function:
     base, n = c.base, c.n_slots
     pr = base.problem
     x, p = c.nlp["x"], c.nlp["p"]
-    nc, N = n_coeffs(pr.t), pr.n_loops
+    nc, N, nb = n_coeffs(pr.t), pr.n_loops, base.n_variables
     A = ca.reshape(x[base.x.slice("coeffs")], nc, N)
-    PA, PB, Th = c.points(x, p)
+    z = ca.reshape(x[nb:], VARS, n)
     sA = p[base.p.size:base.p.size + n]
     phis = _basis(ca.transpose(sA), pr.L, pr.t)
     theta_A = sum(phis[k] * A[k, c.kA.tolist()] for k in range(nc))
-    d = PA - PB
+    d = z[0:2, :] - z[2:4, :]
     C = ca.vec(ca.vertcat(d[0, :] * ca.cos(theta_A) + d[1, :] * ca.sin(theta_A),
-                          d[0, :] * ca.cos(Th) + d[1, :] * ca.sin(Th)))
+                          d[0, :] * ca.cos(z[4, :]) + d[1, :] * ca.sin(z[4, :])))
     gc = c.nlp["g"][base.n_constraints:]
     lam = ca.MX.sym("lam_c", gc.numel())
     Fc = ca.vertcat(ca.gradient(ca.dot(lam, gc), x), gc)

@@ -2,28 +2,31 @@
 
 A contact *slot* c holds one pair of material points: s_A on loop k_A and s_B on loop k_B, with
 side σ (all three are NLP parameters, so the contact points move along the yarns between solves
-without rebuilding anything; only the loops of a slot are structural). Its one row is the
-signed normal gap, written directly in the loops' variables (no lifted variables: the KKT
-system grows by one row per slot, not eleven):
+without rebuilding anything; only the loops of a slot are structural). Each slot lifts five
+variables, like nlp.py lifts clamped points:
 
-    g_c = σ (P_A − P_B)·N(Θ) ≥ required_c,    N(Θ) = (−sin Θ, cos Θ),
-    P_A = X_kA + I(a_kA; s_A),  P_B = X_kB + I(a_kB; s_B),  Θ = φ(s_B)·a_kB,
+    P_A − X_kA − I(a_kA; s_A) = 0,   P_B − X_kB − I(a_kB; s_B) = 0,   Θ − φ(s_B)·a_kB = 0,
 
 with I(a; s) = ∫₀ˢ (cos θ, sin θ) du, θ = φ(u)·a (eqs. 1, 14-15), by the cell rule of
 ``curves.py``: I = Σ_{i<j} ΔI_i(a) + ∫_{s_j}^{s}, the whole cells' increments ΔI_i computed
 once per loop and shared by every slot on it (picked by a 0/1 mask per slot, U_i = [i < j],
-also a parameter), the partial cell by NODES nodes per point. g_c is the distance between the
-two points when P_A − P_B is normal to yarn B (the outer loop puts (s_A, s_B) on the closest
-points). A slot not in use gets the bound −∞.
+also a parameter), the partial cell by NODES nodes per point (measured: 6x fewer operations per
+slot than a rule on all of [0, s]); and one inequality row, the signed normal gap
 
-Derivatives (everything else in the NLP is handled by derivatives.py), with d = P_A − P_B,
-T = (cos Θ, sin Θ), μ = λσ, v_S = ∂I_Sᵀ T:
-- ∂I/∂a = Σ_i U_i ∂ΔI_i/∂a + ℓ Σ_q w_q (−sin θ_q, cos θ_q) φ(s_j + ℓ ξ_q)ᵀ, ℓ = s − s_j;
-- ∂g/∂X_A = σN, ∂g/∂X_B = −σN, ∂g/∂a_A = σ ∂I_Aᵀ N, ∂g/∂a_B = −σ ∂I_Bᵀ N − σ (d·T) φ_B;
-- λ∇²g: μ N·∂²I_A − μ N·∂²I_B on the loops' own blocks (∂²I = −∫ (cos θ, sin θ) φφᵀ, by
-  the per-point and per-cell sums), + μ (v_B φ_Bᵀ + φ_B v_Bᵀ) − λ g φ_B φ_Bᵀ on (a_B, a_B),
-  −μ T φ_Bᵀ on (X_A, a_B), μ T φ_Bᵀ on (X_B, a_B), −μ v_A φ_Bᵀ on (a_A, a_B): blocks between
-  the two loops of a slot, summed where slots share them (and where k_A = k_B).
+    g_c = σ (P_A − P_B)·N(Θ) ≥ required_c,    N(Θ) = (−sin Θ, cos Θ),
+
+the distance between the two points when P_A − P_B is normal to yarn B (the outer loop puts
+(s_A, s_B) on the closest points). A slot not in use gets the bound −∞.
+
+Derivatives (everything else in the NLP is handled by derivatives.py):
+- ∂I/∂a = Σ_i U_i ∂ΔI_i/∂a + ℓ Σ_q w_q (−sin θ_q, cos θ_q) φ(s_j + ℓ ξ_q)ᵀ, ℓ = s − s_j, with
+  ∂ΔI_i/∂a = h Σ_q w_q (−sin θ_iq, cos θ_iq) φ_iqᵀ per loop;  λᵀ of the lifting rows adds
+  Σ_q ℓ w_q (λ_x cos θ_q + λ_y sin θ_q) φ_q φ_qᵀ per slot and Σ_iq h w_q (Ω_x,i cos θ_iq +
+  Ω_y,i sin θ_iq) φ_iq φ_iqᵀ per loop (Ω_i = Σ of U_i λ over the slots' sides on the loop) to
+  loop k's coefficient block (the block the bending energy and eq. (1) already fill: no new
+  sparsity);
+- ∂g/∂P_A = σN, ∂g/∂P_B = −σN, ∂g/∂Θ = −σ (P_A − P_B)·T;  ∂²g/∂P_A∂Θ = −σT,
+  ∂²g/∂P_B∂Θ = σT, ∂²g/∂Θ² = −g  (T = (cos Θ, sin Θ)).
 """
 from __future__ import annotations
 
@@ -34,20 +37,20 @@ import numpy as np
 
 from ...layout import Layout
 from ..model.basis import n_coeffs
-from ..model.contact.curves import basis_at, cell_of, cell_rule
+from ..model.contact.curves import Curves, basis_at, cell_of, cell_rule
 from .derivatives import _block_triu_sparsity, _triu_pairs, closed_form_derivatives
 from .full import FullNLP
 
+VARS = 5               # P_A (2), P_B (2), Θ per slot
+LIFT = 5               # lifting rows per slot
 
 
 @dataclass
 class ContactNLP:
-    """The full weft NLP of ``base`` with contact rows appended (parameters and rows; the
-    variables are the base NLP's).
+    """The full weft NLP of ``base`` with contact slots appended (variables, parameters, rows).
 
-    Parameters: base p, then s_A, s_B, σ of every slot, then the cell masks U of A's and of B's
-    points (cells × slots each). Rows: base g, then the gap rows (1 per slot).
-    ``points`` maps (x, p) to the slots' P_A, P_B (2 × slots each) and Θ (1 × slots).
+    Variables: base x, then per slot (P_A, P_B, Θ). Parameters: base p, then s_A, s_B, σ of
+    every slot, then the cell masks U of A's and of B's points (cells × slots each). Rows: base g, then the lifting rows (5 per slot), then the gap rows (1 per slot).
     """
 
     base: FullNLP
@@ -58,7 +61,6 @@ class ContactNLP:
     x: Layout
     g: Layout
     gap_rows: slice
-    points: ca.Function
     model: str = "full"
     extra_p: int = 0
     jacobian: ca.Function | None = field(default=None, repr=False)
@@ -102,8 +104,8 @@ class ContactNLP:
         return np.concatenate([p_base, sA, sB, sigma] + [m.ravel(order="F") for m in masks])
 
     def bounds(self, required: np.ndarray, used: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """lbg, ubg: the base rows' own bounds, gap ≥ required where a slot is used (no bound
-        on an unused slot)."""
+        """lbg, ubg: the base rows' own bounds, equalities for the lifting rows, gap ≥ required
+        where a slot is used (no bound on an unused slot)."""
         nb = self.base.n_constraints
         lbg, ubg = np.zeros(self.n_constraints), np.zeros(self.n_constraints)
         lbg[:nb], ubg[:nb] = self.base.lbg, self.base.ubg
@@ -112,18 +114,32 @@ class ContactNLP:
         return lbg, ubg
 
     def lift(self, x_base: np.ndarray, sA: np.ndarray, sB: np.ndarray) -> np.ndarray:
-        """A decision vector from a base one: the same (the contact rows lift nothing)."""
-        return np.array(x_base, dtype=float)
+        """A full decision vector: base x and the slots' points and angles computed from it."""
+        pr = self.problem
+        curves = Curves.of(self.base.coefficients(x_base), self.base.starts(x_base), pr.L)
+        z = np.zeros((self.n_slots, VARS))
+        z[:, 0:2] = curves.points(self.kA, sA)
+        z[:, 2:4] = curves.points(self.kB, sB)
+        z[:, 4] = curves.angle(self.kB, sB)
+        return np.concatenate([x_base, z.ravel()])
 
     def lift_multipliers(self, xval: np.ndarray, sigma: np.ndarray,
                          lam_gap: np.ndarray) -> np.ndarray:
-        """Multipliers of lifting rows: there are none."""
-        return np.zeros(0)
+        """Multipliers of the lifting rows that balance given gap multipliers (stationarity in
+        P_A, P_B, Θ): λ_A = −λσN, λ_B = λσN, λ_Θ = λσ(P_A − P_B)·T."""
+        z = np.asarray(xval)[self.base.n_variables:].reshape(-1, VARS)
+        n = np.stack([-np.sin(z[:, 4]), np.cos(z[:, 4])], axis=1)
+        t = np.stack([np.cos(z[:, 4]), np.sin(z[:, 4])], axis=1)
+        ls = (lam_gap * sigma)[:, None]
+        out = np.concatenate([-ls * n, ls * n, ls * np.sum((z[:, 0:2] - z[:, 2:4]) * t, 1,
+                                                           keepdims=True)], axis=1)
+        return out.ravel()
 
-    def gaps(self, xval: np.ndarray, params: np.ndarray) -> np.ndarray:
-        """Signed normal gaps of every slot at a decision vector and parameter vector."""
-        return np.asarray(ca.Function("gaps", [self.nlp["x"], self.nlp["p"]],
-                                      [self.nlp["g"][self.gap_rows]])(xval, params)).ravel()
+    def gaps(self, xval: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """Signed normal gaps of every slot at a decision vector."""
+        z = np.asarray(xval)[self.base.n_variables:].reshape(-1, VARS)
+        n = np.stack([-np.sin(z[:, 4]), np.cos(z[:, 4])], axis=1)
+        return sigma * np.sum((z[:, 0:2] - z[:, 2:4]) * n, axis=1)
 
 
 def build_contact_nlp(base: FullNLP, kA: np.ndarray, kB: np.ndarray) -> ContactNLP:
@@ -132,29 +148,29 @@ def build_contact_nlp(base: FullNLP, kA: np.ndarray, kB: np.ndarray) -> ContactN
         raise ValueError("contact is built on the full model")
     kA, kB = np.asarray(kA, dtype=int), np.asarray(kB, dtype=int)
     n, nx0, ng0, np0 = len(kA), base.n_variables, base.n_constraints, base.p.size
+    x = ca.MX.sym("x", nx0 + VARS * n)
     M = cell_rule(base.problem.t)[0]
     extra = (3 + 2 * M) * n
-    x = ca.MX.sym("x", nx0)
     p = ca.MX.sym("p", np0 + extra)
-    pb = p[:np0]
+    xb, pb = x[:nx0], p[:np0]
     f_base = ca.Function("f_base", [base.nlp["x"], base.nlp["p"]], [base.nlp["f"]])
     g_base = ca.Function("g_base", [base.nlp["x"], base.nlp["p"]], [base.nlp["g"]])
     sA, sB, sigma = p[np0:np0 + n], p[np0 + n:np0 + 2 * n], p[np0 + 2 * n:np0 + 3 * n]
     masks = ca.reshape(p[np0 + 3 * n:], M, 2 * n)
     geo = _Geometry(base, x, sA, sB, sigma, kA, kB, (masks[:, :n], masks[:, n:]))
-    g = ca.vertcat(g_base(x, pb), geo.gap)
+    g = ca.vertcat(g_base(xb, pb), geo.lift_rows, geo.gap)
     xl = Layout()
     for name, (_, _, shape) in base.x.blocks.items():
         xl.add(name, *shape)
+    xl.add("contact", VARS, n)
     gl = Layout()
     for name, (_, _, shape) in base.g.blocks.items():
         gl.add(name, *shape)
+    gl.add("contact_lift", LIFT, n)
     gap_rows = gl.add("contact_gap", n, 1)
-    nlp = {"x": x, "p": p, "f": f_base(x, pb), "g": g}
-    derivs = _derivatives(base, geo, x, p, g, ng0, n)
-    points = ca.Function("contact_points", [x, p], [geo.PA, geo.PB, geo.Th],
-                         ["x", "p"], ["P_A", "P_B", "Theta"])
-    return ContactNLP(base, kA, kB, nlp, derivs, xl, gl, gap_rows, points, extra_p=extra,
+    nlp = {"x": x, "p": p, "f": f_base(xb, pb), "g": g}
+    derivs = _derivatives(base, geo, x, p, g, nx0, ng0, n)
+    return ContactNLP(base, kA, kB, nlp, derivs, xl, gl, gap_rows, extra_p=extra,
                       jacobian=derivs["jac_g"])
 
 
@@ -166,10 +182,11 @@ class _Geometry:
     def __init__(self, base: FullNLP, x: ca.MX, sA: ca.MX, sB: ca.MX, sigma: ca.MX,
                  kA: np.ndarray, kB: np.ndarray, masks: tuple[ca.MX, ca.MX]) -> None:
         pr = base.problem
-        n = len(kA)
+        n, nx0 = len(kA), base.n_variables
         nc, N, L, t = n_coeffs(pr.t), pr.n_loops, pr.L, pr.t
         A = ca.reshape(x[base.x.slice("coeffs")], nc, N)
         X = ca.reshape(x[base.x.slice("starts")], 2, N)
+        z = ca.reshape(x[nx0:], VARS, n)
         self.n, self.nc, self.kA, self.kB = n, nc, kA, kB
         M, xi, w = cell_rule(t)
         self.w = ca.DM(w)
@@ -195,13 +212,15 @@ class _Geometry:
             dIy = ca.vertcat(*[ca.sum1(U * whole.ddy[c][:, kl]) + ca.sum1(ws * cos * phis[c])
                                for c in range(nc)])
             self.sides.append((k, U, (ws, cos, sin, phis), I, dIx, dIy, X[:, kl]))
+        PA, PB, Th = z[0:2, :], z[2:4, :], z[4, :]
         self.phiB = ca.vertcat(*_basis(ca.transpose(sB), L, t))          # nc × n
-        self.Th = ca.sum1(self.phiB * A[:, kB.tolist()])
-        self.PA = self.sides[0][6] + self.sides[0][3]
-        self.PB = self.sides[1][6] + self.sides[1][3]
-        self.T = ca.vertcat(ca.cos(self.Th), ca.sin(self.Th))
-        self.N = ca.vertcat(-ca.sin(self.Th), ca.cos(self.Th))
-        self.d = self.PA - self.PB
+        theta_B = ca.sum1(self.phiB * A[:, kB.tolist()])
+        lift = ca.vertcat(PA - self.sides[0][6] - self.sides[0][3],
+                          PB - self.sides[1][6] - self.sides[1][3], Th - theta_B)
+        self.lift_rows = ca.vec(lift)
+        self.T = ca.vertcat(ca.cos(Th), ca.sin(Th))
+        self.N = ca.vertcat(-ca.sin(Th), ca.cos(Th))
+        self.d = PA - PB
         self.sigma = ca.transpose(sigma)
         self.gap = ca.vec(self.sigma * ca.sum1(self.d * self.N))
 
@@ -246,61 +265,73 @@ def _basis(u: ca.MX, L: float, t: int) -> list[ca.MX]:
     return sins + coss + [u, ca.MX.ones(u.shape)]
 
 
-def _derivatives(base: FullNLP, geo: _Geometry, x, p, g, ng0: int, n: int) -> dict:
+def _derivatives(base: FullNLP, geo: _Geometry, x, p, g, nx0: int, ng0: int, n: int) -> dict:
     """``jac_g`` and ``hess_lag`` of the whole NLP: the base parts from derivatives.py, the
     contact parts in closed form (module docstring)."""
-    nx = base.n_variables
+    nx, ngc = nx0 + VARS * n, LIFT * n + n
     base_d = closed_form_derivatives(base)
-    pb = p[:base.p.size]
-    g_b, J_b = base_d["jac_g"](x, pb)
-    J = ca.vertcat(J_b, _contact_jacobian(base, geo, nx))
+    xb, pb = x[:nx0], p[:base.p.size]
+    g_b, J_b = base_d["jac_g"](xb, pb)
+    J_c = _contact_jacobian(base, geo, nx0, nx)
+    J = ca.vertcat(ca.horzcat(J_b, ca.MX(ng0, nx - nx0)), J_c)
     jac_g = ca.Function("nlp_jac_g", [x, p], [g, J], ["x", "p"], ["g", "jac_g_x"])
-    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng0 + n)
-    H = base_d["hess_lag"](x, pb, lam_f, lam_g[:ng0]) + _contact_hessian(
-        base, geo, lam_g[ng0:], nx)
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng0 + ngc)
+    H_b = base_d["hess_lag"](xb, pb, lam_f, lam_g[:ng0])
+    H = ca.diagcat(H_b, ca.MX(nx - nx0, nx - nx0)) + _contact_hessian(
+        base, geo, lam_g[ng0:ng0 + LIFT * n], lam_g[ng0 + LIFT * n:], nx0, nx)
     hess_lag = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [H],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
     return {"jac_g": jac_g, "hess_lag": hess_lag}
 
 
-def _contact_jacobian(base: FullNLP, geo: _Geometry, nx: int) -> ca.MX:
-    """The gap rows by columns of x (entries of a slot with k_A = k_B summed)."""
+def _contact_jacobian(base: FullNLP, geo: _Geometry, nx0: int, nx: int) -> ca.MX:
+    """Rows of the contact block (lifting rows, then gap rows) by columns of x."""
     n, nc = geo.n, geo.nc
     coeff0, start0 = base.x.slice("coeffs").start, base.x.slice("starts").start
     slot = np.arange(n)
-    sN = ca.repmat(geo.sigma, 2, 1) * geo.N                             # σN, 2 × n
-    (kA, *_a, dIxA, dIyA, _xa), (kB, *_b, dIxB, dIyB, _xb) = geo.sides
-    dT = ca.sum1(geo.d * geo.T)
     rows, cols, vals = [], [], []
-    for d in range(2):
-        rows += [slot, slot]
-        cols += [start0 + 2 * kA + d, start0 + 2 * kB + d]
-        vals += [sN[d, :], -sN[d, :]]
-    gA = ca.repmat(sN[0, :], geo.nc, 1) * dIxA + ca.repmat(sN[1, :], geo.nc, 1) * dIyA
-    gB = -(ca.repmat(sN[0, :], geo.nc, 1) * dIxB + ca.repmat(sN[1, :], geo.nc, 1) * dIyB) \
-        - ca.repmat(geo.sigma * dT, geo.nc, 1) * geo.phiB
+
+    def put(r, c, v):
+        rows.append(np.asarray(r).ravel())
+        cols.append(np.asarray(c).ravel())
+        vals.append(v)
+
+    lift0 = LIFT * slot                       # first lifting row of each slot (vec of 5 × n)
+    for side, (k, s, _, _, dIx, dIy, _) in enumerate(geo.sides):
+        for d, dI in enumerate((dIx, dIy)):
+            r = lift0 + 2 * side + d
+            put(r, nx0 + VARS * slot + 2 * side + d, ca.DM.ones(1, n))           # +P
+            put(r, start0 + 2 * k + d, -ca.DM.ones(1, n))                        # −X_k
+            for c in range(nc):
+                put(r, coeff0 + nc * k + c, -dI[c, :])                           # −∂I/∂a
+    r = lift0 + 4
+    put(r, nx0 + VARS * slot + 4, ca.DM.ones(1, n))
     for c in range(nc):
-        rows += [slot, slot]
-        cols += [coeff0 + nc * kA + c, coeff0 + nc * kB + c]
-        vals += [gA[c, :], gB[c, :]]
-    return _assemble_sum(rows, cols, vals, n, nx)
+        put(r, coeff0 + nc * geo.kB + c, -geo.phiB[c, :])
+    r = LIFT * n + slot
+    sig2 = ca.repmat(geo.sigma, 2, 1)
+    sN, sT = sig2 * geo.N, sig2 * geo.T
+    for d in range(2):
+        put(r, nx0 + VARS * slot + d, sN[d, :])
+        put(r, nx0 + VARS * slot + 2 + d, -sN[d, :])
+    put(r, nx0 + VARS * slot + 4, -ca.sum1(geo.d * sT))
+    return _assemble(rows, cols, vals, LIFT * n + n, nx)
 
 
-def _contact_hessian(base: FullNLP, geo: _Geometry, lam_gap: ca.MX, nx: int) -> ca.MX:
-    """Upper triangle of Σ λ_c ∇²g_c: the loops' own coefficient blocks and the blocks between
-    the two loops of each slot (module docstring)."""
-    nc, N = geo.nc, base.problem.n_loops
-    coeff0, start0 = base.x.slice("coeffs").start, base.x.slice("starts").start
-    lg = ca.transpose(lam_gap)
-    mu = lg * geo.sigma                                                 # λσ, 1 × n
+def _contact_hessian(base: FullNLP, geo: _Geometry, lam_lift: ca.MX, lam_gap: ca.MX,
+                     nx0: int, nx: int) -> ca.MX:
+    """Upper triangle of Σ λ·∇²(contact rows): loop coefficient blocks and the slots' 5 × 5."""
+    pr = base.problem
+    n, nc, N = geo.n, geo.nc, pr.n_loops
+    coeff0 = base.x.slice("coeffs").start
+    lam = ca.reshape(lam_lift, LIFT, n)
     iu, ju = _triu_pairs(nc)
     blocks = ca.MX(len(iu), N)
     M = geo.cells.dx.shape[0]
     omega_x, omega_y = ca.MX(M, N), ca.MX(M, N)
     for side, (k, U, (ws, cos, sin, phis), *_rest) in enumerate(geo.sides):
         Q = ws.shape[0]
-        sign = -1.0 if side == 0 else 1.0          # +I_A, −I_B in d: the (λ_x, λ_y) of −I
-        lx, ly = sign * mu * geo.N[0, :], sign * mu * geo.N[1, :]
+        lx, ly = lam[2 * side, :], lam[2 * side + 1, :]
         omega = ws * (ca.repmat(lx, Q, 1) * cos + ca.repmat(ly, Q, 1) * sin)   # Q × n
         per_point = ca.vertcat(*[ca.sum1(omega * phis[i] * phis[j]) for i, j in zip(iu, ju)])
         scatter = _scatter(k, N)
@@ -308,27 +339,16 @@ def _contact_hessian(base: FullNLP, geo: _Geometry, lam_gap: ca.MX, nx: int) -> 
         omega_x += ca.mtimes(U * ca.repmat(lx, M, 1), scatter)          # Ω per loop and cell
         omega_y += ca.mtimes(U * ca.repmat(ly, M, 1), scatter)
     blocks += geo.cells.hessian_blocks(omega_x, omega_y, iu, ju)
-    (kA, *_a, dIxA, dIyA, _xa), (kB, *_b, dIxB, dIyB, _xb) = geo.sides
-    Tx, Ty = ca.repmat(geo.T[0, :], nc, 1), ca.repmat(geo.T[1, :], nc, 1)
-    vA, vB = Tx * dIxA + Ty * dIyA, Tx * dIxB + Ty * dIyB                # ∂Iᵀ T, nc × n
-    phiB = geo.phiB
-    g = ca.transpose(geo.gap)
-    own_B = ca.vertcat(*[mu * (vB[i, :] * phiB[j, :] + phiB[i, :] * vB[j, :])
-                         - lg * g * phiB[i, :] * phiB[j, :] for i, j in zip(iu, ju)])
-    blocks += ca.mtimes(own_B, _scatter(kB, N))
     H_blocks = ca.MX(_block_triu_sparsity(N, nc, coeff0, nx), ca.vec(blocks))
-    rows, cols, vals = [], [], []
-    for d in range(2):
-        for c in range(nc):
-            rows += [start0 + 2 * kA + d, start0 + 2 * kB + d]
-            cols += [coeff0 + nc * kB + c, coeff0 + nc * kB + c]
-            vals += [-mu * geo.T[d, :] * phiB[c, :], mu * geo.T[d, :] * phiB[c, :]]
-    for i in range(nc):
-        for j in range(nc):
-            rows.append(coeff0 + nc * kA + i)
-            cols.append(coeff0 + nc * kB + j)
-            vals.append(-mu * vA[i, :] * phiB[j, :])
-    return H_blocks + _assemble_sum(rows, cols, vals, nx, nx, upper=True)
+    slot = np.arange(n)
+    th = nx0 + VARS * slot + 4
+    lg = ca.transpose(lam_gap)
+    sT = ca.repmat(geo.sigma, 2, 1) * geo.T
+    rows = [nx0 + VARS * slot + d for d in range(4)] + [th]
+    vals = [-lg * sT[0, :], -lg * sT[1, :], lg * sT[0, :], lg * sT[1, :],
+            -lg * ca.transpose(ca.vec(geo.gap))]
+    H_gap = _assemble(rows, [th] * 5, vals, nx, nx)
+    return H_blocks + H_gap
 
 
 def _scatter(k: np.ndarray, N: int) -> ca.DM:
@@ -337,20 +357,12 @@ def _scatter(k: np.ndarray, N: int) -> ca.DM:
     return ca.DM(sp, 1.0)
 
 
-def _assemble_sum(rows, cols, vals, nrow: int, ncol: int, upper: bool = False) -> ca.MX:
-    """A sparse MX from triplet blocks whose entries may repeat (summed). With ``upper``, the
-    entries are of a symmetric matrix given once each, stored in its upper triangle: (r, c)
-    and (c, r) land on one entry, and an entry on the diagonal counts twice (it stands for
-    both)."""
+def _assemble(rows, cols, vals, nrow: int, ncol: int) -> ca.MX:
+    """A sparse MX from triplet blocks (rows, cols index arrays; vals 1 × len row vectors)."""
     r = np.concatenate([np.asarray(a).ravel() for a in rows]).astype(int)
     c = np.concatenate([np.asarray(a).ravel() for a in cols]).astype(int)
-    factor = np.ones(len(r))
-    if upper:
-        factor[r == c] = 2.0
-        r, c = np.minimum(r, c), np.maximum(r, c)
     v = ca.vertcat(*[ca.vec(ca.MX(val) if isinstance(val, ca.DM) else val) for val in vals])
-    uniq, inv = np.unique(c * nrow + r, return_inverse=True)          # column-major order
-    sp = ca.Sparsity.triplet(nrow, ncol, (uniq % nrow).tolist(), (uniq // nrow).tolist())
-    total = ca.DM(ca.Sparsity.triplet(len(uniq), len(r), inv.tolist(), list(range(len(r)))),
-                  factor)
-    return ca.MX(sp, ca.mtimes(total, v))
+    sp, mapping = ca.Sparsity.triplet(nrow, ncol, r.tolist(), c.tolist(), False)
+    if sp.nnz() != len(r):
+        raise ValueError("contact derivative entries overlap")
+    return ca.MX(sp, v[mapping])
