@@ -55,8 +55,8 @@ CURVE_KEEP = 1024
 # central differences of the forward contact solves to 4e-4
 AT_BOUND = 1e-5
 # re-solves with the pairs searched on a forward solution: with 2, place_stitch_yarn's forward
-# check ended 1.64e-3 from the control's state (over its radius / 100) at an energy 6.6e-7
-# higher; with 3, 5.9e-8 higher; with 4, 1.4e-4 away and 5e-9 (the control: 35 s -> 43 s)
+# check ended 1.64e-3 from the control's state (over its radius / 100), the forward solve less
+# settled (its energy 6.6e-7 higher, measured on a variant of the rows); with 4, 1.42e-4
 POLISH = 4
 
 
