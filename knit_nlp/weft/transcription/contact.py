@@ -37,7 +37,7 @@ import numpy as np
 
 from ...layout import Layout
 from ..model.basis import n_coeffs
-from ..model.contact.curves import Curves, basis_at, cell_of, cell_rule
+from ..model.contact.curves import Curves, basis_at, cell_nodes, cell_of, cell_rule
 from .derivatives import _block_triu_sparsity, _triu_pairs, closed_form_derivatives
 from .full import FullNLP
 
@@ -50,7 +50,8 @@ class ContactNLP:
     """The full weft NLP of ``base`` with contact slots appended (variables, parameters, rows).
 
     Variables: base x, then per slot (P_A, P_B, Θ). Parameters: base p, then s_A, s_B, σ of
-    every slot, then the cell masks U of A's and of B's points (cells × slots each). Rows: base g, then the lifting rows (5 per slot), then the gap rows (1 per slot).
+    every slot, then the cell masks U of A's and of B's points (cells × slots each). Rows: base
+    g, then the lifting rows (5 per slot), then the gap rows (1 per slot).
     """
 
     base: FullNLP
@@ -231,13 +232,11 @@ class _Cells:
     nodes are fixed, so φ there is a constant matrix and θ = Φ·A one product for all loops."""
 
     def __init__(self, A: ca.MX, L: float, t: int) -> None:
-        M, xi, w = cell_rule(t)
-        h = L / M
-        u = ((np.arange(M)[:, None] + xi[None, :]) * h).ravel()         # M·Q nodes
-        self.phi = basis_at(u, L, t)                                   # M·Q × nc
+        u, hw = cell_nodes(L, t)                                       # M × Q, (Q,)
+        self.phi = basis_at(u.ravel(), L, t)                           # M·Q × nc
         theta = ca.mtimes(ca.DM(self.phi), A)                          # M·Q × N
         self.cos, self.sin = ca.cos(theta), ca.sin(theta)
-        self.rep = np.kron(np.eye(M), h * w[:, None])                  # M·Q × M: h w_q
+        self.rep = np.kron(np.eye(len(u)), hw[:, None])                # M·Q × M: h w_q
         W = ca.DM(self.rep.T)                                          # M × M·Q
         self.dx, self.dy = ca.mtimes(W, self.cos), ca.mtimes(W, self.sin)
         self.ddx = [-ca.mtimes(ca.DM(self.rep.T * self.phi[:, c]), self.sin)

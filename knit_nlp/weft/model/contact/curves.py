@@ -35,6 +35,13 @@ def cell_rule(t: int) -> tuple[int, np.ndarray, np.ndarray]:
     return cells(t), (x + 1.0) / 2.0, w / 2.0
 
 
+def cell_nodes(L: float, t: int) -> tuple[np.ndarray, np.ndarray]:
+    """The whole cells' nodes u on [0, L], shape (cells, NODES), and their weights h·w."""
+    M, xi, w = cell_rule(t)
+    h = L / M
+    return (np.arange(M)[:, None] + xi) * h, h * w
+
+
 def cell_of(s: np.ndarray, L: float, t: int) -> np.ndarray:
     """The cell j of each material point s (integers; points before 0 or past L take the
     first or last cell)."""
@@ -86,11 +93,9 @@ class Curves:
     @cached_property
     def prefix(self) -> np.ndarray:
         """∫ from 0 to each cell's start, every loop: (N, cells + 1, 2), by the cell rule."""
-        M, xi, w = cell_rule(self.t)
-        h = self.L / M
-        u = (np.arange(M)[:, None] + xi) * h                          # (M, Q)
+        u, hw = cell_nodes(self.L, self.t)                            # (M, Q), (Q,)
         theta = np.einsum("mqc,nc->nmq", basis_at(u, self.L, self.t), self.coeffs)
-        inc = h * np.stack([np.cos(theta) @ w, np.sin(theta) @ w], axis=-1)
+        inc = np.stack([np.cos(theta) @ hw, np.sin(theta) @ hw], axis=-1)
         return np.concatenate([np.zeros((len(self.coeffs), 1, 2)), np.cumsum(inc, axis=1)],
                               axis=1)
 
