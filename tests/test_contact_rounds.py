@@ -30,10 +30,11 @@ def _study(n: int, budget: float) -> ContactStudy:
 
 
 def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_start():
-    """4 x 4 pull: the first solve of the last load step ends with 4 pairs it had no slot for
+    """5 x 5 pull: the first solve of the last load step ends with 11 pairs it had no slot for
     nearly crossed; the next solve starts again from that step's start (not from the nearly
-    crossed state) with more pairs."""
-    st = _study(4, 120.0)
+    crossed state) with more pairs. (The 4 x 4 pull's deep pairs were pieces at designed
+    crossings that had slid out of their natural boxes; zones.py now exempts them.)"""
+    st = _study(5, 120.0)
     starts: list[tuple[str, np.ndarray, int]] = []
     once = st.contact.solve_once
 
@@ -52,12 +53,12 @@ def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_sta
 
 
 def test_a_step_still_deep_after_its_restarts_fails_and_is_retried_not_continued(monkeypatch):
-    """4 x 4 pull with no restarts allowed: the step whose solve met pairs deep inside their
+    """5 x 5 pull with no restarts allowed: the step whose solve met pairs deep inside their
     gap fails (Contact_Deep_Pairs) and is halved, instead of being continued from the nearly
     crossed state (on the 30 x 30 pull: 370+ IPOPT iterations and
     the energy 100x up); the pull still ends clean."""
     monkeypatch.setattr(rounds, "RESTARTS", 0)
-    st = _study(4, 120.0)
+    st = _study(5, 120.0)
     said: list[str] = []
     st.contact.log = lambda m: said.append(m if isinstance(m, str) else "")
     res = st.run()

@@ -28,6 +28,7 @@ from ..model.contact.crossings import find_crossings, judge
 from ..model.contact.curves import Curves
 from ..model.contact.natural import NaturalFabric
 from ..model.contact.pairs import Grid, find_pairs
+from ..model.contact.zones import designed_zones
 from ..model.problem import WeftProblem
 from ..model.quadrature import positions
 
@@ -141,7 +142,8 @@ def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
     report = CheckReport(problem.name, radius, new, verdict.lost, [], 0, None, samples=samples)
     if radius is None:
         return report
-    pairs = find_pairs(fab, curves, grid, reach=2 * radius)
+    pairs = find_pairs(fab, curves, grid, reach=2 * radius,
+                       zones=designed_zones(fab, curves, grid, found, verdict.new))
     if not len(pairs):
         return report
     limit = 2 * radius * (1 - GAP_TOL)

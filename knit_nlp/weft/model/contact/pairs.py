@@ -237,9 +237,11 @@ def _segments_cross(p0, p1, q0, q1) -> np.ndarray:
     return (o1 * o2 < 0) & (o3 * o4 < 0)
 
 
-def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float) -> Pairs:
+def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float,
+               zones=None) -> Pairs:
     """Closest points (polished local minima of the distance) with gap below required +
-    ``reach``, on an uncrossed state."""
+    ``reach``, on an uncrossed state (``zones``: the designed zones that follow slid
+    crossings, zones.py; required gap 0 in them)."""
     pts = course_samples(curves, grid)                        # (m, K, 2)
     feet = strand_feet(pts, grid, 2 * fab.radius + reach + grid.h, fab.exclusion)
     if len(feet.cu) == 0:
@@ -248,12 +250,12 @@ def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float) -> 
     minima = _discrete_minima(pts, feet.cu, feet.iu, feet.cv, feet.iv) & (
         feet.dist < 2 * fab.radius + reach + grid.h)
     closest = _closest(fab, curves, grid, feet.cu[minima], S[feet.iu[minima]],
-                       feet.cv[minima], feet.Sf[minima], reach)
-    return closest.concat(_vertices(fab, curves, grid, feet, closest, reach))
+                       feet.cv[minima], feet.Sf[minima], reach, zones)
+    return closest.concat(_vertices(fab, curves, grid, feet, closest, reach, zones))
 
 
 def reseat(fab: NaturalFabric, curves: Curves, grid: Grid,
-           pairs: Pairs) -> tuple[Pairs, np.ndarray]:
+           pairs: Pairs, zones=None) -> tuple[Pairs, np.ndarray]:
     """The pairs of another state carried to this (uncrossed) one: each A point (material,
     fixed) against its foot on B here, polished from B's old point (as :func:`_vertices` pairs
     a sample with its foot: polishing both points could slide them into a designed crossing),
@@ -267,22 +269,24 @@ def reseat(fab: NaturalFabric, curves: Curves, grid: Grid,
     _, Sb = polish(curves, grid, ca, Sa, cb, Sb, move_a=False)
     top = grid.wales * grid.L
     inside = (Sb > 1e-9 * grid.L) & (Sb < top - 1e-9 * grid.L)     # a true foot, normal to B
-    return _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, where=inside)
+    return _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, where=inside, zones=zones)
 
 
-def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float) -> Pairs:
+def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float,
+              zones=None) -> Pairs:
     """Samples of a yarn within reach of a strand, each against its foot (polished): where two
     yarns lie along each other they touch along a line, and one pair per sample holds the
     whole line, not only its closest points. Not in designed interlocks (required gap 0: a
     crossing may slide past a sample there), nor within h/4 of a closest-points pair."""
     S = grid.S
-    same, required = _classify(fab, grid, feet.cu, S[feet.iu], feet.cv, feet.Sf)[4:]
+    same, required = _classify(fab, grid, feet.cu, S[feet.iu], feet.cv, feet.Sf, zones)[4:]
     keep = ~same & (required > 0) & (feet.dist < required + reach)
     ca, Sa, cb, Sb = feet.cu[keep], S[feet.iu[keep]], feet.cv[keep], feet.Sf[keep]
     _, Sb = polish(curves, grid, ca, Sa, cb, Sb, move_a=False)
     top = grid.wales * grid.L
     inside = (Sb > 1e-9 * grid.L) & (Sb < top - 1e-9 * grid.L)     # a true foot, normal to B
-    out = _pairs_at(fab, curves, grid, ca[inside], Sa[inside], cb[inside], Sb[inside], reach)[0]
+    out = _pairs_at(fab, curves, grid, ca[inside], Sa[inside], cb[inside], Sb[inside], reach,
+                    zones=zones)[0]
     if len(closest) and len(out):
         # drop samples next to a closest-points pair on the same two loops
         key_c = closest.kA * (1 << 20) + closest.kB
@@ -296,15 +300,15 @@ def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float) -> Pa
                     out.sB[v][:, None] - closest.sB[c][None, :])
                 near[v] = d.min(axis=1) < grid.h / 4
         out = out.select(~near)
-    return out.concat(_box_edges(fab, curves, grid, feet, same, required, reach))
+    return out.concat(_box_edges(fab, curves, grid, feet, same, required, reach, zones))
 
 
 def _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, reach: float = np.inf,
-              where: np.ndarray | None = None) -> tuple[Pairs, np.ndarray]:
+              where: np.ndarray | None = None, zones=None) -> tuple[Pairs, np.ndarray]:
     """Pairs of the points (course, arc) (ca, Sa) and (cb, Sb) that must keep a gap (not one
     piece of yarn, not in a designed interlock, not crossing) and lie within ``reach`` of it
     (and in ``where``), with their side and gap; and which of the points made one."""
-    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb)
+    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb, zones)
     normal, dist = _normal_gap(curves, grid, ca, Sa, cb, Sb)
     keep = ~same & (required > 0) & (np.abs(normal) < required + reach) & (
         dist > CROSSING * grid.L)
@@ -315,7 +319,7 @@ def _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, reach: float = np.inf,
 
 
 def _box_edges(fab, curves, grid, feet: Feet, same: np.ndarray, required: np.ndarray,
-               reach: float) -> Pairs:
+               reach: float, zones=None) -> Pairs:
     """Pairs at the edges of designed interlock boxes: where a yarn leaves a box its required
     gap jumps from 0 to 2r while the distance is still near its minimum, so the closest
     outside point is the edge itself, between two samples (a 6 x 6 diagonal pull kept every
@@ -345,11 +349,11 @@ def _box_edges(fab, curves, grid, feet: Feet, same: np.ndarray, required: np.nda
     for _ in range(EDGE_STEPS):
         mid = 0.5 * (a_in + a_out)
         _, Sb = polish(curves, grid, ca, mid, cb, Sb, move_a=False)
-        req = _classify(fab, grid, ca, mid, cb, Sb)[5]
+        req = _classify(fab, grid, ca, mid, cb, Sb, zones)[5]
         out = req > 0
         a_out, Sb_out = np.where(out, mid, a_out), np.where(out, Sb, Sb_out)
         a_in = np.where(out, a_in, mid)
-    return _pairs_at(fab, curves, grid, ca, a_out, cb, Sb_out, reach)[0]
+    return _pairs_at(fab, curves, grid, ca, a_out, cb, Sb_out, reach, zones=zones)[0]
 
 
 def _discrete_minima(pts: np.ndarray, ca, ia, cb, ib) -> np.ndarray:
@@ -369,14 +373,17 @@ def _discrete_minima(pts: np.ndarray, ca, ia, cb, ib) -> np.ndarray:
     return keep
 
 
-def _classify(fab: NaturalFabric, grid: Grid, ca, Sa, cb, Sb):
-    """Loops, material points, whether the pair is one piece of yarn, required gap."""
+def _classify(fab: NaturalFabric, grid: Grid, ca, Sa, cb, Sb, zones=None):
+    """Loops, material points, whether the pair is one piece of yarn, required gap (0 in
+    a natural designed box or, given ``zones``, around a slid designed crossing)."""
     kA, sA = grid.loop_of(ca, Sa)
     kB, sB = grid.loop_of(cb, Sb)
     di = kB // grid.wales - kA // grid.wales
     dj = kB % grid.wales - kA % grid.wales
     same, required = fab.lookup(di, dj, sA, sB)
     same |= (ca == cb) & (np.abs(Sa - Sb) <= fab.exclusion)
+    if zones is not None:
+        required = np.where(zones.exempt(ca, Sa, cb, Sb), 0.0, required)
     return kA, sA, kB, sB, same, required
 
 
@@ -387,7 +394,7 @@ def _normal_gap(curves, grid, ca, Sa, cb, Sb):
     return np.sum((Pa - Pb) * Nb, -1), np.linalg.norm(Pa - Pb, axis=-1)
 
 
-def _closest(fab, curves, grid, ca, Sa, cb, Sb, reach) -> Pairs:
+def _closest(fab, curves, grid, ca, Sa, cb, Sb, reach, zones=None) -> Pairs:
     """Polished local minima of the distance, deduplicated, non-exempt, within reach."""
     Sa, Sb = polish(curves, grid, ca, Sa, cb, Sb)
     key = np.stack([ca, cb, np.rint(Sa / (1e-6 * grid.L)), np.rint(Sb / (1e-6 * grid.L))], 1)
@@ -409,7 +416,7 @@ def _closest(fab, curves, grid, ca, Sa, cb, Sb, reach) -> Pairs:
     ca, cb = np.where(swap, cb, ca), np.where(swap, ca, cb)
     Sa, Sb = np.where(swap, Sb, Sa), np.where(swap, Sa, Sb)
     both_ends = end_a & end_b
-    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb)
+    kA, sA, kB, sB, same, required = _classify(fab, grid, ca, Sa, cb, Sb, zones)
     same |= both_ends
     normal, dist = _normal_gap(curves, grid, ca, Sa, cb, Sb)
     crossing = dist < CROSSING * grid.L

@@ -22,6 +22,7 @@ from ...model.contact.crossings import find_crossings, judge
 from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
 from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
+from ...model.contact.zones import slid_zones
 from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
@@ -119,7 +120,8 @@ class ContactSolver:
         """Contact pairs of a base-layout state."""
         curves = Curves.of(self.base.coefficients(x_base), self.base.starts(x_base),
                            self.base.problem.L)
-        return find_pairs(self.fabric, curves, self.grid, self.reach)
+        return find_pairs(self.fabric, curves, self.grid, self.reach,
+                          slid_zones(self.fabric, curves, self.grid))
 
     def _slots(self, pairs: Pairs) -> bool:
         """Make sure every pair of loops has enough slots; True when rebuilt. The pool grows by
@@ -304,7 +306,9 @@ class ContactSolver:
         dropped when farther than the reach; one that has no foot there (it slid into an
         interlock's box, where the required gap is 0: a contact at the box's border) stays at
         its old points."""
-        now, kept = reseat(self.fabric, self._curves(x), self.grid, held)
+        curves = self._curves(x)
+        now, kept = reseat(self.fabric, curves, self.grid, held,
+                           slid_zones(self.fabric, curves, self.grid))
         return now.select(now.gap < now.required + self.reach).concat(held.select(~kept))
 
     def _restart(self, start: tuple, deep: Pairs) -> Pairs | None:
@@ -312,7 +316,9 @@ class ContactSolver:
         their gap) carried back to the step's start, where they are still apart; None when
         none of them is new there (nothing to gain)."""
         x0, pairs0, _ = start
-        back = reseat(self.fabric, self._curves(x0), self.grid, deep)[0]
+        curves = self._curves(x0)
+        back = reseat(self.fabric, curves, self.grid, deep,
+                      slid_zones(self.fabric, curves, self.grid))[0]
         back = back.select(back.gap >= back.required)
         _, dist = _match(pairs0, back, np.inf)
         back = back.select(~(dist < self.grid.h))           # not a pair the start already has

@@ -1,0 +1,95 @@
+"""Designed zones that follow slid crossings (model/contact/zones.py): hand-made zones, a
+jersey whose middle course is shifted along the courses (its interlocks slid out of their
+natural boxes), and the 4 x 4 diagonal pull whose last step met such pieces as "deep pairs"."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from knit_nlp.weft.model.cases import diagonal_pull, unclamped
+from knit_nlp.weft.model.contact.crossings import find_crossings, judge
+from knit_nlp.weft.model.contact.curves import Curves
+from knit_nlp.weft.model.contact.natural import NaturalFabric
+from knit_nlp.weft.model.contact.pairs import Grid, find_pairs
+from knit_nlp.weft.model.contact.zones import Zones, slid_zones
+from knit_nlp.weft.model.problem import Yarn, parse_problem
+from knit_nlp.weft.output.check import check
+from knit_nlp.weft.study import ContactStudy
+
+L = 10.0
+R = 0.15
+
+
+def test_a_zone_holds_the_pieces_within_its_half_width_along_both_yarns():
+    """One crossing of courses 0 and 1 at arcs (5, 7), z = 1: the box [4, 6] x [6, 8] on
+    those two courses, edges included, nothing else (another course, one yarn too far)."""
+    zones = Zones(np.array([0]), np.array([5.0]), np.array([1]), np.array([7.0]),
+                  np.array([1.0]))
+    ca = np.array([0, 0, 0, 0, 0, 0, 2])
+    Sa = np.array([5.0, 4.0, 6.0, 6.01, 5.0, 3.0, 5.0])
+    cb = np.array([1, 1, 1, 1, 1, 1, 1])
+    Sb = np.array([7.0, 6.0, 8.0, 7.0, 8.01, 7.0, 7.0])
+    assert zones.exempt(ca, Sa, cb, Sb).tolist() == [True, True, True, False, False, False,
+                                                      False]
+
+
+def _shifted(d: float):
+    """A 3 x 3 natural jersey with its middle course moved by d along x, its fabric and grid."""
+    pr = parse_problem(unclamped(3, 3), "shifted")
+    starts = np.array(pr.natural_starts(), dtype=float)
+    starts[1, :, 0] += d
+    curves = Curves.of(np.broadcast_to(pr.natural.coeffs, (3, 3, 8)), starts, L)
+    return NaturalFabric.of(pr, R), curves, Grid(3, 3, L, 67)
+
+
+def test_pieces_at_interlocks_slid_out_of_their_natural_boxes_are_exempt():
+    """Middle course moved 2.5 along the courses: its interlocks with the courses below and
+    above slid out of their natural boxes (no new crossing, 8 lost at the fabric's sides).
+    With the natural boxes alone 148 pieces near the slid crossings must keep 2r and cannot
+    (the distance is zero at a crossing); with the zones none is short, as in the natural
+    fabric (the same 66 pairs)."""
+    fab, curves, grid = _shifted(2.5)
+    found = find_crossings(curves, grid)
+    assert judge(fab, found, 3, 3).clean
+    zones = slid_zones(fab, curves, grid)
+    boxes_only = find_pairs(fab, curves, grid, 0.02 * L)
+    assert np.sum(boxes_only.gap < boxes_only.required * (1 - 1e-3)) > 100
+    with_zones = find_pairs(fab, curves, grid, 0.02 * L, zones)
+    assert np.all(with_zones.gap >= with_zones.required * (1 - 1e-3))
+    fab0, natural, _ = _shifted(0.0)
+    assert len(with_zones) == len(find_pairs(fab0, natural, grid, 0.02 * L))
+
+
+def test_new_crossings_get_no_zone():
+    """Middle course moved 4: 8 crossings the natural fabric does not have; the pieces around
+    them stay short with the zones as without."""
+    fab, curves, grid = _shifted(4.0)
+    assert judge(fab, find_crossings(curves, grid), 3, 3).n_new == 8
+    zones = slid_zones(fab, curves, grid)
+    short = [np.sum(p.gap < p.required * (1 - 1e-3)) for p in
+             (find_pairs(fab, curves, grid, 0.02 * L),
+              find_pairs(fab, curves, grid, 0.02 * L, zones))]
+    assert short[0] == short[1] > 0
+
+
+@pytest.mark.parametrize("n", [4])
+def test_a_pull_whose_interlocks_slide_needs_no_restart(n):
+    """The 4 x 4 diagonal pull: its last step's first solve met pieces at slid designed
+    crossings, which the natural boxes alone took for pairs nearly crossed (a restart from the
+    step's start, 4 pairs); with the zones no step restarts and the pull ends clean, for the
+    solver and for the independent checker."""
+    pr = parse_problem(diagonal_pull(n), f"pull {n}")
+    pr = dataclasses.replace(pr, solver=dataclasses.replace(pr.solver, max_time=120.0),
+                             yarn=Yarn(R))
+    st = ContactStudy(pr, verbose=None)
+    said: list[str] = []
+    st.contact.log = lambda m: said.append(m if isinstance(m, str) else "")
+    res = st.run()
+    block = res.extra["contact"]
+    assert res.success and block["new_crossings"] == 0
+    assert block["smallest_gap_over_2r"] >= 1 - 1e-4
+    assert not any("restart" in m or "deep inside" in m for m in said)
+    checked = check(res.to_json(), pr)          # the checker applies the same zones
+    assert not checked.new_crossings and not checked.short_gaps
