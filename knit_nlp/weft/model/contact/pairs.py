@@ -16,16 +16,21 @@ so designed interlocks need no zone here.
 The state must be uncrossed (crossings.py checks it): the side of a pair is then where A lies
 now, σ = sign((P_A − P_B)·N_B), N_B = (−sin θ_B, cos θ_B) the left normal of B at the foot, and
 it stays so (the gap row σ·(P_A − P_B)·N_B ≥ required keeps it). A pair is dropped on the same
-piece of yarn; its required gap is min(2r, natural gap) (natural.py, "Thick yarn").
+piece of yarn; its required gap is min(2r, natural gap) (natural.py, "Thick yarn"), 0 in a
+designed box: a natural one, or one around a designed crossing that slid (zones.py).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .curves import Curves
 from .natural import NaturalFabric
+
+if TYPE_CHECKING:                 # zones.py imports this module
+    from .zones import Zones
 
 NEWTON_STEPS = 25
 CROSSING = 1e-9           # relative to L: a polished minimum this close is a crossing
@@ -238,7 +243,7 @@ def _segments_cross(p0, p1, q0, q1) -> np.ndarray:
 
 
 def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float,
-               zones=None) -> Pairs:
+               zones: Zones | None = None) -> Pairs:
     """Closest points (polished local minima of the distance) with gap below required +
     ``reach``, on an uncrossed state (``zones``: the designed zones that follow slid
     crossings, zones.py; required gap 0 in them)."""
@@ -255,7 +260,7 @@ def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float,
 
 
 def reseat(fab: NaturalFabric, curves: Curves, grid: Grid,
-           pairs: Pairs, zones=None) -> tuple[Pairs, np.ndarray]:
+           pairs: Pairs, zones: Zones | None = None) -> tuple[Pairs, np.ndarray]:
     """The pairs of another state carried to this (uncrossed) one: each A point (material,
     fixed) against its foot on B here, polished from B's old point (as :func:`_vertices` pairs
     a sample with its foot: polishing both points could slide them into a designed crossing),
@@ -273,7 +278,7 @@ def reseat(fab: NaturalFabric, curves: Curves, grid: Grid,
 
 
 def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float,
-              zones=None) -> Pairs:
+              zones: Zones | None = None) -> Pairs:
     """Samples of a yarn within reach of a strand, each against its foot (polished): where two
     yarns lie along each other they touch along a line, and one pair per sample holds the
     whole line, not only its closest points. Not in designed interlocks (required gap 0: a
@@ -304,7 +309,8 @@ def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float,
 
 
 def _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, reach: float = np.inf,
-              where: np.ndarray | None = None, zones=None) -> tuple[Pairs, np.ndarray]:
+              where: np.ndarray | None = None,
+              zones: Zones | None = None) -> tuple[Pairs, np.ndarray]:
     """Pairs of the points (course, arc) (ca, Sa) and (cb, Sb) that must keep a gap (not one
     piece of yarn, not in a designed interlock, not crossing) and lie within ``reach`` of it
     (and in ``where``), with their side and gap; and which of the points made one."""
@@ -319,7 +325,7 @@ def _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, reach: float = np.inf,
 
 
 def _box_edges(fab, curves, grid, feet: Feet, same: np.ndarray, required: np.ndarray,
-               reach: float, zones=None) -> Pairs:
+               reach: float, zones: Zones | None = None) -> Pairs:
     """Pairs at the edges of designed interlock boxes: where a yarn leaves a box its required
     gap jumps from 0 to 2r while the distance is still near its minimum, so the closest
     outside point is the edge itself, between two samples (a 6 x 6 diagonal pull kept every
@@ -373,7 +379,7 @@ def _discrete_minima(pts: np.ndarray, ca, ia, cb, ib) -> np.ndarray:
     return keep
 
 
-def _classify(fab: NaturalFabric, grid: Grid, ca, Sa, cb, Sb, zones=None):
+def _classify(fab: NaturalFabric, grid: Grid, ca, Sa, cb, Sb, zones: Zones | None = None):
     """Loops, material points, whether the pair is one piece of yarn, required gap (0 in
     a natural designed box or, given ``zones``, around a slid designed crossing)."""
     kA, sA = grid.loop_of(ca, Sa)
@@ -394,7 +400,7 @@ def _normal_gap(curves, grid, ca, Sa, cb, Sb):
     return np.sum((Pa - Pb) * Nb, -1), np.linalg.norm(Pa - Pb, axis=-1)
 
 
-def _closest(fab, curves, grid, ca, Sa, cb, Sb, reach, zones=None) -> Pairs:
+def _closest(fab, curves, grid, ca, Sa, cb, Sb, reach, zones: Zones | None = None) -> Pairs:
     """Polished local minima of the distance, deduplicated, non-exempt, within reach."""
     Sa, Sb = polish(curves, grid, ca, Sa, cb, Sb)
     key = np.stack([ca, cb, np.rint(Sa / (1e-6 * grid.L)), np.rint(Sb / (1e-6 * grid.L))], 1)
