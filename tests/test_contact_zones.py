@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.model.cases import diagonal_pull, unclamped
-from knit_nlp.weft.model.contact.crossings import find_crossings, judge
+from knit_nlp.weft.model.contact.crossings import designed_zones, find_crossings, judge, slid_zones
 from knit_nlp.weft.model.contact.curves import Curves
 from knit_nlp.weft.model.contact.natural import NaturalFabric
 from knit_nlp.weft.model.contact.pairs import Grid, find_pairs
-from knit_nlp.weft.model.contact.zones import Zones, slid_zones
+from knit_nlp.weft.model.contact.zones import Zones
 from knit_nlp.weft.model.problem import Yarn, parse_problem
 from knit_nlp.weft.output.check import check
 from knit_nlp.weft.study import ContactStudy
@@ -33,6 +33,29 @@ def test_a_zone_holds_the_pieces_within_its_half_width_along_both_yarns():
     Sb = np.array([7.0, 6.0, 8.0, 7.0, 8.01, 7.0, 7.0])
     assert zones.exempt(ca, Sa, cb, Sb).tolist() == [True, True, True, False, False, False,
                                                       False]
+
+
+def _rods_crossing(angle: float) -> Curves:
+    """Course 1 a straight loop along x from the origin; course 2 a straight loop at ``angle``
+    crossing it at (5, 0)."""
+    coeffs = np.zeros((2, 1, 8))
+    coeffs[1, 0, 7] = angle
+    starts = np.array([[[0.0, 0.0]], [[5.0 - 5.0 * np.cos(angle), -5.0 * np.sin(angle)]]])
+    return Curves.of(coeffs, starts, L)
+
+
+@pytest.mark.parametrize("angle, z", [(np.pi / 2, 0.1 * L), (0.2, 2 * R / np.sin(0.2)),
+                                      (0.005, 0.5 * L)])
+def test_a_zone_is_as_wide_as_the_natural_boxes_rule_but_never_wider_than_half_a_loop(angle, z):
+    """z = max(2r / sin α, 0.1 L) at the crossing's current angle, capped at L / 2 (at 0.005
+    rad the rule would give 60, six loops)."""
+    fab = NaturalFabric.of(parse_problem(unclamped(2, 2), "rods"), R)
+    curves, grid = _rods_crossing(angle), Grid(2, 1, L, 200)
+    found = find_crossings(curves, grid)
+    zones = designed_zones(fab, curves, grid, found, {})
+    assert len(found) == 1
+    assert zones.z == pytest.approx([z, z], rel=1e-9)
+    assert zones.Sa[0] == pytest.approx(5.0, abs=1e-9) and zones.Sb[0] == pytest.approx(5.0)
 
 
 def _shifted(d: float):

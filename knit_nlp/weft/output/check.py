@@ -26,11 +26,10 @@ from ...errors import ProblemError, shown
 from ...jsonio import write_json
 from ...tomlio import read_regular_file
 from ..model.basis import n_coeffs
-from ..model.contact.crossings import find_crossings, judge
+from ..model.contact.crossings import designed_zones, find_crossings, judge
 from ..model.contact.curves import Curves
 from ..model.contact.natural import NaturalFabric
 from ..model.contact.pairs import Grid, find_pairs
-from ..model.contact.zones import designed_zones
 from ..model.problem import WeftProblem
 from ..model.quadrature import positions
 

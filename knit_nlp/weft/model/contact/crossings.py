@@ -18,6 +18,7 @@ import numpy as np
 
 from .curves import Curves
 from .natural import NaturalFabric
+from .zones import Zones, half_width
 from .pairs import Grid, course_samples
 
 
@@ -131,3 +132,27 @@ def designed_offsets(fab: NaturalFabric) -> list[tuple[int, int]]:
     """Offsets (Δi, Δj) with Δi > 0 or (Δi = 0, Δj > 0) whose natural loops cross."""
     return [(di, dj) for di in range(0, REACH + 1) for dj in range(-REACH, REACH + 1)
             if (di > 0 or dj > 0) and fab.crossings((di, dj)) > 0]
+
+
+def slid_zones(fab: NaturalFabric, curves: Curves, grid: Grid) -> Zones:
+    """The designed zones of a state (zones.py): around every crossing the count accepts as
+    designed (:func:`designed_zones`)."""
+    found = find_crossings(curves, grid)
+    return designed_zones(fab, curves, grid, found,
+                          judge(fab, found, grid.courses, grid.wales).new)
+
+
+def designed_zones(fab: NaturalFabric, curves: Curves, grid: Grid, found: Crossings,
+                   new: dict) -> Zones:
+    """The zones of the crossings ``found`` on pairs of loops not in ``new`` (those the count
+    finds with more crossings than their natural count)."""
+    keep = np.array([(int(a), int(b)) not in new for a, b in zip(found.kA, found.kB)],
+                    dtype=bool)
+    kA, sA, kB, sB = found.kA[keep], found.sA[keep], found.kB[keep], found.sB[keep]
+    sin = np.abs(np.sin(curves.angle(kA, sA) - curves.angle(kB, sB)))
+    z = half_width(fab.radius, sin, grid.L)
+    n = grid.wales
+    ca, Sa = kA // n, kA % n * grid.L + sA
+    cb, Sb = kB // n, kB % n * grid.L + sB
+    return Zones(np.concatenate([ca, cb]), np.concatenate([Sa, Sb]),
+                 np.concatenate([cb, ca]), np.concatenate([Sb, Sa]), np.concatenate([z, z]))

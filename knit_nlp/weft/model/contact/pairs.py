@@ -22,15 +22,12 @@ designed box: a natural one, or one around a designed crossing that slid (zones.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .curves import Curves
 from .natural import NaturalFabric
-
-if TYPE_CHECKING:                 # zones.py imports this module
-    from .zones import Zones
+from .zones import Zones
 
 NEWTON_STEPS = 25
 CROSSING = 1e-9           # relative to L: a polished minimum this close is a crossing

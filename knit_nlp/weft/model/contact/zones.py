@@ -8,8 +8,11 @@ interlock by more than z (the 30 x 30 diagonal pull: course 1 by 5.6 length unit
 loops above the pulled corner); the pieces at the slid crossing are then outside every natural
 box, their required gap 2r cannot hold (the distance is zero at a crossing), and every load
 step failed on them as "deep pairs". Here each current crossing that the count accepts as
-designed gets its own box: the pieces within z of it along both yarns, z = max(2r / sin α,
-``SLIDE``·L) with α the crossing's current angle (the natural boxes' rule).
+designed gets its own box (built by ``crossings.designed_zones``: this module imports nothing
+of the contact package but natural.py, so that pairs.py can take zones): the pieces within z
+of it along both yarns, z = max(2r / sin α, ``SLIDE``·L) with α the crossing's current angle
+(the natural boxes' rule), but at most ``WIDEST``·L: a crossing that has turned nearly tangent
+does not free whole loops around it.
 """
 from __future__ import annotations
 
@@ -17,13 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .crossings import Crossings, find_crossings, judge
-from .curves import Curves
-from .natural import SLIDE, NaturalFabric
-from .pairs import Grid
+from .natural import SLIDE
 
 SEPARATE = 1e7             # course index scale in the zone tree: different courses never meet
-NEAREST = 8                # zones tested per point pair (crossings within reach of it)
+WIDEST = 0.5               # a zone's half-width is at most this many loop lengths
 
 
 @dataclass(frozen=True)
@@ -48,36 +48,22 @@ class Zones:
         from scipy.spatial import cKDTree     # lazy, as in pairs.py
         tree = cKDTree(np.stack([self.ca * SEPARATE, self.cb * SEPARATE, self.Sa, self.Sb], 1))
         q = np.stack([ca.ravel() * SEPARATE, cb.ravel() * SEPARATE, Sa.ravel(), Sb.ravel()], 1)
-        k = min(NEAREST, self.z.size)
-        # the tree's bound is strict: widened a hair so that a box's edges belong to it
-        _, idx = tree.query(q, k=k, p=np.inf,
-                            distance_upper_bound=float(self.z.max()) * (1 + 1e-9))
-        idx = idx.reshape(len(q), k)
-        found = idx < self.z.size
-        j = np.where(found, idx, 0)
-        inside = found & (np.abs(Sa.ravel()[:, None] - self.Sa[j]) <= self.z[j]) & (
-            np.abs(Sb.ravel()[:, None] - self.Sb[j]) <= self.z[j])
-        return inside.any(axis=1).reshape(ca.shape)
+        # every zone centre within the widest half-width (Chebyshev; widened a hair so that a
+        # box's edges belong to it), then each zone's own half-width
+        near = tree.query_ball_point(q, r=float(self.z.max()) * (1 + 1e-9), p=np.inf)
+        counts = np.fromiter(map(len, near), dtype=int, count=len(near))
+        if counts.sum() == 0:
+            return out
+        owner = np.repeat(np.arange(len(q)), counts)
+        j = np.concatenate([np.asarray(x, dtype=int) for x in near if x])
+        inside = (np.abs(Sa.ravel()[owner] - self.Sa[j]) <= self.z[j]) & (
+            np.abs(Sb.ravel()[owner] - self.Sb[j]) <= self.z[j])
+        flat = out.ravel()
+        flat[owner[inside]] = True
+        return flat.reshape(ca.shape)
 
 
-def slid_zones(fab: NaturalFabric, curves: Curves, grid: Grid) -> Zones:
-    """The zones of a state's designed crossings (:func:`designed_zones`)."""
-    found = find_crossings(curves, grid)
-    return designed_zones(fab, curves, grid, found,
-                          judge(fab, found, grid.courses, grid.wales).new)
-
-
-def designed_zones(fab: NaturalFabric, curves: Curves, grid: Grid, found: Crossings,
-                   new: dict) -> Zones:
-    """The zones of the crossings ``found`` on pairs of loops not in ``new`` (those the count
-    finds with more crossings than their natural count)."""
-    keep = np.array([(int(a), int(b)) not in new for a, b in zip(found.kA, found.kB)],
-                    dtype=bool)
-    kA, sA, kB, sB = found.kA[keep], found.sA[keep], found.kB[keep], found.sB[keep]
-    sin = np.abs(np.sin(curves.angle(kA, sA) - curves.angle(kB, sB)))
-    z = np.maximum(2 * fab.radius / np.maximum(sin, 1e-3), SLIDE * grid.L)
-    n = grid.wales
-    ca, Sa = kA // n, kA % n * grid.L + sA
-    cb, Sb = kB // n, kB % n * grid.L + sB
-    return Zones(np.concatenate([ca, cb]), np.concatenate([Sa, Sb]),
-                 np.concatenate([cb, ca]), np.concatenate([Sb, Sa]), np.concatenate([z, z]))
+def half_width(radius: float, sin_angle: np.ndarray, L: float) -> np.ndarray:
+    """A zone's half-width along both yarns: max(2r / sin α, ``SLIDE``·L), at most
+    ``WIDEST``·L (module docstring)."""
+    return np.clip(2 * radius / np.maximum(sin_angle, 1e-3), SLIDE * L, WIDEST * L)

@@ -18,11 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...model.contact.crossings import find_crossings, judge
+from ...model.contact.crossings import find_crossings, judge, slid_zones
 from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
 from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
-from ...model.contact.zones import slid_zones
 from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
