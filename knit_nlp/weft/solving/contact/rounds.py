@@ -3,7 +3,8 @@
 1. The paper's model is solved as before (no contact): usually most pairs never touch.
 2. The state is searched for contact pairs (pairs.py): closest points within reach of their
    required gap, and samples that passed through a yarn (with the side the natural fabric
-   gives them, so a state with crossings is repaired, not trusted).
+   gives them, so a state with crossings is repaired, not trusted). Pieces around the state's
+   designed crossings, wherever they slid, need no gap (zones.py).
 3. Every pair goes into a slot of the contact NLP (rows.py) — slots are per pair of loops and
    reused: their material points, sides and bounds are parameters — and IPOPT solves the NLP
    with the gap rows as inequalities, from the current state.
