@@ -35,6 +35,24 @@ def test_a_zone_holds_the_pieces_within_its_half_width_along_both_yarns():
                                                       False]
 
 
+def test_zones_agree_with_a_brute_force_search():
+    """Random zones on 4 courses (centres anywhere along them, half-widths 0.5-5) and 5,000
+    random piece pairs: exempt() gives what testing every zone gives."""
+    rng = np.random.default_rng(7)
+    nz, nq = 60, 5000
+    zones = Zones(rng.integers(0, 4, nz), rng.uniform(0, 40, nz), rng.integers(0, 4, nz),
+                  rng.uniform(0, 40, nz), rng.uniform(0.5, 5.0, nz))
+    ca, cb = rng.integers(0, 4, nq), rng.integers(0, 4, nq)
+    Sa, Sb = rng.uniform(-1, 41, nq), rng.uniform(-1, 41, nq)
+    brute = ((zones.ca[None] == ca[:, None]) & (zones.cb[None] == cb[:, None])
+             & (np.abs(Sa[:, None] - zones.Sa[None]) <= zones.z[None])
+             & (np.abs(Sb[:, None] - zones.Sb[None]) <= zones.z[None])).any(axis=1)
+    assert 100 < brute.sum() < nq - 100
+    assert np.array_equal(zones.exempt(ca, Sa, cb, Sb), brute)
+    assert zones.exempt(ca.reshape(50, 100), Sa.reshape(50, 100), cb.reshape(50, 100),
+                        Sb.reshape(50, 100)).shape == (50, 100)
+
+
 def _rods_crossing(angle: float) -> Curves:
     """Course 1 a straight loop along x from the origin; course 2 a straight loop at ``angle``
     crossing it at (5, 0)."""

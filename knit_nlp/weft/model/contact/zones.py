@@ -22,7 +22,6 @@ import numpy as np
 
 from .natural import SLIDE
 
-SEPARATE = 1e7             # course index scale in the zone tree: different courses never meet
 WIDEST = 0.5               # a zone's half-width is at most this many loop lengths
 
 
@@ -42,26 +41,30 @@ class Zones:
         the same two courses along both yarns."""
         ca, Sa, cb, Sb = np.broadcast_arrays(np.asarray(ca), np.asarray(Sa, dtype=float),
                                              np.asarray(cb), np.asarray(Sb, dtype=float))
-        out = np.zeros(ca.shape, dtype=bool)
+        out = np.zeros(ca.size, dtype=bool)
         if self.z.size == 0 or ca.size == 0:
-            return out
-        from scipy.spatial import cKDTree     # lazy, as in pairs.py
-        tree = cKDTree(np.stack([self.ca * SEPARATE, self.cb * SEPARATE, self.Sa, self.Sb], 1))
-        q = np.stack([ca.ravel() * SEPARATE, cb.ravel() * SEPARATE, Sa.ravel(), Sb.ravel()], 1)
-        # every zone centre within the widest half-width (Chebyshev; widened a hair so that a
-        # box's edges belong to it), then each zone's own half-width
-        near = tree.query_ball_point(q, r=float(self.z.max()) * (1 + 1e-9), p=np.inf)
-        counts = np.fromiter(map(len, near), dtype=int, count=len(near))
-        if counts.sum() == 0:
-            return out
-        owner = np.repeat(np.arange(len(q)), counts)
-        j = np.concatenate([np.asarray(x, dtype=int) for x in near if x])
-        inside = (np.abs(Sa.ravel()[owner] - self.Sa[j]) <= self.z[j]) & (
+            return out.reshape(ca.shape)
+        # zones sorted by (course pair, S_A) on one axis; each query's candidates are those of
+        # its course pair within the widest half-width along A (a superset: the axis has a
+        # rounding error of about 1e-9 of its span, hence the margin), then each zone's own z
+        span = 4.0 * float(max(np.abs(self.Sa).max(), np.abs(Sa).max(), 1.0))
+        top = int(max(self.cb.max(), cb.max())) + 1
+        axis = (self.ca * top + self.cb) * span + self.Sa
+        order = np.argsort(axis)
+        axis = axis[order]
+        q = (ca.ravel() * top + cb.ravel()) * span + Sa.ravel()
+        reach = float(self.z.max()) * (1 + 1e-9) + 1e-9 * span * top * top
+        lo = np.searchsorted(axis, q - reach, side="left")
+        hi = np.searchsorted(axis, q + reach, side="right")
+        counts = hi - lo
+        owner = np.repeat(np.arange(q.size), counts)
+        j = order[np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+                  + np.repeat(lo, counts)]
+        inside = (self.ca[j] == ca.ravel()[owner]) & (self.cb[j] == cb.ravel()[owner]) & (
+            np.abs(Sa.ravel()[owner] - self.Sa[j]) <= self.z[j]) & (
             np.abs(Sb.ravel()[owner] - self.Sb[j]) <= self.z[j])
-        flat = out.ravel()
-        flat[owner[inside]] = True
-        return flat.reshape(ca.shape)
-
+        out[owner[inside]] = True
+        return out.reshape(ca.shape)
 
 def half_width(radius: float, sin_angle: np.ndarray, L: float) -> np.ndarray:
     """A zone's half-width along both yarns: max(2r / sin α, ``SLIDE``·L), at most
