@@ -44,9 +44,10 @@ class Zones:
         out = np.zeros(ca.size, dtype=bool)
         if self.z.size == 0 or ca.size == 0:
             return out.reshape(ca.shape)
-        # zones sorted by (course pair, S_A) on one axis; each query's candidates are those of
-        # its course pair within the widest half-width along A (a superset: the axis has a
-        # rounding error of about 1e-9 of its span, hence the margin), then each zone's own z
+        # zones sorted by (course pair, S_A) on one axis (course pairs ``span`` apart); each
+        # query's candidates lie within the widest half-width of it on that axis, with a margin
+        # far above the axis's rounding error (a superset); then the course pair and each
+        # zone's own half-width along both yarns decide
         span = 4.0 * float(max(np.abs(self.Sa).max(), np.abs(Sa).max(), 1.0))
         top = int(max(self.cb.max(), cb.max())) + 1
         axis = (self.ca * top + self.cb) * span + self.Sa
@@ -65,6 +66,7 @@ class Zones:
             np.abs(Sb.ravel()[owner] - self.Sb[j]) <= self.z[j])
         out[owner[inside]] = True
         return out.reshape(ca.shape)
+
 
 def half_width(radius: float, sin_angle: np.ndarray, L: float) -> np.ndarray:
     """A zone's half-width along both yarns: max(2r / sin α, ``SLIDE``·L), at most
