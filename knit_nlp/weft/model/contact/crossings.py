@@ -134,14 +134,6 @@ def designed_offsets(fab: NaturalFabric) -> list[tuple[int, int]]:
             if (di > 0 or dj > 0) and fab.crossings((di, dj)) > 0]
 
 
-def slid_zones(fab: NaturalFabric, curves: Curves, grid: Grid) -> Zones:
-    """The designed zones of a state (zones.py): around every crossing the count accepts as
-    designed (:func:`designed_zones`)."""
-    found = find_crossings(curves, grid)
-    return designed_zones(fab, curves, grid, found,
-                          judge(fab, found, grid.courses, grid.wales).new)
-
-
 def designed_zones(fab: NaturalFabric, curves: Curves, grid: Grid, found: Crossings,
                    new: dict) -> Zones:
     """The zones of the crossings ``found`` on pairs of loops not in ``new`` (those the count

@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...model.contact.crossings import find_crossings, judge, slid_zones
+from ...model.contact.crossings import Crossings, Verdict, designed_zones, find_crossings, judge
 from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
 from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
+from ...model.contact.zones import Zones
 from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
@@ -83,6 +84,18 @@ class Round:
 
 
 @dataclass
+class Look:
+    """What a state's pair search, crossing check and held pairs need: its centrelines, its
+    crossings, their verdict against the natural fabric and the designed zones (zones.py)."""
+
+    x: np.ndarray
+    curves: Curves
+    found: Crossings
+    verdict: Verdict
+    zones: Zones
+
+
+@dataclass
 class ContactRun:
     """The outcome of a contact solve: the base-layout solution and what contact did."""
 
@@ -115,13 +128,25 @@ class ContactSolver:
         self.last: tuple | None = None
         self.last_pairs: tuple[Pairs, np.ndarray] | None = None
         self.deadline = np.inf           # the wall-clock budget shared with the paper's solves
+        self._look: Look | None = None
+
+    def look(self, x_base: np.ndarray) -> Look:
+        """A base-layout state's curves, crossings, verdict and designed zones. The last
+        state's are kept: a round asks for them in its pair search, its crossing check and
+        its held pairs, and the result block once more."""
+        if self._look is None or not np.array_equal(self._look.x, x_base):
+            curves = Curves.of(self.base.coefficients(x_base), self.base.starts(x_base),
+                               self.base.problem.L)
+            found = find_crossings(curves, self.grid)
+            verdict = judge(self.fabric, found, self.grid.courses, self.grid.wales)
+            zones = designed_zones(self.fabric, curves, self.grid, found, verdict.new)
+            self._look = Look(np.array(x_base, dtype=float), curves, found, verdict, zones)
+        return self._look
 
     def pairs(self, x_base: np.ndarray) -> Pairs:
         """Contact pairs of a base-layout state."""
-        curves = Curves.of(self.base.coefficients(x_base), self.base.starts(x_base),
-                           self.base.problem.L)
-        return find_pairs(self.fabric, curves, self.grid, self.reach,
-                          slid_zones(self.fabric, curves, self.grid))
+        look = self.look(x_base)
+        return find_pairs(self.fabric, look.curves, self.grid, self.reach, look.zones)
 
     def _slots(self, pairs: Pairs) -> bool:
         """Make sure every pair of loops has enough slots; True when rebuilt. The pool grows by
@@ -177,8 +202,7 @@ class ContactSolver:
     def clean(self, x_base: np.ndarray) -> bool:
         """Whether a state has no yarns that passed through each other: no pair of loops
         crosses more often than in the natural fabric (crossings.judge)."""
-        found = find_crossings(self._curves(x_base), self.grid)
-        verdict = judge(self.fabric, found, self.grid.courses, self.grid.wales)
+        verdict = self.look(x_base).verdict
         if not verdict.clean:
             n = self.grid.wales
             self.why = "new crossings between loops " + ", ".join(
@@ -204,10 +228,6 @@ class ContactSolver:
         if through.any():
             self.why = f"{int(through.sum())} pairs passed through"
         return bool(np.any(through))
-
-    def _curves(self, x_base: np.ndarray) -> Curves:
-        return Curves.of(self.base.coefficients(x_base), self.base.starts(x_base),
-                         self.base.problem.L)
 
     def solve_once(self, p_base: np.ndarray, x_base: np.ndarray, pairs: Pairs,
                    warm: tuple[np.ndarray, Pairs, np.ndarray] | None, report: SolveReport,
@@ -306,9 +326,8 @@ class ContactSolver:
         dropped when farther than the reach; one that has no foot there (it slid into an
         interlock's box, where the required gap is 0: a contact at the box's border) stays at
         its old points."""
-        curves = self._curves(x)
-        now, kept = reseat(self.fabric, curves, self.grid, held,
-                           slid_zones(self.fabric, curves, self.grid))
+        look = self.look(x)
+        now, kept = reseat(self.fabric, look.curves, self.grid, held, look.zones)
         return now.select(now.gap < now.required + self.reach).concat(held.select(~kept))
 
     def _restart(self, start: tuple, deep: Pairs) -> Pairs | None:
@@ -316,9 +335,8 @@ class ContactSolver:
         their gap) carried back to the step's start, where they are still apart; None when
         none of them is new there (nothing to gain)."""
         x0, pairs0, _ = start
-        curves = self._curves(x0)
-        back = reseat(self.fabric, curves, self.grid, deep,
-                      slid_zones(self.fabric, curves, self.grid))[0]
+        look = self.look(x0)
+        back = reseat(self.fabric, look.curves, self.grid, deep, look.zones)[0]
         back = back.select(back.gap >= back.required)
         _, dist = _match(pairs0, back, np.inf)
         back = back.select(~(dist < self.grid.h))           # not a pair the start already has

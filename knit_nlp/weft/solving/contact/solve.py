@@ -16,7 +16,6 @@ import time
 import numpy as np
 
 from ....errors import ProblemError
-from ...model.contact.crossings import find_crossings, judge
 from ...model.contact.pairs import Pairs
 from ...model.params import WeftParams
 from ...model.problem import WeftProblem
@@ -128,10 +127,10 @@ def contact_block(problem, contact: ContactSolver, run: ContactRun, route: str,
     largest = float(force.max()) if force.size else 0.0
     active = force > max(ACTIVE * largest, 10 * tol)
     x = run.report.x
-    found = find_crossings(contact._curves(x), contact.grid)
-    verdict = judge(contact.fabric, found, problem.courses, problem.wales)
+    look = contact.look(x)
+    verdict = look.verdict
     two_r = 2 * contact.radius
-    pts = _contact_points(contact._curves(x), pairs.select(active))
+    pts = _contact_points(look.curves, pairs.select(active))
     n = problem.wales
     free = pairs.required >= two_r
     thick = (pairs.required > 0) & ~free
