@@ -1,6 +1,8 @@
 """What keeps contact solves cheap (docs/contact.md, "Cost (measured)"): the slot pool is
-rebuilt smaller once it is far larger than its pairs need, and a load step that let yarns cross
-is halved after one widening of the search (a diverging solve still widens further)."""
+rebuilt smaller once it is far larger than its pairs need, a load step that let yarns cross
+is halved after one widening of the search (a diverging solve still widens further), the
+contact rows are scaled so that IPOPT's line search does not creep, and a warm start at a
+solution stays there."""
 from __future__ import annotations
 
 import numpy as np
@@ -72,3 +74,47 @@ def test_a_step_that_let_yarns_cross_is_halved_after_one_widening():
     assert deep == [rounds.REACH * L] * 2
     diverged = _reaches("Diverging_Iterates")
     assert max(diverged) >= rounds.WIDEST * L                 # nothing stops it: widen further
+
+
+def _pull(n: int) -> tuple[ContactSolver, object, list[tuple[str, int]]]:
+    """The n x n diagonal pull (r = 0.15) with its contact solver logging every IPOPT solve."""
+    from knit_nlp.weft.model.cases import diagonal_pull
+    pr = parse_problem({**diagonal_pull(n), "yarn": {"radius": 0.15}}, "pull")
+    base = build_nlp(pr)
+    contact = ContactSolver(base, pr.yarn.radius)
+    solves: list[tuple[str, int]] = []
+    contact.log = lambda r: solves.append((r.note, r.iterations)) if isinstance(
+        r, rounds.Round) else None
+    return contact, base, solves
+
+
+def _run(contact: ContactSolver, base) -> rounds.ContactRun:
+    report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
+    return contact.run(base.params.vector(), WeftParams.natural(base.problem).vector(),
+                       base.x0, 4, report)
+
+
+def test_the_first_load_step_is_not_held_back_by_the_contact_rows():
+    """The 4 x 4 pull's first load step from the natural fabric: 15 IPOPT iterations with the
+    contact rows scaled (ROW_SCALE), 25 without, where the filter line search weighed the
+    slots' six rows each above the model's own and cut every step (docs/contact.md)."""
+    contact, base, solves = _pull(4)
+    run = _run(contact, base)
+    assert run.report.success
+    note, iterations = solves[0]
+    assert note == "load 0.25" and iterations <= 20
+
+
+def test_a_contact_solve_restarted_at_its_solution_stops_at_once():
+    """Warm-started at its own solution with its own multipliers (as the rounds start each
+    solve), IPOPT has nothing to do: multipliers read back unscaled and written back scaled
+    (ContactNLP.gap_multipliers, warm_multipliers) meet; 14 iterations when the warm start
+    forgot the scale."""
+    contact, base, _ = _pull(4)
+    run = _run(contact, base)
+    pairs, lam = run.solved
+    report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
+    again, lam_again = contact.solve_once(base.params.vector(), run.report.x, pairs,
+                                          (run.report.lam_g, pairs, lam), report, [], "again")
+    assert again.success and again.iterations == 0
+    np.testing.assert_allclose(lam_again, lam, atol=1e-12)

@@ -16,7 +16,10 @@ on all of [0, s] took 48); and one inequality row, the signed normal gap
     g_c = σ (P_A − P_B)·N(Θ) ≥ required_c,    N(Θ) = (−sin Θ, cos Θ),
 
 the distance between the two points when P_A − P_B is normal to yarn B (the outer loop puts
-(s_A, s_B) on the closest points). A slot not in use gets the bound −∞.
+(s_A, s_B) on the closest points). A slot not in use gets the bound −∞. IPOPT sees every
+contact row times ``ROW_SCALE`` (its bounds and multipliers too: ``bounds``,
+``gap_multipliers`` and ``warm_multipliers`` convert), so that its filter line search does not
+weigh the slots' rows above the model's own (the constant's comment has the measurements).
 
 Derivatives (everything else in the NLP is handled by derivatives.py):
 - ∂I/∂a = Σ_i U_i ∂ΔI_i/∂a + ℓ Σ_q w_q (−sin θ_q, cos θ_q) φ(s_j + ℓ ξ_q)ᵀ, ℓ = s − s_j, with
@@ -43,6 +46,14 @@ from .full import FullNLP
 
 VARS = 5               # P_A (2), P_B (2), Θ per slot
 LIFT = 5               # lifting rows per slot
+# every contact row (lifting and gap) is scaled by this in the NLP that IPOPT sees. IPOPT's
+# filter line search weighs infeasibility as the 1-norm over all rows; six rows per slot, each
+# nonlinear in its loops' rotation, outweighed the model's own rows by thousands of slots, and
+# the filter cut every step (30 x 30 diagonal pull, first load step from the natural fabric:
+# steps of 0.005 for 90 IPOPT iterations, 111 iterations and 76 s; with 0.1, 37 and 22 s; 0.01
+# was no better there and took 45 iterations instead of 28 at the 10 x 10 pull's last step).
+# Multipliers and bounds are read and written unscaled through ContactNLP's methods
+ROW_SCALE = 0.1
 
 
 @dataclass
@@ -110,7 +121,7 @@ class ContactNLP:
         nb = self.base.n_constraints
         lbg, ubg = np.zeros(self.n_constraints), np.zeros(self.n_constraints)
         lbg[:nb], ubg[:nb] = self.base.lbg, self.base.ubg
-        lbg[self.gap_rows] = np.where(used, required, -np.inf)
+        lbg[self.gap_rows] = np.where(used, ROW_SCALE * np.asarray(required), -np.inf)
         ubg[self.gap_rows] = np.inf
         return lbg, ubg
 
@@ -124,10 +135,23 @@ class ContactNLP:
         z[:, 4] = curves.angle(self.kB, sB)
         return np.concatenate([x_base, z.ravel()])
 
+    def gap_multipliers(self, lam_g: np.ndarray) -> np.ndarray:
+        """Each slot's multiplier λ of its gap row as written (unscaled: the contact force is
+        −λ) from the multipliers IPOPT returns for the whole NLP (its rows are ``ROW_SCALE``
+        times these)."""
+        return ROW_SCALE * np.asarray(lam_g)[self.gap_rows]
+
+    def warm_multipliers(self, xval: np.ndarray, sigma: np.ndarray,
+                         lam_gap: np.ndarray) -> np.ndarray:
+        """IPOPT's starting multipliers of the contact rows (lifting, then gap) for given
+        unscaled gap multipliers: the lifting rows' balance them (:meth:`lift_multipliers`)."""
+        lam_gap = np.asarray(lam_gap, dtype=float)
+        return np.concatenate([self.lift_multipliers(xval, sigma, lam_gap), lam_gap]) / ROW_SCALE
+
     def lift_multipliers(self, xval: np.ndarray, sigma: np.ndarray,
                          lam_gap: np.ndarray) -> np.ndarray:
-        """Multipliers of the lifting rows that balance given gap multipliers (stationarity in
-        P_A, P_B, Θ): λ_A = −λσN, λ_B = λσN, λ_Θ = λσ(P_A − P_B)·T."""
+        """Multipliers of the lifting rows (unscaled) that balance given gap multipliers
+        (stationarity in P_A, P_B, Θ): λ_A = −λσN, λ_B = λσN, λ_Θ = λσ(P_A − P_B)·T."""
         z = np.asarray(xval)[self.base.n_variables:].reshape(-1, VARS)
         n = np.stack([-np.sin(z[:, 4]), np.cos(z[:, 4])], axis=1)
         t = np.stack([np.cos(z[:, 4]), np.sin(z[:, 4])], axis=1)
@@ -159,7 +183,7 @@ def build_contact_nlp(base: FullNLP, kA: np.ndarray, kB: np.ndarray) -> ContactN
     sA, sB, sigma = p[np0:np0 + n], p[np0 + n:np0 + 2 * n], p[np0 + 2 * n:np0 + 3 * n]
     masks = ca.reshape(p[np0 + 3 * n:], M, 2 * n)
     geo = _Geometry(base, x, sA, sB, sigma, kA, kB, (masks[:, :n], masks[:, n:]))
-    g = ca.vertcat(g_base(xb, pb), geo.lift_rows, geo.gap)
+    g = ca.vertcat(g_base(xb, pb), ROW_SCALE * geo.lift_rows, ROW_SCALE * geo.gap)
     xl = Layout()
     for name, (_, _, shape) in base.x.blocks.items():
         xl.add(name, *shape)
@@ -272,11 +296,11 @@ def _derivatives(base: FullNLP, geo: _Geometry, x, p, g, nx0: int, ng0: int, n: 
     xb, pb = x[:nx0], p[:base.p.size]
     g_b, J_b = base_d["jac_g"](xb, pb)
     J_c = _contact_jacobian(base, geo, nx0, nx)
-    J = ca.vertcat(ca.horzcat(J_b, ca.MX(ng0, nx - nx0)), J_c)
+    J = ca.vertcat(ca.horzcat(J_b, ca.MX(ng0, nx - nx0)), ROW_SCALE * J_c)
     jac_g = ca.Function("nlp_jac_g", [x, p], [g, J], ["x", "p"], ["g", "jac_g_x"])
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng0 + ngc)
     H_b = base_d["hess_lag"](xb, pb, lam_f, lam_g[:ng0])
-    H = ca.diagcat(H_b, ca.MX(nx - nx0, nx - nx0)) + _contact_hessian(
+    H = ca.diagcat(H_b, ca.MX(nx - nx0, nx - nx0)) + ROW_SCALE * _contact_hessian(
         base, geo, lam_g[ng0:ng0 + LIFT * n], lam_g[ng0 + LIFT * n:], nx0, nx)
     hess_lag = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [H],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])

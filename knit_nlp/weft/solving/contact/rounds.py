@@ -245,7 +245,7 @@ class ContactSolver:
             lam_base, old, lam_old = warm
             lam_gap = np.zeros(c.n_slots)
             lam_gap[slot_of] = _carry((old, lam_old), pairs)
-            lam0 = np.concatenate([lam_base, c.lift_multipliers(x0, sigma, lam_gap), lam_gap])
+            lam0 = np.concatenate([lam_base, c.warm_multipliers(x0, sigma, lam_gap)])
         params = c.parameters(p_base, sA, sB, sigma)
         rep = self.solver.once(params, x0, lbg=lbg, ubg=ubg, lam_g0=lam0)
         report.add_effort(rep)
@@ -253,7 +253,7 @@ class ContactSolver:
                             time.perf_counter() - t0))
         if self.log is not None:
             self.log(rounds[-1])
-        lam = rep.lam_g[c.gap_rows][slot_of]
+        lam = c.gap_multipliers(rep.lam_g)[slot_of]
         if rep.success:
             self.last = (c, params, rep.x, rep.lam_g, used, sigma, required)
             self.last_pairs = (pairs, lam)
