@@ -6,6 +6,7 @@ solution stays there."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from knit_nlp.weft.model.contact.pairs import Pairs
 from knit_nlp.weft.model.params import WeftParams
@@ -118,3 +119,28 @@ def test_a_contact_solve_restarted_at_its_solution_stops_at_once():
                                           (run.report.lam_g, pairs, lam), report, [], "again")
     assert again.success and again.iterations == 0
     np.testing.assert_allclose(lam_again, lam, atol=1e-12)
+
+
+def test_rounds_that_nearly_meet_their_gaps_settle_in_few_iterations(monkeypatch):
+    """The 4 x 4 pull's last three rounds start with every pair within SETTLE of its gap and
+    IPOPT at a small barrier parameter: 10, 9 and 7 iterations (16, 15 and 13 from WARM's
+    mu_init), and the same minimum as without settling."""
+    def solve(settle: float) -> tuple[rounds.ContactRun, list[tuple[str, int, bool]]]:
+        monkeypatch.setattr(rounds, "SETTLE", settle)
+        contact, base, solves = _pull(4)
+        flags: list[bool] = []
+        once = contact.solve_once
+
+        def spy(p, x, pairs, warm, report, rounds_, note, settle=False):
+            flags.append(settle)
+            return once(p, x, pairs, warm, report, rounds_, note, settle)
+
+        contact.solve_once = spy
+        return _run(contact, base), [(n, i, f) for (n, i), f in zip(solves, flags)]
+
+    run, solves = solve(1e-2)
+    settled = [it for _, it, flag in solves if flag]
+    assert run.report.success and len(settled) >= 2 and max(settled) <= 11
+    plain, plain_solves = solve(-1.0)                  # no pair meets its gap "to -1": never
+    assert not any(flag for *_, flag in plain_solves)
+    assert run.report.objective == pytest.approx(plain.report.objective, rel=1e-8)

@@ -38,9 +38,9 @@ def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_sta
     starts: list[tuple[str, np.ndarray, int]] = []
     once = st.contact.solve_once
 
-    def spy(p, x, pairs, warm, report, rounds, note):
+    def spy(p, x, pairs, warm, report, rounds, note, settle=False):
         starts.append((note, np.array(x), len(pairs)))
-        return once(p, x, pairs, warm, report, rounds, note)
+        return once(p, x, pairs, warm, report, rounds, note, settle)
 
     st.contact.solve_once = spy
     res = st.run()
