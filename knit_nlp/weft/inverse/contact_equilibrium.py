@@ -161,8 +161,8 @@ class ContactEquilibrium(Equilibrium):
         nb = self.wnlp.n_variables
         if rep.success and last is not None and np.array_equal(last[2][:nb], rep.x):
             cnlp, pc, xc, lamc, used, sigma, required = last
-            active = active_gaps(cnlp.gaps(xc, sigma), required, cnlp.gap_multipliers(lamc), used,
-                                 self.problem.solver.tol)
+            active = active_gaps(cnlp.gaps(xc, sigma), required, cnlp.gap_multipliers(lamc),
+                                 used, self.problem.solver.tol)
             state = ContactState(cnlp, pc, xc, lamc, active, block)
         self.states[key] = state
         self.blocks[key] = block

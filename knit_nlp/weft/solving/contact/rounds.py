@@ -10,6 +10,8 @@
    with the gap rows as inequalities, from the current state.
 4. The new state is searched again; the rounds stop when every pair meets its required gap to
    ``TOL`` (relative) with no crossing, and the contact points stopped moving along the yarns.
+   A round whose pairs all nearly meet their gaps already starts IPOPT at a small barrier
+   parameter (``SETTLE``).
 A round needs a new build only when some pair of loops needs more slots than it has.
 """
 from __future__ import annotations
@@ -129,6 +131,7 @@ class ContactSolver:
         self.reach = REACH * pr.L
         self.cnlp: ContactNLP | None = None
         self.solver: WeftSolver | None = None
+        self.settler: WeftSolver | None = None     # the same NLP's IPOPT for settling rounds
         self.build_s = 0.0
         self.log = None                  # a callable receiving every Round as it ends
         # the last successful solve of the contact NLP: (NLP, its parameters, x, λ, slots in
@@ -184,7 +187,7 @@ class ContactSolver:
         self.cnlp = build_contact_nlp(self.base, np.array(kA), np.array(kB))
         self.solver = WeftSolver(self.cnlp, ipopt=WARM)
         self.solver.deadline = self.deadline
-        self.settler = None            # the same NLP's IPOPT for settling rounds, when needed
+        self.settler = None                        # built again when a round settles
         self.build_s += time.perf_counter() - t0
         return True
 
