@@ -50,8 +50,8 @@ LIFT = 5               # lifting rows per slot
 # filter line search weighs infeasibility as the 1-norm over all rows; six rows per slot, each
 # nonlinear in its loops' rotation, outweighed the model's own rows by thousands of slots, and
 # the filter cut every step (30 x 30 diagonal pull, first load step from the natural fabric:
-# steps of 0.005 for 90 IPOPT iterations, 111 iterations and 76 s; with 0.1, 37 and 22 s; 0.01
-# was no better there and took 45 iterations instead of 28 at the 10 x 10 pull's last step).
+# steps of 0.005 for 90 IPOPT iterations, 111 iterations and 76 s; with 0.1, 37 and 22 s; with
+# 0.01, 33 and 19 s there, but 45 iterations instead of 28 at the 10 x 10 pull's last step).
 # Multipliers and bounds are read and written unscaled through ContactNLP's methods
 ROW_SCALE = 0.1
 
