@@ -141,3 +141,16 @@ def test_a_pull_whose_interlocks_slide_needs_no_restart(n):
     assert not any("restart" in m or "deep inside" in m for m in said)
     checked = check(res.to_json(), pr)          # the checker applies the same zones
     assert not checked.new_crossings and not checked.short_gaps
+
+
+def test_expand_lists_every_index_of_every_range_with_its_owner():
+    """ranges.expand against a plain loop, empty ranges included (the pair search, the zones
+    and the rounds' matching all use it)."""
+    from knit_nlp.weft.model.contact.ranges import expand
+    rng = np.random.default_rng(3)
+    lo = rng.integers(0, 40, 200)
+    hi = lo + rng.integers(0, 5, 200)
+    owner, rows = expand(lo, hi)
+    want = [(i, r) for i in range(200) for r in range(lo[i], hi[i])]
+    assert list(zip(owner.tolist(), rows.tolist())) == want
+    assert expand(np.zeros(0, int), np.zeros(0, int))[0].size == 0

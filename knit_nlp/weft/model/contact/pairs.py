@@ -27,6 +27,7 @@ import numpy as np
 
 from .curves import Curves
 from .natural import NaturalFabric
+from .ranges import expand
 from .zones import Zones
 
 NEWTON_STEPS = 25
@@ -214,10 +215,7 @@ def _not_blocked(pts, P, foot, fgroup, group, cv, iv, frun, run) -> np.ndarray:
     K = pts.shape[1]
     starts = np.searchsorted(group, fgroup, side="left")
     ends = np.searchsorted(group, fgroup, side="right")
-    counts = ends - starts
-    owner = np.repeat(np.arange(len(P)), counts)
-    rows = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + \
-        np.repeat(starts, counts)
+    owner, rows = expand(starts, ends)
     other = run[rows] != frun[owner]
     owner, rows = owner[other], rows[other]
     blocked = np.zeros(len(P), dtype=bool)

@@ -9,10 +9,10 @@ loops above the pulled corner); the pieces at the slid crossing are then outside
 box, their required gap 2r cannot hold (the distance is zero at a crossing), and every load
 step failed on them as "deep pairs". Here each current crossing that the count accepts as
 designed gets its own box (built by ``crossings.designed_zones``: this module imports nothing
-of the contact package but natural.py, so that pairs.py can take zones): the pieces within z
-of it along both yarns, z = max(2r / sin α, ``SLIDE``·L) with α the crossing's current angle
-(the natural boxes' rule), but at most ``WIDEST``·L: a crossing that has turned nearly tangent
-does not free whole loops around it.
+of the contact package but natural.py and ranges.py, so that pairs.py can take zones): the
+pieces within z of it along both yarns, z = max(2r / sin α, ``SLIDE``·L) with α the crossing's
+current angle (the natural boxes' rule), but at most ``WIDEST``·L: a crossing that has turned
+nearly tangent does not free whole loops around it.
 """
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .natural import SLIDE
+from .ranges import expand
 
 WIDEST = 0.5               # a zone's half-width is at most this many loop lengths
 
@@ -57,10 +58,8 @@ class Zones:
         reach = float(self.z.max()) * (1 + 1e-9) + 1e-9 * span * top * top
         lo = np.searchsorted(axis, q - reach, side="left")
         hi = np.searchsorted(axis, q + reach, side="right")
-        counts = hi - lo
-        owner = np.repeat(np.arange(q.size), counts)
-        j = order[np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-                  + np.repeat(lo, counts)]
+        owner, rows = expand(lo, hi)
+        j = order[rows]
         inside = (self.ca[j] == ca.ravel()[owner]) & (self.cb[j] == cb.ravel()[owner]) & (
             np.abs(Sa.ravel()[owner] - self.Sa[j]) <= self.z[j]) & (
             np.abs(Sb.ravel()[owner] - self.Sb[j]) <= self.z[j])

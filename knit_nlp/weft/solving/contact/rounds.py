@@ -25,6 +25,7 @@ from ...model.contact.crossings import Crossings, Verdict, designed_zones, find_
 from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
 from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
+from ...model.contact.ranges import expand
 from ...model.contact.zones import Zones
 from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
@@ -449,10 +450,8 @@ def _match(old: Pairs, new: Pairs, tol: float) -> tuple[np.ndarray, np.ndarray]:
     order = np.argsort(ko, kind="stable")
     ko = ko[order]
     lo, hi = np.searchsorted(ko, kn, "left"), np.searchsorted(ko, kn, "right")
-    counts = hi - lo
-    owner = np.repeat(np.arange(len(new)), counts)
-    rows = order[np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-                 + np.repeat(lo, counts)]
+    owner, rows = expand(lo, hi)
+    rows = order[rows]
     d = np.hypot(old.sA[rows] - new.sA[owner], old.sB[rows] - new.sB[owner])
     best = np.lexsort((d, owner))
     first = best[np.r_[True, owner[best][1:] != owner[best][:-1]]] if best.size else best
