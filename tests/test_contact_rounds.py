@@ -163,3 +163,38 @@ def test_only_pairs_that_pushed_count_as_moved_contacts():
     assert not _moved((used, np.array([-2.0, -1e-12])), now, tol, floor)
     assert _moved((used, np.array([-2.0, -1e-3])), now, tol, floor)
     assert not _moved((used, np.array([-2.0, -1e-3])), pairs([1.0, 3.05]), tol, floor)
+
+
+def test_a_contact_held_round_after_round_keeps_one_slot():
+    """4 x 4 pull: a contact that pushed and that the search lost is held, reseated to the foot
+    of A's point on B. A pair found in one round and lost in the next, and the pair held for
+    it since, are reseated to the same points: kept both, such repeats grew by one a round
+    (5 slots for one contact in the last solve), the contact's force was split between them
+    and the result listed a fifth of it."""
+    st = _study(4, 60.0)
+    repeats: list[int] = []
+    once = st.contact.solve_once
+
+    def spy(p, x, pairs, *args, **kwargs):
+        key = np.stack([pairs.kA, pairs.kB, pairs.sA, pairs.sB], 1)
+        repeats.append(int(np.unique(key, axis=0, return_counts=True)[1].max()))
+        return once(p, x, pairs, *args, **kwargs)
+
+    st.contact.solve_once = spy
+    res = st.run()
+    assert res.success and len(repeats) >= 6
+    assert max(repeats) == 1
+
+
+def test_the_result_lists_contacts_that_touch_not_the_barriers_remnants():
+    """4 x 4 pull: IPOPT ends with force x slack ≈ μ on every gap row, so rows well off their
+    bound keep a force of about 1e-6 of the largest. Counted by force alone those were half the
+    reported active contacts (the shipped diagonal pull: 92, of which 37 pushed with more than
+    1e-4 of the largest force). Every listed contact touches: its gap is its required gap to
+    1e-3 of 2r (the checker's tolerance), and its force is positive."""
+    res = _study(4, 60.0).run()
+    block = res.extra["contact"]
+    assert res.success and block["active"] == len(block["contacts"]) >= 5
+    for c in block["contacts"]:
+        assert c["force"] > 0
+        assert abs(c["gap"] - c["required"]) <= 1e-3 * 2 * R, c

@@ -10,8 +10,8 @@ last accepted solve of the contact NLP: its slots (material points s_A, s_B and 
 full solution (base variables and the slots' lifted P_A, P_B, Θ) and multipliers.
 
 Sensitivities: the KKT system of that contact NLP at its solution, with the lifting rows as
-equalities, the active gap rows (force −λ beyond ``ACTIVE`` of the largest, as the result's
-``contact`` block counts them) as equalities and the inactive gap rows dropped — the standard
+equalities, the active gap rows (``solving.contact.solve.active_gaps``: at their bound and
+pushing, as the result's ``contact`` block counts them) as equalities and the inactive gap rows dropped — the standard
 sensitivity of an inequality-constrained minimum under strict complementarity, valid while the
 active set does not change. The parameters of control (clamp targets, rigid motions) enter only
 the base rows, so ∂F/∂p is the base NLP's, padded with zeros for the slots' rows. The active
@@ -38,7 +38,7 @@ from ..model.params import WeftParams
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
 from ..solving.contact.rounds import ContactRun, ContactSolver
-from ..solving.contact.solve import ACTIVE, contact_block, solve_with_contact
+from ..solving.contact.solve import active_gaps, contact_block, solve_with_contact
 from ..solving.solve import SolveReport
 from ..model.basis import n_coeffs
 from ..transcription.contact import VARS, ContactNLP, _basis
@@ -48,12 +48,6 @@ KEEP = 16                  # solved contact states remembered (by base solution)
 # ... for a calibration curve, whose nodes' sensitivities are taken after the whole pull (up to
 # curve.NODES x 10 steps, each possibly halved): every state of a pull must stay
 CURVE_KEEP = 1024
-# a gap row is active when it meets its bound to this (relative) and pushes (ACTIVE). Measured on
-# the squeezed loop (tests/test_contact_control.py): beside the contact (force 0.61, gap 2r to
-# 3e-8) IPOPT leaves rows 1.8e-3 (relative) off their bound with forces 1.6e-6 (μ / slack):
-# taken as active they make K singular (cond 2e18, dx/dp off by 200 %); dropped, dx/dp matches
-# central differences of the forward contact solves to 4e-4
-AT_BOUND = 1e-5
 # re-solves with the pairs searched on a forward solution: with 2, place_stitch_yarn's forward
 # check ended 1.64e-3 from the control's state (over its radius / 100), the forward solve less
 # settled (its energy 6.6e-7 higher, measured on a variant of the rows); with 4, 1.42e-4
@@ -75,16 +69,6 @@ class ContactState:
     @property
     def n_active(self) -> int:
         return int(self.active.sum())
-
-
-def active_gaps(gap: np.ndarray, required: np.ndarray, lam_gap: np.ndarray, used: np.ndarray,
-                tol: float) -> np.ndarray:
-    """Gap rows held at their bound: used, within AT_BOUND (relative) of their required gap,
-    and pushing (force −λ above ACTIVE of the largest and 10 tol)."""
-    force = np.where(used, -lam_gap, 0.0)
-    largest = float(force.max(initial=0.0))
-    at_bound = gap - required <= AT_BOUND * np.maximum(np.abs(required), 1e-300)
-    return used & at_bound & (force > max(ACTIVE * largest, 10 * tol))
 
 
 class ContactEquilibrium(Equilibrium):
@@ -112,7 +96,7 @@ class ContactEquilibrium(Equilibrium):
         else:
             block = self._block(rep, "one load step with contact from the last solved state")
         if rep.success and self.contact.last is not None and self._polish(p, rep):
-            run = ContactRun(rep, *self.contact.last_pairs)
+            run = ContactRun(rep, *self.contact.last_pairs[:2])
             block = contact_block(self.problem, self.contact, run, block["route"] + ", polished",
                                   self.problem.solver.tol)
         self._remember(rep, block)
@@ -126,7 +110,7 @@ class ContactEquilibrium(Equilibrium):
         c, polished = self.contact, False
         for _ in range(POLISH):
             kept = c.last, c.last_pairs
-            pairs, lam = c.last_pairs
+            pairs, lam, _ = c.last_pairs
             found = c.pairs(rep.x)
             out, _ = c.solve_once(p, rep.x, found, (rep.lam_g, pairs, lam), rep, [], "polish")
             xn = out.x[:self.wnlp.n_variables]
@@ -162,7 +146,7 @@ class ContactEquilibrium(Equilibrium):
         if rep.success and last is not None and np.array_equal(last[2][:nb], rep.x):
             cnlp, pc, xc, lamc, used, sigma, required = last
             active = active_gaps(cnlp.gaps(xc, sigma), required, cnlp.gap_multipliers(lamc),
-                                 used, self.problem.solver.tol)
+                                 used, self.problem.solver.tol, 2 * self.contact.radius)
             state = ContactState(cnlp, pc, xc, lamc, active, block)
         self.states[key] = state
         self.blocks[key] = block

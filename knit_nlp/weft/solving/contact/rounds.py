@@ -136,10 +136,11 @@ class ContactSolver:
         self.build_s = 0.0
         self.log = None                  # a callable receiving every Round as it ends
         # the last successful solve of the contact NLP: (NLP, its parameters, x, λ, slots in
-        # use, sides σ, required gaps), and its pairs with their gap multipliers (what the
-        # sensitivities with contact need: inverse/contact_equilibrium.py)
+        # use, sides σ, required gaps), and its pairs with their gap multipliers and the gap
+        # rows' values (what the sensitivities with contact and the result's active contacts
+        # need: inverse/contact_equilibrium.py, solve.contact_block)
         self.last: tuple | None = None
-        self.last_pairs: tuple[Pairs, np.ndarray] | None = None
+        self.last_pairs: tuple[Pairs, np.ndarray, np.ndarray] | None = None
         self.deadline = np.inf           # the wall-clock budget shared with the paper's solves
         self._look: Look | None = None
 
@@ -273,7 +274,7 @@ class ContactSolver:
         lam = c.gap_multipliers(rep.lam_g)[slot_of]
         if rep.success:
             self.last = (c, params, rep.x, rep.lam_g, used, sigma, required)
-            self.last_pairs = (pairs, lam)
+            self.last_pairs = (pairs, lam, c.gaps(rep.x, sigma)[slot_of])
         return rep, lam
 
     def _ipopt(self, settle: bool) -> WeftSolver:
@@ -336,7 +337,8 @@ class ContactSolver:
                                  f"gap; from the step's start with {len(more)} pairs")
                     continue
             floor = 10 * self.base.problem.solver.tol
-            held = self._hold(xn, _held(pairs, lam, found, self.grid.h * SAME, floor))
+            held = _new(found, self._hold(xn, _held(pairs, lam, found, self.grid.h * SAME,
+                                                    floor)), self.grid.h * SAME)
             moved = final and _moved((pairs, lam), found.concat(held), self.grid.h * MOVED,
                                      floor)
             x, warm = xn, (rep.lam_g[:self.base.n_constraints], pairs, lam)
@@ -421,6 +423,21 @@ class ContactSolver:
                           0 if self.cnlp is None else self.cnlp.n_variables,
                           0 if self.cnlp is None else self.cnlp.n_constraints,
                           None if warm is None else (warm[1], warm[2]))
+
+
+def _new(found: Pairs, held: Pairs, tol: float) -> Pairs:
+    """The held pairs that are neither a found pair nor another held pair (same loops, within
+    tol in (s_A, s_B)): reseated, a pair the search found in one round and lost in the next
+    and the pair held for it since land on the same points. Kept, such repeats grew by one a
+    round (the shipped diagonal pull's last rounds: 2, 3, then 4 slots for one contact), and
+    the contact's force was split between them."""
+    if len(held) == 0:
+        return held
+    _, dist = _match(found, held, np.inf)
+    held = held.select(~(dist < tol))
+    same = ((held.kA[:, None] == held.kA) & (held.kB[:, None] == held.kB)
+            & (np.hypot(held.sA[:, None] - held.sA, held.sB[:, None] - held.sB) < tol))
+    return held.select(~np.triu(same, 1).any(axis=0))
 
 
 def _merge(a: Pairs, b: Pairs) -> Pairs:

@@ -117,47 +117,87 @@ def _keep_path(report: SolveReport, first: SolveReport) -> None:
         report.continuation_steps = first.continuation_steps
 
 
+def active_gaps(gap: np.ndarray, required: np.ndarray, lam_gap: np.ndarray, used: np.ndarray,
+                tol: float, scale: float) -> np.ndarray:
+    """Gap rows that hold their contact: used, pushing (force −λ above ACTIVE of the largest
+    and 10 tol), and nearer their bound than they push: (gap − required) / scale below
+    force / largest. ``gap`` is the rows' own value (the signed normal gap of the slot's
+    points), ``scale`` a length (2r). At IPOPT's solution every gap row has force × slack ≈ μ,
+    the last barrier parameter, so rows off their bound keep a small force; the test
+    λ_i > s_i (here with force and slack each relative to its scale) is the usual
+    identification of the active set at an interior-point solution. Measured: on the squeezed
+    loop (tests/test_contact_control.py) rows 1.8e-3 off their bound with forces 2.6e-6 of the
+    largest, taken as active, made the control's K singular (cond 2e18, dx/dp off by 200 %);
+    on the shipped diagonal pull, forces of 3e-7 on rows up to 1e-2 off their bound were half
+    of the 92 contacts that the force alone counted; along the straight rods' line contact rows
+    1e-4 off their bound carry 2 % of the push (tests/test_contact.py)."""
+    force = np.where(used, -lam_gap, 0.0)
+    largest = float(force.max(initial=0.0))
+    if largest <= 0:
+        return np.zeros(len(force), dtype=bool)
+    slack = np.maximum(gap - required, 0.0) / scale
+    return used & (force > max(ACTIVE * largest, 10 * tol)) & (force / largest > slack)
+
+
 def contact_block(problem, contact: ContactSolver, run: ContactRun, route: str,
                   tol: float) -> dict:
     """The result JSON's ``contact``: radius, pairs in reach, active contacts with their
     forces (minus the gap rows' multipliers, in the problem's force unit), smallest gaps,
     the thick-yarn pairs, crossings against the natural fabric, and the effort."""
-    pairs, lam = run.pairs, run.lam_gap
-    force = -lam
-    largest = float(force.max()) if force.size else 0.0
-    active = force > max(ACTIVE * largest, 10 * tol)
+    pairs, force, gap, active = _active(contact, run, tol)
+    largest = float(force[active].max(initial=0.0))
     x = run.report.x
     look = contact.look(x)
     verdict = look.verdict
     two_r = 2 * contact.radius
     pts = _contact_points(look.curves, pairs.select(active))
     n = problem.wales
-    free = pairs.required >= two_r
-    thick = (pairs.required > 0) & ~free
+    found = run.pairs
+    free = found.required >= two_r
+    thick = (found.required > 0) & ~free
     return {
         "radius": contact.radius,
         "route": route,
-        "pairs_in_reach": len(pairs),
+        "pairs_in_reach": len(found),
         "active": int(active.sum()),
-        "smallest_gap": float(pairs.gap[free].min()) if free.any() else None,
-        "smallest_gap_over_2r": float(pairs.gap[free].min() / two_r) if free.any() else None,
+        "smallest_gap": float(found.gap[free].min()) if free.any() else None,
+        "smallest_gap_over_2r": float(found.gap[free].min() / two_r) if free.any() else None,
         "thick_pairs": int(thick.sum()),
-        "thick_smallest_gap_over_required": float(np.min(pairs.gap[thick] / pairs.required[
+        "thick_smallest_gap_over_required": float(np.min(found.gap[thick] / found.required[
             thick])) if thick.any() else None,
-        "interlock_pairs": int(np.sum(pairs.required <= 0)),
+        "interlock_pairs": int(np.sum(found.required <= 0)),
         "largest_force": largest if active.any() else 0.0,
         "force_unit": problem.units.force,
         "new_crossings": verdict.n_new,
         "lost_designed_crossings": verdict.lost,
         "contacts": [{"loops": [[int(a // n) + 1, int(a % n) + 1], [int(b // n) + 1, int(b % n) + 1]],
                       "s": [float(sa), float(sb)], "point": pt.tolist(), "force": float(f),
-                      "gap": float(g)}
-                     for a, sa, b, sb, pt, f, g in zip(pairs.kA[active], pairs.sA[active],
-                                                       pairs.kB[active], pairs.sB[active], pts,
-                                                       force[active], pairs.gap[active])],
+                      "gap": float(g), "required": float(q)}
+                     for a, sa, b, sb, pt, f, g, q in zip(
+                         pairs.kA[active], pairs.sA[active], pairs.kB[active], pairs.sB[active],
+                         pts, force[active], gap[active], pairs.required[active])],
         "solves": len(run.rounds),
         "contact_nlp": {"n_variables": run.n_variables, "n_constraints": run.n_constraints},
     }
+
+
+def _active(contact: ContactSolver, run: ContactRun, tol: float
+            ) -> tuple[Pairs, np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs whose contacts the block lists, their forces, gaps and which are active.
+    When the last contact solve ended at the run's state: its pairs with their gap rows'
+    values, judged by :func:`active_gaps` (the set the control's sensitivities hold).
+    Otherwise (no contact solve, or a failed run): the run's pairs with their carried
+    multipliers and searched gaps, active where they push."""
+    last, x = contact.last, run.report.x
+    nb = contact.base.n_variables
+    if last is not None and contact.last_pairs is not None and np.array_equal(last[2][:nb], x):
+        pairs, lam, gap = contact.last_pairs
+        return pairs, -lam, gap, active_gaps(gap, pairs.required, lam,
+                                             np.ones(len(pairs), dtype=bool), tol,
+                                             2 * contact.radius)
+    force = -run.lam_gap
+    largest = float(force.max(initial=0.0))
+    return run.pairs, force, run.pairs.gap, force > max(ACTIVE * largest, 10 * tol)
 
 
 def _contact_points(curves, pairs: Pairs) -> np.ndarray:
