@@ -10,7 +10,7 @@ last accepted solve of the contact NLP: its slots (material points s_A, s_B and 
 full solution (base variables and the slots' lifted P_A, P_B, Θ) and multipliers.
 
 Sensitivities: the KKT system of that contact NLP at its solution, with the lifting rows as
-equalities, the active gap rows (``solving.contact.solve.active_gaps``: at their bound and
+equalities, the active gap rows (``solving.contact.active.active_gaps``: at their bound and
 pushing, as the result's ``contact`` block counts them) as equalities and the inactive gap rows dropped — the standard
 sensitivity of an inequality-constrained minimum under strict complementarity, valid while the
 active set does not change. The parameters of control (clamp targets, rigid motions) enter only
@@ -38,7 +38,8 @@ from ..model.params import WeftParams
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
 from ..solving.contact.rounds import ContactRun, ContactSolver
-from ..solving.contact.solve import active_gaps, contact_block, solve_with_contact
+from ..solving.contact.active import active_gaps
+from ..solving.contact.solve import contact_block, solve_with_contact
 from ..solving.solve import SolveReport
 from ..model.basis import n_coeffs
 from ..transcription.contact import VARS, ContactNLP, _basis
