@@ -145,12 +145,13 @@ def test_a_line_contact_on_a_floppy_wale_pull_settles_without_failed_steps():
     assert all(model.eq.state(x).n_active >= 1 for x in c.xs[-3:])
 
 
-def test_only_pairs_that_pushed_count_as_moved_contacts():
-    """The rounds at the target go on while a contact that pushed still moves along the yarns;
-    a pair with IPOPT's tiny multiplier of an inactive row (it did not push) does not count
-    (it kept the 4-loop wale pull's last step going through all its rounds with no pair short
-    of its gap)."""
+def test_only_contacts_that_touch_count_as_moved_contacts():
+    """The rounds at the target go on while a contact still moves along the yarns. A pair with
+    IPOPT's tiny multiplier of an inactive row (it did not push: it kept the 4-loop wale pull's
+    last step going through all its rounds with no pair short of its gap), or a row off its
+    bound holding only the barrier's remnant of force (force x slack = mu), is no contact."""
     from knit_nlp.weft.model.contact.pairs import Pairs
+    from knit_nlp.weft.solving.contact.active import active_gaps
     from knit_nlp.weft.solving.contact.rounds import _moved
 
     def pairs(sA):
@@ -158,11 +159,18 @@ def test_only_pairs_that_pushed_count_as_moved_contacts():
         return Pairs(np.zeros(n, int), np.array(sA, float), np.ones(n, int), np.full(n, 5.0),
                      np.ones(n), np.ones(n), np.ones(n))
 
-    used, floor, tol = pairs([1.0, 3.0]), 1e-7, 0.1
+    used, tol, two_r = pairs([1.0, 3.0]), 0.1, 1.0
     now = pairs([1.0, 3.5])                          # the second pair's point moved 0.5
-    assert not _moved((used, np.array([-2.0, -1e-12])), now, tol, floor)
-    assert _moved((used, np.array([-2.0, -1e-3])), now, tol, floor)
-    assert not _moved((used, np.array([-2.0, -1e-3])), pairs([1.0, 3.05]), tol, floor)
+
+    def moved(lam, gap, to=now):
+        touching = active_gaps(np.array(gap), used.required, np.array(lam),
+                               np.ones(2, dtype=bool), 1e-8, two_r)
+        return _moved(used.select(touching), to, tol)
+
+    assert not moved([-2.0, -1e-12], [1.0, 1.0])
+    assert moved([-2.0, -1e-3], [1.0, 1.0])
+    assert not moved([-2.0, -1e-3], [1.0, 1.01])     # 1e-2 off its bound, 5e-4 of the force
+    assert not moved([-2.0, -1e-3], [1.0, 1.0], pairs([1.0, 3.05]))
 
 
 def test_a_contact_held_round_after_round_keeps_one_slot():
@@ -191,10 +199,15 @@ def test_the_result_lists_contacts_that_touch_not_the_barriers_remnants():
     bound keep a force of about 1e-6 of the largest. Counted by force alone those were half the
     reported active contacts (the shipped diagonal pull: 92, of which 37 pushed with more than
     1e-4 of the largest force). Every listed contact touches: its gap is its required gap to
-    1e-3 of 2r (the checker's tolerance), and its force is positive."""
-    res = _study(4, 60.0).run()
+    1e-3 of 2r (the checker's tolerance), and its force is positive; the rounds' held and
+    moving contacts are the same set."""
+    st = _study(4, 60.0)
+    res = st.run()
     block = res.extra["contact"]
     assert res.success and block["active"] == len(block["contacts"]) >= 5
     for c in block["contacts"]:
         assert c["force"] > 0
         assert abs(c["gap"] - c["required"]) <= 1e-3 * 2 * R, c
+    # the rounds hold and watch the same contacts (their last solve ended at the result)
+    pairs, lam, _ = st.contact.last_pairs
+    assert st.contact.touching(pairs, lam).sum() == block["active"]

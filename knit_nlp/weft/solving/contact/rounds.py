@@ -31,6 +31,7 @@ from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
 from ..solve import SolveReport, WeftSolver
+from .active import active_gaps
 
 TOL = 1e-4                 # relative gap shortfall accepted at the end (target: 1e-3)
 STEP_TOL = 0.05            # relative gap shortfall accepted at intermediate load steps
@@ -336,11 +337,10 @@ class ContactSolver:
                         self.log(f"  restart: {int(deep.sum())} pairs met deep inside their "
                                  f"gap; from the step's start with {len(more)} pairs")
                     continue
-            floor = 10 * self.base.problem.solver.tol
-            held = _new(found, self._hold(xn, _held(pairs, lam, found, self.grid.h * SAME,
-                                                    floor)), self.grid.h * SAME)
-            moved = final and _moved((pairs, lam), found.concat(held), self.grid.h * MOVED,
-                                     floor)
+            touching = pairs.select(self.touching(pairs, lam))
+            held = _new(found, self._hold(xn, _held(touching, found, self.grid.h * SAME)),
+                        self.grid.h * SAME)
+            moved = final and _moved(touching, found.concat(held), self.grid.h * MOVED)
             x, warm = xn, (rep.lam_g[:self.base.n_constraints], pairs, lam)
             report.x, report.objective = x, rep.objective
             report.lam_g = rep.lam_g[:self.base.n_constraints]
@@ -354,6 +354,13 @@ class ContactSolver:
             settle = not self.violations(pairs, SETTLE).any()
         report.status = "Contact_Rounds_Exceeded"
         return None
+
+    def touching(self, pairs: Pairs, lam: np.ndarray) -> np.ndarray:
+        """Which pairs of the last solve (``pairs``, their gap multipliers ``lam``) hold a
+        contact: ``active.active_gaps`` on the solve's gap rows, as the result lists them."""
+        return active_gaps(self.last_pairs[2], pairs.required, lam,
+                           np.ones(len(pairs), dtype=bool), self.base.problem.solver.tol,
+                           2 * self.radius)
 
     def _hold(self, x: np.ndarray, held: Pairs) -> Pairs:
         """Held pairs (:func:`_held`) at the state x: A's point against its foot on B now,
@@ -477,39 +484,30 @@ def _match(old: Pairs, new: Pairs, tol: float) -> tuple[np.ndarray, np.ndarray]:
     return idx, dist
 
 
-def _pushing(lam: np.ndarray, floor: float) -> np.ndarray:
-    """Which pairs pushed in a solve: −λ above ``floor`` and 1e-6 of the largest (IPOPT leaves
-    every inequality a tiny multiplier)."""
-    force = -np.asarray(lam)
-    return force > max(1e-6 * float(force.max(initial=0.0)), floor)
-
-
-def _moved(last: tuple[Pairs, np.ndarray], pairs: Pairs, tol: float, floor: float) -> bool:
-    """Whether a pair that pushed in the last solve (:func:`_pushing`) has moved along the yarns
-    by more than tol. (With every λ < 0 counted, pairs that did not push kept the 4-loop wale
-    pull's last step "moving" through all its rounds with no pair short of its gap.)"""
-    old, lam = last
-    active = np.nonzero(_pushing(lam, floor))[0]
-    if active.size == 0 or len(pairs) == 0:
+def _moved(touching: Pairs, pairs: Pairs, tol: float) -> bool:
+    """Whether a contact of the last solve (``touching``: the pairs that held a contact) has
+    moved along the yarns by more than tol. (With every λ < 0 counted, pairs that did not push
+    kept the 4-loop wale pull's last step "moving" through all its rounds with no pair short
+    of its gap.)"""
+    if len(touching) == 0 or len(pairs) == 0:
         return False
-    idx, dist = _match(pairs, old.select(active), tol)
+    idx, dist = _match(pairs, touching, tol)
     return bool(np.any(dist > tol))
 
 
-def _held(used: Pairs, lam: np.ndarray, found: Pairs, tol: float, floor: float) -> Pairs:
-    """The pairs that pushed in the last solve (:func:`_pushing`) and that the new search has
-    no pair within tol of (``SAME``): they stay for the next solve, A's point against its foot
-    on B now (``reseat``: the distance from that point of A to yarn B, a true requirement).
-    Without them a contact whose closest points jumped (two near minima) was dropped, its
-    yarns came together in the next solve, and the rounds cycled (the 5 x 5 diagonal pull: 12
-    rounds, short 0.5, then 1e-4, then 0.5 ...). Kept at their old points they held the yarns
-    apart wider than 2r (a 12 x 12 stretch: smallest gap 1.08 x 2r, no contact of the search
+def _held(touching: Pairs, found: Pairs, tol: float) -> Pairs:
+    """The contacts of the last solve (``touching``) that the new search has no pair within
+    tol of (``SAME``): they stay for the next solve, A's point against its foot on B now
+    (``reseat``: the distance from that point of A to yarn B, a true requirement). Without
+    them a contact whose closest points jumped (two near minima) was dropped, its yarns came
+    together in the next solve, and the rounds cycled (the 5 x 5 diagonal pull: 12 rounds,
+    short 0.5, then 1e-4, then 0.5 ...). Kept at their old points they held the yarns apart
+    wider than 2r (a 12 x 12 stretch: smallest gap 1.08 x 2r, no contact of the search
     active)."""
-    active = used.select(_pushing(lam, floor))
-    if len(active) == 0:
+    if len(touching) == 0:
         return Pairs.empty()
-    _, dist = _match(found, active, np.inf)
-    return active.select(~(dist < tol))
+    _, dist = _match(found, touching, np.inf)
+    return touching.select(~(dist < tol))
 
 
 def _carry(last: tuple[Pairs, np.ndarray], pairs: Pairs) -> np.ndarray:
