@@ -136,7 +136,8 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=10)
     ap.add_argument("--radii", type=float, nargs="+", default=[RADIUS],
                     help="yarn radii of the stretch curves (beside the paper's model)")
-    ap.add_argument("--plot", default="docs/contact_stretch.png")
+    ap.add_argument("--plot", default=None,
+                    help="draw the stretch curves to this file (none drawn without it)")
     args = ap.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} at the start; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')} "
           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')} cores={os.cpu_count()}"
@@ -157,8 +158,9 @@ def main() -> None:
             t0 = time.perf_counter()
             curves[label] = curve(args.curve, args.strain, args.steps, radius, args.budget)
             print(f"  {time.perf_counter() - t0:.1f} s")
-        plot_curves(args.plot, args.curve, curves)
-        print(f"wrote {args.plot}")
+        if args.plot:
+            plot_curves(args.plot, args.curve, curves)
+            print(f"wrote {args.plot}")
 
 
 if __name__ == "__main__":

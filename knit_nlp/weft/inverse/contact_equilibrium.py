@@ -10,15 +10,16 @@ last accepted solve of the contact NLP: its slots (material points s_A, s_B and 
 full solution (base variables and the slots' lifted P_A, P_B, Θ) and multipliers.
 
 Sensitivities: the KKT system of that contact NLP at its solution, with the lifting rows as
-equalities, the active gap rows (``solving.contact.active.active_gaps``: at their bound and
-pushing, as the result's ``contact`` block counts them) as equalities and the inactive gap rows dropped — the standard
-sensitivity of an inequality-constrained minimum under strict complementarity, valid while the
-active set does not change. The parameters of control (clamp targets, rigid motions) enter only
-the base rows, so ∂F/∂p is the base NLP's, padded with zeros for the slots' rows. The active
-slots' material points s_A, s_B are unknowns too, held at closest points ((P_A − P_B)·T_A =
-(P_A − P_B)·T_B = 0): the gap's gradient is the same with them fixed (envelope theorem), but its
-curvature, times the contact force, enters K — fixed points give dx/dp 7 % off central
-differences on the squeezed loop, sliding ones 4e-5 (``sliding_system``).
+equalities, the active gap rows (``solving.contact.active.active_gaps``: pushing, and nearer
+their bound than they push, as the result's ``contact`` block lists them) as equalities and the
+inactive gap rows dropped — the standard sensitivity of an inequality-constrained minimum
+under strict complementarity, valid while the active set does not change. The parameters of
+control (clamp targets, rigid motions) enter only the base rows, so ∂F/∂p is the base NLP's,
+padded with zeros for the slots' rows. The active slots' material points s_A, s_B are
+unknowns too, held at closest points ((P_A − P_B)·T_A = (P_A − P_B)·T_B = 0): the gap's
+gradient is the same with them fixed (envelope theorem), but its curvature, times the contact
+force, enters K — fixed points give dx/dp 7 % off central differences on the squeezed loop,
+sliding ones 4e-5 (``sliding_system``).
 
 Stability: the Lagrangian Hessian of the contact NLP (points held) reduced to the null space of
 the Jacobian of the base equalities, the lifting rows and the active gap rows

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-ACTIVE = 1e-6              # a contact pushes when −λ exceeds this fraction of the largest (or tol)
+ACTIVE = 1e-6      # a contact pushes when −λ exceeds this fraction of the largest (or tol)
 
 
 def active_gaps(gap: np.ndarray, required: np.ndarray, lam_gap: np.ndarray, used: np.ndarray,

@@ -22,7 +22,7 @@ from ...model.problem import WeftProblem
 from ...transcription.full import FullNLP
 from ..solve import DEFAULT_START, SolveReport, WeftSolver, solve as solve_nlp, start_point
 from ..starts import needs_perturbation
-from .active import ACTIVE, active_gaps
+from .active import ACTIVE
 from .rounds import TOL, ContactRun, ContactSolver
 
 STEPS = 4                  # first load steps of a contact path when none are asked for
@@ -163,16 +163,16 @@ def _active(contact: ContactSolver, run: ContactRun, tol: float
             ) -> tuple[Pairs, np.ndarray, np.ndarray, np.ndarray]:
     """The pairs whose contacts the block lists, their forces, gaps and which are active.
     When the last contact solve ended at the run's state: its pairs with their gap rows'
-    values, judged by :func:`active_gaps` (the set the control's sensitivities hold).
+    values, judged by ``ContactSolver.touching`` (``active.active_gaps``: the set the rounds
+    hold and the control's sensitivities use).
     Otherwise (no contact solve, or a failed run): the run's pairs with their carried
     multipliers and searched gaps, active where they push."""
     last, x = contact.last, run.report.x
     nb = contact.base.n_variables
     if last is not None and contact.last_pairs is not None and np.array_equal(last[2][:nb], x):
         pairs, lam, gap = contact.last_pairs
-        return pairs, -lam, gap, active_gaps(gap, pairs.required, lam,
-                                             np.ones(len(pairs), dtype=bool), tol,
-                                             2 * contact.radius)
+        return pairs, -lam, gap, contact.touching(pairs, lam)
+    # a failed run's state is no solve's: the rows' values are unknown, the force alone judges
     force = -run.lam_gap
     largest = float(force.max(initial=0.0))
     return run.pairs, force, run.pairs.gap, force > max(ACTIVE * largest, 10 * tol)
