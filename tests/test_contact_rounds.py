@@ -211,3 +211,32 @@ def test_the_result_lists_contacts_that_touch_not_the_barriers_remnants():
     # the rounds hold and watch the same contacts (their last solve ended at the result)
     pairs, lam, _ = st.contact.last_pairs
     assert st.contact.touching(pairs, lam).sum() == block["active"]
+
+
+def test_a_warm_start_whose_contact_rounds_fail_takes_a_load_step_from_it():
+    """A 6 x 6 jersey between rigid edges at the acrylic's radius (r = 0.656, L = 10) stretched
+    to 0.10 from its solution at 0.05, given as x0 alone (the start's parameters unknown, as a
+    sweep warm-starts). The paper's model from there crosses no yarn, and the contact rounds
+    from its solution end locally infeasible (709 IPOPT iterations). The rounds then widened
+    their reach five times and halved a step of zero length (from unknown parameters every
+    step is at the target) until the budget ran out: not converged in 300 s. Now a failed
+    round is followed by the load step from the start: 12 iterations."""
+    from knit_nlp.weft.model.cases import unclamped
+    n = 6
+    doc = unclamped(n, n)
+    doc.update(name="stretch6", rigid_clamp=[
+        {"edge": "left", "point": "start"},
+        {"edge": "right", "point": "end", "translation": [0.0, 0.0]}])
+    pr = parse_problem(doc, "stretch6")
+    pr = dataclasses.replace(pr, yarn=Yarn(0.656),
+                             solver=dataclasses.replace(pr.solver, max_time=90.0))
+    st = ContactStudy(pr, verbose=None)
+    width = n * pr.natural.wale_spacing
+    first = st.run(st.params.with_(rigid={2: (0.05 * width, 0.0, 0.0)}))
+    assert first.success
+    second = st.run(st.params.with_(rigid={2: (0.10 * width, 0.0, 0.0)}), x0=first.x)
+    route = second.extra["contact"]["route"]
+    assert second.success, (second.status, route)
+    assert route.startswith("load steps with contact from the start (the contact rounds")
+    assert second.extra["contact"]["new_crossings"] == 0
+    assert second.rigid_clamps[1].force[0] > first.rigid_clamps[1].force[0] > 0

@@ -48,6 +48,11 @@ WIDEST = 0.4               # the reach is widened (x2 per failed step) up to thi
 # 4 of them; halving then is 3x cheaper there. A solve that diverges (a body pushed by a load
 # with nothing else to stop it) still widens to WIDEST.
 WIDE_CROSSED = 0.04
+# ... and a step whose contact NLP IPOPT found locally infeasible is halved at once: more pairs
+# are more rows, they cannot make it feasible. The 6 x 6 jersey stretched between rigid edges at
+# the acrylic's radius (docs/contact.md, "Stiffening") spent its whole 300 s budget at strain
+# 0.10 on five widenings (500-860 IPOPT iterations each, every one infeasible)
+INFEASIBLE = "Infeasible_Problem_Detected"
 MOVED = 0.5                # contact points that moved less than this many samples have settled
 # a pair the search finds within this many samples of a pushing pair's points (s_A, s_B) is that
 # contact; a pushing pair with none that close stays in the next solve (_held). With one sample
@@ -404,11 +409,17 @@ class ContactSolver:
                 # (a step still nearly crossed after its restarts is halved at once: on the
                 # 30 x 30 pull the doubled reach held 50,000 pairs, 72 s a solve, and the
                 # pairs it met deep had been 2-12 times their gap apart at the step's start)
-                widest = {CROSSED: WIDE_CROSSED, DEEP_PAIRS: 0.0}.get(report.status, WIDEST)
+                widest = {CROSSED: WIDE_CROSSED, DEEP_PAIRS: 0.0, INFEASIBLE: 0.0}.get(
+                    report.status, WIDEST)
                 if self.reach < widest * self.base.problem.L:
                     self.reach *= 2
                     pairs = self.pairs(x)
                     continue
+                if np.array_equal(p_target, p_natural):
+                    # no load to step (a start at unknown parameters): a shorter step is the
+                    # same step; the caller tries the natural fabric
+                    report.success = False
+                    break
                 halvings += 1
                 if halvings > max_halvings:
                     report.success = False

@@ -64,7 +64,7 @@ def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver
     if solver.progress is not None:
         solver.progress.done()
     route = "paper's model: no contact needed"
-    run = None
+    run, spent = None, first
     if first.success:
         pairs = contact.pairs(first.x)
         uncrossed = contact.clean(first.x)
@@ -74,15 +74,24 @@ def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver
             route = "contact rounds from the paper's solution (no yarn crossed in it)"
             run = contact.run(p, p, first.x, 1, _fresh(base, first))
             _keep_path(run.report, first)
+            if not run.report.success:      # then load steps, as where yarns crossed
+                run, spent = None, run.report
     if run is None:
         where = "the start" if x_from is not base.x0 else "the natural fabric"
-        route = f"load steps with contact from {where} (yarns crossed in the paper's solution)"
-        run = contact.run(p, p_from, x_from, continuation or STEPS, _fresh(base, first))
+        why = ("yarns crossed in the paper's solution" if spent is first else
+               "the contact rounds from the paper's solution failed")
+        route = f"load steps with contact from {where} ({why})"
+        # from a start at unknown parameters every step is at the target: one is enough
+        steps = 1 if np.array_equal(p_from, p) else continuation or STEPS
+        run = contact.run(p, p_from, x_from, steps, _fresh(base, spent) if spent is first else
+                          _fresh(base, spent, f"contact rounds: {spent.status}"))
         if not run.report.success and x_from is not base.x0:
-            route = ("load steps with contact from the natural fabric (yarns crossed in the "
-                     "paper's solution; the steps from the start failed)")
+            route = (f"load steps with contact from the natural fabric ({why}; the steps "
+                     "from the start failed)")
             run = contact.run(p, WeftParams.natural(problem).vector(), base.x0,
-                              continuation or STEPS, _fresh(base, run.report))
+                              continuation or STEPS,
+                              _fresh(base, run.report, f"load steps from the start: "
+                                     f"{run.report.status}"))
     return run.report, contact_block(problem, contact, run, route, problem.solver.tol)
 
 
@@ -102,11 +111,13 @@ def _paper_first(base: FullNLP, solver: WeftSolver, params: WeftParams, x0, cont
     return rep
 
 
-def _fresh(base: FullNLP, spent: SolveReport) -> SolveReport:
-    """An empty report that already counts the effort of a previous solve."""
+def _fresh(base: FullNLP, spent: SolveReport,
+           note: str = "paper's model (no contact) first") -> SolveReport:
+    """An empty report that already counts the effort (and the attempts, ``note`` added) of
+    what was tried before."""
     rep = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
     rep.add_effort(spent)
-    rep.attempts = list(spent.attempts) + ["paper's model (no contact) first"]
+    rep.attempts = list(spent.attempts) + [note]
     return rep
 
 
