@@ -57,42 +57,59 @@ def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver
     if contact.solver is not None:
         contact.solver.deadline = solver.deadline
     p = params.vector()
-    p_from, x_from = WeftParams.natural(problem).vector(), base.x0
+    start = WeftParams.natural(problem).vector(), base.x0
     if x_start is not None and contact.clean(x_start):
-        p_from, x_from = (p if p_start is None else p_start), x_start
+        start = (p if p_start is None else p_start), x_start
     first = _paper_first(base, solver, params, x_start, continuation)
     if solver.progress is not None:
         solver.progress.done()
-    route = "paper's model: no contact needed"
-    run, spent = None, first
-    if first.success:
-        pairs = contact.pairs(first.x)
-        uncrossed = contact.clean(first.x)
-        if uncrossed and not contact.violations(pairs, TOL).any():
-            run = ContactRun(first, pairs, np.zeros(len(pairs)))
-        elif uncrossed:
-            route = "contact rounds from the paper's solution (no yarn crossed in it)"
-            run = contact.run(p, p, first.x, 1, _fresh(base, first))
-            _keep_path(run.report, first)
-            if not run.report.success:      # then load steps, as where yarns crossed
-                run, spent = None, run.report
+    run, route, why, fresh = _from_paper(base, contact, p, first)
     if run is None:
-        where = "the start" if x_from is not base.x0 else "the natural fabric"
-        why = ("yarns crossed in the paper's solution" if spent is first else
-               "the contact rounds from the paper's solution failed")
-        route = f"load steps with contact from {where} ({why})"
-        # from a start at unknown parameters every step is at the target: one is enough
-        steps = 1 if np.array_equal(p_from, p) else continuation or STEPS
-        run = contact.run(p, p_from, x_from, steps, _fresh(base, spent) if spent is first else
-                          _fresh(base, spent, f"contact rounds: {spent.status}"))
-        if not run.report.success and x_from is not base.x0:
-            route = (f"load steps with contact from the natural fabric ({why}; the steps "
-                     "from the start failed)")
-            run = contact.run(p, WeftParams.natural(problem).vector(), base.x0,
-                              continuation or STEPS,
-                              _fresh(base, run.report, f"load steps from the start: "
-                                     f"{run.report.status}"))
+        run, route = _load_steps(base, contact, p, start, continuation, why, fresh)
     return run.report, contact_block(problem, contact, run, route, problem.solver.tol)
+
+
+def _from_paper(base: FullNLP, contact: ContactSolver, p: np.ndarray, first: SolveReport
+                ) -> tuple[ContactRun | None, str, str, SolveReport]:
+    """The paper's solution ``first`` as the answer (no contact needed) or contact rounds from
+    it (it crosses no yarn): the run and its route; else None, why not, and a fresh report
+    for the load steps that counts the effort spent (``_fresh``)."""
+    if not first.success:
+        return None, "", "the paper's model did not converge", _fresh(base, first)
+    if not contact.clean(first.x):
+        return None, "", "yarns crossed in the paper's solution", _fresh(base, first)
+    pairs = contact.pairs(first.x)
+    if not contact.violations(pairs, TOL).any():
+        return (ContactRun(first, pairs, np.zeros(len(pairs))),
+                "paper's model: no contact needed", "", first)
+    run = contact.run(p, p, first.x, 1, _fresh(base, first))
+    _keep_path(run.report, first)
+    if run.report.success:
+        return run, "contact rounds from the paper's solution (no yarn crossed in it)", "", first
+    spent = _fresh(base, run.report, f"contact rounds from the paper's solution: "
+                   f"{run.report.status}")
+    return None, "", "the contact rounds from the paper's solution failed", spent
+
+
+def _load_steps(base: FullNLP, contact: ContactSolver, p: np.ndarray,
+                start: tuple[np.ndarray, np.ndarray], continuation: int | None, why: str,
+                report: SolveReport) -> tuple[ContactRun, str]:
+    """Load steps with contact from ``start`` (parameters, state: uncrossed) into ``report``
+    (``_fresh``), and from the natural fabric where those fail; the run and its route. From a
+    start at unknown parameters every step is at the target: one is enough, and a failed one
+    is not halved."""
+    p_from, x_from = start
+    natural = x_from is base.x0
+    where = "the natural fabric" if natural else "the start"
+    steps = 1 if np.array_equal(p_from, p) else continuation or STEPS
+    run = contact.run(p, p_from, x_from, steps, report)
+    if run.report.success or natural:
+        return run, f"load steps with contact from {where} ({why})"
+    run = contact.run(p, WeftParams.natural(base.problem).vector(), base.x0,
+                      continuation or STEPS,
+                      _fresh(base, run.report, f"load steps from the start: {run.report.status}"))
+    return run, (f"load steps with contact from the natural fabric ({why}; the steps from the "
+                 "start failed)")
 
 
 def _paper_first(base: FullNLP, solver: WeftSolver, params: WeftParams, x0, continuation):
