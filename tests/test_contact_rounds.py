@@ -194,6 +194,27 @@ def test_a_contact_held_round_after_round_keeps_one_slot():
     assert max(repeats) == 1
 
 
+def test_held_pairs_that_repeat_a_found_pair_or_each_other_keep_one_slot():
+    """The rule of the test above on hand-made pairs: a held pair within tol of a found pair
+    goes, of held pairs within tol of each other (same loops) one stays, pairs on other loops
+    or farther apart all stay."""
+    from knit_nlp.weft.model.contact.pairs import Pairs
+    from knit_nlp.weft.solving.contact.rounds import _new
+
+    def pairs(kA, kB, sA):
+        n = len(sA)
+        return Pairs(np.array(kA), np.array(sA, float), np.array(kB), np.full(n, 5.0),
+                     np.ones(n), np.ones(n), np.ones(n))
+
+    tol = 0.01
+    held = pairs([0, 0, 0, 0, 0, 2, 0], [1, 1, 1, 1, 1, 3, 1],
+                 [1.0, 1.0, 2.0, 3.0, 3.0 + 0.3 * tol, 1.0, 4.0])
+    found = pairs([0], [1], [2.0 + 0.2 * tol])
+    kept = _new(found, held, tol)
+    assert sorted(zip(kept.kA.tolist(), np.round(kept.sA, 3).tolist())) == [
+        (0, 1.0), (0, 3.0), (0, 4.0), (2, 1.0)]
+
+
 def test_the_result_lists_contacts_that_touch_not_the_barriers_remnants():
     """4 x 4 pull: IPOPT ends with force x slack ≈ μ on every gap row, so rows well off their
     bound keep a force of about 1e-6 of the largest. Counted by force alone those were half the

@@ -453,9 +453,22 @@ def _new(found: Pairs, held: Pairs, tol: float) -> Pairs:
         return held
     _, dist = _match(found, held, np.inf)
     held = held.select(~(dist < tol))
-    same = ((held.kA[:, None] == held.kA) & (held.kB[:, None] == held.kB)
-            & (np.hypot(held.sA[:, None] - held.sA, held.sB[:, None] - held.sB) < tol))
-    return held.select(~np.triu(same, 1).any(axis=0))
+    # sorted by loops then s_A, a repeat lies within tol of an earlier pair of its loops, a
+    # few places back at most: compare at growing lags (memory linear in the pairs)
+    key = held.kA * (int(held.kB.max(initial=0)) + 1) + held.kB
+    order = np.lexsort((held.sA, key))
+    k, sa, sb = key[order], held.sA[order], held.sB[order]
+    repeat = np.zeros(len(held), dtype=bool)
+    lag = 1
+    while lag < len(held):
+        near = (k[lag:] == k[:-lag]) & (sa[lag:] - sa[:-lag] < tol)
+        if not near.any():
+            break
+        repeat[lag:] |= near & (np.hypot(sa[lag:] - sa[:-lag], sb[lag:] - sb[:-lag]) < tol)
+        lag += 1
+    keep = np.ones(len(held), dtype=bool)
+    keep[order[repeat]] = False
+    return held.select(keep)
 
 
 def _merge(a: Pairs, b: Pairs) -> Pairs:
