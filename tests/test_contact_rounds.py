@@ -230,8 +230,7 @@ def test_the_result_lists_contacts_that_touch_not_the_barriers_remnants():
         assert c["force"] > 0
         assert abs(c["gap"] - c["required"]) <= 1e-3 * 2 * R, c
     # the rounds hold and watch the same contacts (their last solve ended at the result)
-    pairs, lam, _ = st.contact.last_pairs
-    assert st.contact.touching(pairs, lam).sum() == block["active"]
+    assert st.contact.touching().sum() == block["active"]
 
 
 def test_a_warm_start_whose_contact_rounds_fail_takes_a_load_step_from_it():

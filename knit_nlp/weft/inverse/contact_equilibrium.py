@@ -143,10 +143,9 @@ class ContactEquilibrium(Equilibrium):
     def _remember(self, rep: SolveReport, block: dict) -> None:
         """Keep the contact NLP's solution that belongs to the base solution rep.x."""
         key = np.asarray(rep.x).tobytes()
-        last, state = self.contact.last, None
-        nb = self.wnlp.n_variables
-        if rep.success and last is not None and np.array_equal(last[2][:nb], rep.x):
-            cnlp, pc, xc, lamc, used, sigma, required = last
+        state = None
+        if rep.success and self.contact.solved_at(rep.x):
+            cnlp, pc, xc, lamc, used, sigma, required = self.contact.last
             active = active_gaps(cnlp.gaps(xc, sigma), required, cnlp.gap_multipliers(lamc),
                                  used, self.problem.solver.tol, 2 * self.contact.radius)
             state = ContactState(cnlp, pc, xc, lamc, active, block)

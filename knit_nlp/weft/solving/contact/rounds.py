@@ -342,7 +342,7 @@ class ContactSolver:
                         self.log(f"  restart: {int(deep.sum())} pairs met deep inside their "
                                  f"gap; from the step's start with {len(more)} pairs")
                     continue
-            touching = pairs.select(self.touching(pairs, lam))
+            touching = pairs.select(self.touching())
             held = _new(found, self._hold(xn, _held(touching, found, self.grid.h * SAME)),
                         self.grid.h * SAME)
             moved = final and _moved(touching, found.concat(held), self.grid.h * MOVED)
@@ -360,12 +360,17 @@ class ContactSolver:
         report.status = "Contact_Rounds_Exceeded"
         return None
 
-    def touching(self, pairs: Pairs, lam: np.ndarray) -> np.ndarray:
-        """Which pairs of the last solve (``pairs``, their gap multipliers ``lam``) hold a
-        contact: ``active.active_gaps`` on the solve's gap rows, as the result lists them."""
-        return active_gaps(self.last_pairs[2], pairs.required, lam,
-                           np.ones(len(pairs), dtype=bool), self.base.problem.solver.tol,
-                           2 * self.radius)
+    def touching(self) -> np.ndarray:
+        """Which pairs of the last solve (``last_pairs``) hold a contact: ``active.active_gaps``
+        on the solve's gap rows, as the result lists them."""
+        pairs, lam, gap = self.last_pairs
+        return active_gaps(gap, pairs.required, lam, np.ones(len(pairs), dtype=bool),
+                           self.base.problem.solver.tol, 2 * self.radius)
+
+    def solved_at(self, x_base: np.ndarray) -> bool:
+        """Whether the last successful contact solve (``last``) ended at the base state x."""
+        return self.last is not None and np.array_equal(
+            self.last[2][:self.base.n_variables], x_base)
 
     def _hold(self, x: np.ndarray, held: Pairs) -> Pairs:
         """Held pairs (:func:`_held`) at the state x: A's point against its foot on B now,

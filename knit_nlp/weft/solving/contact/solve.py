@@ -195,11 +195,9 @@ def _active(contact: ContactSolver, run: ContactRun, tol: float
     hold and the control's sensitivities use).
     Otherwise (no contact solve, or a failed run): the run's pairs with their carried
     multipliers and searched gaps, active where they push."""
-    last, x = contact.last, run.report.x
-    nb = contact.base.n_variables
-    if last is not None and contact.last_pairs is not None and np.array_equal(last[2][:nb], x):
+    if contact.solved_at(run.report.x):
         pairs, lam, gap = contact.last_pairs
-        return pairs, -lam, gap, contact.touching(pairs, lam)
+        return pairs, -lam, gap, contact.touching()
     # a failed run's state is no solve's: the rows' values are unknown, the force alone judges
     force = -run.lam_gap
     largest = float(force.max(initial=0.0))
