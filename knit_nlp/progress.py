@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 import time
+import weakref
 from typing import TextIO
 
 import casadi as ca
@@ -41,7 +42,8 @@ class Clock:
 
 class IterationLine(ca.Callback):
     """Called by ``nlpsol`` after every IPOPT iteration with the current iterate; rewrites one
-    line: iterates so far (each solve's first is its start), objective, largest constraint residual.
+    line: iterates so far (each solve's first is its start), objective, largest violation of the
+    rows' bounds.
     It also stops IPOPT (``User_Requested_Stop``) once the clock passes :attr:`deadline` (a
     ``time.perf_counter`` value set by the caller before each solve): several solves sharing one
     ``[solver] max_time`` budget each get IPOPT's own ``max_wall_time`` of the whole budget, so
@@ -54,13 +56,15 @@ class IterationLine(ca.Callback):
         self.stream = stream or sys.stderr
         self.clock, self.budget = Clock(quiet_for), budget
         self.deadline = float("inf")
+        self.stage = ""                  # what this solve is for (yarn contact: its load step)
+        self.bounds: tuple[np.ndarray, np.ndarray] | None = None   # the rows' lbg, ubg
         self.start()
         self.construct("iteration_line", {})
 
     def start(self) -> None:
         """Restart the clock (a new solve, or a new ``max_time`` budget)."""
         self.clock.start()
-        self.warned, self.written = False, False
+        self.warned = False
 
     def get_n_in(self) -> int:
         return ca.nlpsol_n_out()
@@ -93,21 +97,41 @@ class IterationLine(ca.Callback):
             return [0]
         if not self.warned and took > self.budget / 2:
             self.warned = True
-            self.stream.write(f"{chr(13) if self.written else ''}  warning: this solve has used "
-                              f"{took:.0f} s, half its [solver] max_time of "
-                              f"{self.budget:g} s; it may end without converging (exit 1)\n")
+            warning = (f"  warning: this solve has used {took:.0f} s, half its [solver] "
+                       f"max_time of {self.budget:g} s; it may end without converging (exit 1)")
+            width = _OPEN.get(self.stream, 0)
+            self.stream.write(f"{chr(13) if width else ''}{warning.ljust(width)}\n")
+            _OPEN[self.stream] = 0
         g = np.asarray(arg[2]).ravel()
-        viol = float(np.max(np.abs(g))) if g.size else 0.0
-        self.stream.write(f"\r  IPOPT iterate {self.count:5d}  objective "
-                          f"{float(arg[1]):.10g}  max |g| {viol:.2e}  "
-                          f"{took:.0f} s  ")
+        line = (f"  {self.stage}IPOPT iterate {self.count:5d}  objective "
+                f"{float(arg[1]):.10g}  max violation {self.violation(g):.2e}  {took:.0f} s  ")
+        # over the line open on this stream, blanking the rest of a longer one (another solve's)
+        self.stream.write("\r" + line.ljust(_OPEN.get(self.stream, 0)))
+        _OPEN[self.stream] = len(line)
         self.stream.flush()
-        self.written = True
         return [0]
 
+    def violation(self, g: np.ndarray) -> float:
+        """The largest violation of the rows' bounds (:attr:`bounds`, set by the solver before
+        each solve; without them every row is taken as an equation g = 0). Inequality rows (yarn
+        contact's gaps) count only where they are outside their bounds."""
+        if not g.size:
+            return 0.0
+        if self.bounds is None:
+            return float(np.max(np.abs(g)))
+        lbg, ubg = self.bounds
+        return float(np.max(np.maximum(np.maximum(lbg - g, g - ubg), 0.0)))
+
     def done(self) -> None:
-        """End the updating line (if anything was written)."""
-        if self.written:
+        """End the updating line (if one is open on this line's stream)."""
+        if _OPEN.get(self.stream, 0):
             self.stream.write("\n")
             self.stream.flush()
-            self.written = False
+            _OPEN[self.stream] = 0
+
+
+# the length of the updating line open on each stream (0 or absent: none). Shared by every
+# IterationLine writing there: the solves of yarn contact each have their own line object, and
+# each must overwrite (and blank) what the last one wrote, and end the line once
+_OPEN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+

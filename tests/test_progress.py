@@ -4,8 +4,10 @@ outlasts QUIET_FOR seconds, refreshed at most once a second, and a warning says 
 from __future__ import annotations
 
 import io
+import re
 
 import casadi as ca
+import numpy as np
 import pytest
 
 import knit_nlp.progress as progress
@@ -114,3 +116,55 @@ def test_a_solve_ends_at_the_shared_deadline_not_a_whole_budget_later(verbose):
     assert late.status == OUT_OF_TIME and not late.success and late.iterations <= 3
     solver.deadline = time.perf_counter() + 600.0
     assert solver.once(p, nlp.x0).success
+
+
+def test_the_line_shows_how_far_the_rows_are_outside_their_bounds(monkeypatch):
+    """Yarn contact's gap rows are inequalities (gap >= 2r): their values are not violations.
+    The line printed max |g| (a contact solve showed 0.44, the largest gap, at its solution);
+    it now shows how far any row is outside its bounds."""
+    clock = Clock()
+    monkeypatch.setattr(progress.time, "perf_counter", clock)
+    line = IterationLine(1, 2, io.StringIO(), quiet_for=0.0)
+    line.bounds = (np.array([0.0, 0.3]), np.array([0.0, np.inf]))
+
+    def shown(g: list[float]) -> str:
+        before = line.stream.getvalue()
+        line.eval([ca.DM([1.0]), ca.DM(2.0), ca.DM(g)])
+        return line.stream.getvalue()[len(before):]
+
+    assert "max violation 1.00e-03" in shown([1e-3, 0.5])       # an equation off by 1e-3
+    assert "max violation 1.00e-01" in shown([0.0, 0.2])        # a gap 0.1 short of 0.3
+    assert "max violation 0.00e+00" in shown([0.0, 7.0])        # far apart: no violation
+
+
+def test_solves_sharing_a_stream_overwrite_one_line_and_end_it_once():
+    """Contact rounds are several IPOPT solves, each with its own line object: a shorter line
+    blanks what a longer one left, and the line ends once (the last contact solve's line was
+    never ended, and the result's first line was glued onto it)."""
+    stream = io.StringIO()
+    long, short = (IterationLine(1, 1, stream, quiet_for=0.0) for _ in range(2))
+    long.stage = "yarn contact, load 0.625, round 12 (123,456 pairs): "
+    long.eval([ca.DM([1.0]), ca.DM(2.0), ca.DM([0.0])])
+    width = len(stream.getvalue().rsplit("\r", 1)[1])
+    short.eval([ca.DM([1.0]), ca.DM(2.0), ca.DM([0.0])])
+    assert len(stream.getvalue().rsplit("\r", 1)[1]) >= width    # blanks over the long line
+    short.done()
+    long.done()
+    assert stream.getvalue().count("\n") == 1 and stream.getvalue().endswith("\n")
+
+
+def test_a_contact_solve_names_each_step_on_its_progress_line(monkeypatch, capsys):
+    """The 4 x 4 diagonal pull with r = 0.15 takes several contact solves (load steps, rounds);
+    each progress line says which, with its pairs, and the last one is ended."""
+    from knit_nlp.weft.api import solve
+    from knit_nlp.weft.model.cases import diagonal_pull
+    from knit_nlp.weft.model.parametrisation import Full
+    from knit_nlp.weft.model.problem import parse_problem
+    monkeypatch.setattr("knit_nlp.weft.solving.solve.QUIET_FOR", 0.0)
+    pr = parse_problem({**diagonal_pull(4), "yarn": {"radius": 0.15}}, "pull 4")
+    assert solve(pr, Full()).success
+    err = capsys.readouterr().err
+    stages = set(re.findall(r"yarn contact, (load [0-9.]+(?:, round \d+)?) \(\d[\d,]* pairs\)",
+                            err))
+    assert "load 1" in stages and len(stages) >= 3
+    assert err.endswith("\n")

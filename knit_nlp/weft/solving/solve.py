@@ -119,8 +119,10 @@ class WeftSolver:
                                np.nan, 0, 0.0)
         warm = {} if lam_g0 is None else {"lam_g0": lam_g0}
         self.progress.deadline = self.deadline        # callers may move the deadline
-        sol = self.solver(x0=x0, p=p, lbg=self.wnlp.lbg if lbg is None else lbg,
-                          ubg=self.wnlp.ubg if ubg is None else ubg, **warm)
+        lbg = np.asarray(self.wnlp.lbg if lbg is None else lbg, dtype=float).ravel()
+        ubg = np.asarray(self.wnlp.ubg if ubg is None else ubg, dtype=float).ravel()
+        self.progress.bounds = (lbg, ubg)
+        sol = self.solver(x0=x0, p=p, lbg=lbg, ubg=ubg, **warm)
         stats = self.solver.stats()
         status = str(stats["return_status"])
         if status == "User_Requested_Stop" and time.perf_counter() >= self.deadline:

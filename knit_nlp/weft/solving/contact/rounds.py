@@ -270,8 +270,10 @@ class ContactSolver:
             lam_gap[slot_of] = _carry((old, lam_old), pairs)
             lam0 = np.concatenate([lam_base, c.warm_multipliers(x0, sigma, lam_gap)])
         params = c.parameters(p_base, sA, sB, sigma)
-        rep = self._ipopt(settle and warm is not None).once(params, x0, lbg=lbg, ubg=ubg,
-                                                              lam_g0=lam0)
+        ipopt = self._ipopt(settle and warm is not None)
+        # the progress line names the step: a long contact solve is several IPOPT solves
+        ipopt.progress.stage = f"yarn contact, {note} ({len(pairs):,} pairs): "
+        rep = ipopt.once(params, x0, lbg=lbg, ubg=ubg, lam_g0=lam0)
         report.add_effort(rep)
         rounds.append(Round(note, len(pairs), c.n_slots, rebuilt, rep.iterations, rep.status,
                             time.perf_counter() - t0))
