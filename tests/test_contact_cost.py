@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from knit_nlp.outcome import OUT_OF_TIME
 from knit_nlp.weft.model.contact.pairs import Pairs
 from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.model.problem import parse_problem
@@ -75,6 +76,23 @@ def test_a_step_that_let_yarns_cross_is_halved_after_one_widening():
     assert deep == [rounds.REACH * L] * 2
     diverged = _reaches("Diverging_Iterates")
     assert max(diverged) >= rounds.WIDEST * L                 # nothing stops it: widen further
+
+
+def test_a_large_fabric_halves_a_failed_step_instead_of_widening_its_search(monkeypatch):
+    """A widened search widens everywhere: doubling the reach triples the pairs. The 100 x 100
+    pull (215,600 pairs, 7 GB) widened after a step that let yarns cross and was killed for
+    memory at 24 GB. A search holding WIDE_PAIRS pairs or more is halved at once, for every
+    status (here: a fabric "large" from its first pair)."""
+    monkeypatch.setattr(rounds, "WIDE_PAIRS", 0)
+    L = 10.0
+    for status in (rounds.CROSSED, "Diverging_Iterates"):
+        assert _reaches(status) == [rounds.REACH * L] * 2        # halved once, then given up
+
+
+def test_a_step_out_of_time_neither_widens_nor_halves():
+    """A step stopped at the deadline ends the run: a widened search after it (at 100 x 100 a
+    search of some 700,000 pairs) or a shorter step has no time left to run."""
+    assert _reaches(OUT_OF_TIME) == [rounds.REACH * 10.0]
 
 
 def _pull(n: int) -> tuple[ContactSolver, object, list[tuple[str, int]]]:

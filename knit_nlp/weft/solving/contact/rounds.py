@@ -53,6 +53,13 @@ WIDE_CROSSED = 0.04
 # the acrylic's radius (docs/contact.md, "Stiffening") spent its whole 300 s budget at strain
 # 0.10 on five widenings (500-860 IPOPT iterations each, every one infeasible)
 INFEASIBLE = "Infeasible_Problem_Detected"
+# ... and a search holding this many pairs is not widened at all: the reach widens everywhere,
+# and doubling it triples the pairs (the natural 10 x 10 jersey: 1,760 pairs at 0.02 L, 5,640 at
+# 0.04 L, 12,910 at 0.08 L, 61,958 at 0.4 L), each pair a slot of some 30 kB in the contact NLP
+# (7 GB at 215,600 pairs: the 100 x 100 pull's first load step). A 100 x 100 pull whose step let
+# yarns cross widened to 0.04 L and was killed for memory at 24 GB (docs/contact.md); a
+# fabric this large halves the step instead
+WIDE_PAIRS = 20_000
 MOVED = 0.5                # contact points that moved less than this many samples have settled
 # a pair the search finds within this many samples of a pushing pair's points (s_A, s_B) is that
 # contact; a pushing pair with none that close stays in the next solve (_held). With one sample
@@ -410,6 +417,9 @@ class ContactSolver:
             nxt = min(1.0, tau + dtau)
             out = self.step(p_natural + nxt * (p_target - p_natural), x, pairs, warm,
                             nxt >= 1.0, report, rounds, f"load {nxt:.4g}")
+            if out is None and report.status == OUT_OF_TIME:
+                report.success = False        # no time for a wider search or a shorter step
+                break
             if out is None:
                 # first widen the reach (a pair farther away may be what the step needed:
                 # a body pushed by a load has nothing else to stop it), then halve the step
@@ -418,7 +428,7 @@ class ContactSolver:
                 # pairs it met deep had been 2-12 times their gap apart at the step's start)
                 widest = {CROSSED: WIDE_CROSSED, DEEP_PAIRS: 0.0, INFEASIBLE: 0.0}.get(
                     report.status, WIDEST)
-                if self.reach < widest * self.base.problem.L:
+                if self.reach < widest * self.base.problem.L and len(pairs) < WIDE_PAIRS:
                     self.reach *= 2
                     pairs = self.pairs(x)
                     continue
