@@ -152,7 +152,7 @@ def test_only_contacts_that_touch_count_as_moved_contacts():
     bound holding only the barrier's remnant of force (force x slack = mu), is no contact."""
     from knit_nlp.weft.model.contact.pairs import Pairs
     from knit_nlp.weft.solving.contact.active import active_gaps
-    from knit_nlp.weft.solving.contact.rounds import _moved
+    from knit_nlp.weft.solving.contact.matching import contacts_moved
 
     def pairs(sA):
         n = len(sA)
@@ -165,7 +165,7 @@ def test_only_contacts_that_touch_count_as_moved_contacts():
     def moved(lam, gap, to=now):
         touching = active_gaps(np.array(gap), used.required, np.array(lam),
                                np.ones(2, dtype=bool), 1e-8, two_r)
-        return _moved(used.select(touching), to, tol)
+        return contacts_moved(used.select(touching), to, tol)
 
     assert not moved([-2.0, -1e-12], [1.0, 1.0])
     assert moved([-2.0, -1e-3], [1.0, 1.0])
@@ -199,7 +199,7 @@ def test_held_pairs_that_repeat_a_found_pair_or_each_other_keep_one_slot():
     goes, of held pairs within tol of each other (same loops) one stays, pairs on other loops
     or farther apart all stay."""
     from knit_nlp.weft.model.contact.pairs import Pairs
-    from knit_nlp.weft.solving.contact.rounds import _new
+    from knit_nlp.weft.solving.contact.matching import unrepeated
 
     def pairs(kA, kB, sA):
         n = len(sA)
@@ -210,7 +210,7 @@ def test_held_pairs_that_repeat_a_found_pair_or_each_other_keep_one_slot():
     held = pairs([0, 0, 0, 0, 0, 2, 0], [1, 1, 1, 1, 1, 3, 1],
                  [1.0, 1.0, 2.0, 3.0, 3.0 + 0.3 * tol, 1.0, 4.0])
     found = pairs([0], [1], [2.0 + 0.2 * tol])
-    kept = _new(found, held, tol)
+    kept = unrepeated(found, held, tol)
     assert sorted(zip(kept.kA.tolist(), np.round(kept.sA, 3).tolist())) == [
         (0, 1.0), (0, 3.0), (0, 4.0), (2, 1.0)]
 

@@ -25,13 +25,13 @@ from ...model.contact.crossings import Crossings, Verdict, designed_zones, find_
 from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
 from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
-from ...model.contact.ranges import expand
 from ...model.contact.zones import Zones
 from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
 from ..solve import SolveReport, WeftSolver
 from .active import active_gaps
+from .matching import carry, contacts_moved, loop_pair_counts, lost_contacts, match, unrepeated
 
 TOL = 1e-4                 # relative gap shortfall accepted at the end (target: 1e-3)
 STEP_TOL = 0.05            # relative gap shortfall accepted at intermediate load steps
@@ -62,8 +62,8 @@ INFEASIBLE = "Infeasible_Problem_Detected"
 WIDE_PAIRS = 20_000
 MOVED = 0.5                # contact points that moved less than this many samples have settled
 # a pair the search finds within this many samples of a pushing pair's points (s_A, s_B) is that
-# contact; a pushing pair with none that close stays in the next solve (_held). With one sample
-# (the old rule) a line contact on the 4-loop wale pull cycled between two minima 0.035 samples
+# contact; a pushing pair with none that close stays in the next solve (matching.lost_contacts).
+# With one sample (the old rule) a line contact on the 4-loop wale pull cycled between two minima 0.035 samples
 # apart: each round replaced the pair that pushed by the search's other one, the yarns rolled
 # back, and the shortfall grew (5e-4 to 1.1e-3 over 12 rounds, then the reach was widened)
 SAME = 0.01
@@ -181,8 +181,8 @@ class ContactSolver:
         ``SPARE``) once it holds more than ``SHRINK`` times that: every slot costs its
         quadrature in every evaluation, used or not (a widened search once left 4,700 slots
         for 430 pairs on the 6 x 6 pull)."""
-        need = _counts(pairs.kA, pairs.kB)
-        have = {} if self.cnlp is None else _counts(self.cnlp.kA, self.cnlp.kB)
+        need = loop_pair_counts(pairs.kA, pairs.kB)
+        have = {} if self.cnlp is None else loop_pair_counts(self.cnlp.kA, self.cnlp.kB)
         want = {k: int(np.ceil(v * (1 + SPARE))) for k, v in need.items()}
         small = max(sum(want.values()), MIN_POOL)
         fits = self.cnlp is not None and all(have.get(k, 0) >= v for k, v in need.items())
@@ -245,7 +245,7 @@ class ContactSolver:
             return True
         if len(used) == 0 or len(found) == 0:
             return False
-        idx, dist = _match(used, found, np.inf)
+        idx, dist = match(used, found, np.inf)
         # not in an interlock's box (required gap 0): there the designed crossing slides
         # along the yarns, and a pair next to it changes side without anything passing
         # through (a 10 x 10 pull's last step was halved five times for this); a new
@@ -274,7 +274,7 @@ class ContactSolver:
         if warm is not None:
             lam_base, old, lam_old = warm
             lam_gap = np.zeros(c.n_slots)
-            lam_gap[slot_of] = _carry((old, lam_old), pairs)
+            lam_gap[slot_of] = carry((old, lam_old), pairs)
             lam0 = np.concatenate([lam_base, c.warm_multipliers(x0, sigma, lam_gap)])
         params = c.parameters(p_base, sA, sB, sigma)
         ipopt = self._ipopt(settle and warm is not None)
@@ -352,14 +352,14 @@ class ContactSolver:
                                  f"gap; from the step's start with {len(more)} pairs")
                     continue
             touching = pairs.select(self.touching())
-            held = _new(found, self._hold(xn, _held(touching, found, self.grid.h * SAME)),
-                        self.grid.h * SAME)
-            moved = final and _moved(touching, found.concat(held), self.grid.h * MOVED)
+            lost = lost_contacts(touching, found, self.grid.h * SAME)
+            held = unrepeated(found, self._hold(xn, lost), self.grid.h * SAME)
+            moved = final and contacts_moved(touching, found.concat(held), self.grid.h * MOVED)
             x, warm = xn, (rep.lam_g[:self.base.n_constraints], pairs, lam)
             report.x, report.objective = x, rep.objective
             report.lam_g = rep.lam_g[:self.base.n_constraints]
             if not self.violations(found, tol).any() and not moved:
-                return x, found, warm, _carry((pairs, lam), found)
+                return x, found, warm, carry((pairs, lam), found)
             if self.log is not None:
                 short = np.max(1 - found.gap / np.maximum(found.required, 1e-300), initial=0)
                 self.log(f"  again: {int(self.violations(found, tol).sum())} short (worst "
@@ -382,8 +382,8 @@ class ContactSolver:
             self.last[2][:self.base.n_variables], x_base)
 
     def _hold(self, x: np.ndarray, held: Pairs) -> Pairs:
-        """Held pairs (:func:`_held`) at the state x: A's point against its foot on B now,
-        dropped when farther than the reach; one that has no foot there (it slid into an
+        """Held pairs (``matching.lost_contacts``) at the state x: A's point against its foot on
+        B now, dropped when farther than the reach; one that has no foot there (it slid into an
         interlock's box, where the required gap is 0: a contact at the box's border) stays at
         its old points."""
         look = self.look(x)
@@ -398,7 +398,7 @@ class ContactSolver:
         look = self.look(x0)
         back = reseat(self.fabric, look.curves, self.grid, deep, look.zones)[0]
         back = back.select(back.gap >= back.required)
-        _, dist = _match(pairs0, back, np.inf)
+        _, dist = match(pairs0, back, np.inf)
         back = back.select(~(dist < self.grid.h))           # not a pair the start already has
         return None if len(back) == 0 else pairs0.concat(back)
 
@@ -459,102 +459,3 @@ class ContactSolver:
                           0 if self.cnlp is None else self.cnlp.n_constraints,
                           None if warm is None else (warm[1], warm[2]))
 
-
-def _new(found: Pairs, held: Pairs, tol: float) -> Pairs:
-    """The held pairs that are neither a found pair nor another held pair (same loops, within
-    tol in (s_A, s_B)): reseated, a pair the search found in one round and lost in the next
-    and the pair held for it since land on the same points. Kept, such repeats grew by one a
-    round (the shipped diagonal pull's last rounds: 2, 3, then 4 slots for one contact), and
-    the contact's force was split between them."""
-    if len(held) == 0:
-        return held
-    _, dist = _match(found, held, np.inf)
-    held = held.select(~(dist < tol))
-    # sorted by loops then s_A, a repeat lies within tol of an earlier pair of its loops, a
-    # few places back at most: compare at growing lags (memory linear in the pairs)
-    key = held.kA * (int(held.kB.max(initial=0)) + 1) + held.kB
-    order = np.lexsort((held.sA, key))
-    k, sa, sb = key[order], held.sA[order], held.sB[order]
-    repeat = np.zeros(len(held), dtype=bool)
-    lag = 1
-    while lag < len(held):
-        near = (k[lag:] == k[:-lag]) & (sa[lag:] - sa[:-lag] < tol)
-        if not near.any():
-            break
-        repeat[lag:] |= near & (np.hypot(sa[lag:] - sa[:-lag], sb[lag:] - sb[:-lag]) < tol)
-        lag += 1
-    keep = np.ones(len(held), dtype=bool)
-    keep[order[repeat]] = False
-    return held.select(keep)
-
-
-def _merge(a: Pairs, b: Pairs) -> Pairs:
-    """a and the pairs of b that a does not already hold (same loops, same points)."""
-    if len(b) == 0:
-        return a
-    if len(a) == 0:
-        return b
-    idx, dist = _match(a, b, np.inf)
-    return a.concat(b.select(~(dist < 1e-9)))
-
-
-def _counts(kA: np.ndarray, kB: np.ndarray) -> dict[tuple[int, int], int]:
-    keys, counts = np.unique(np.stack([kA, kB], 1), axis=0, return_counts=True)
-    return {(int(a), int(b)): int(c) for (a, b), c in zip(keys, counts)}
-
-
-def _match(old: Pairs, new: Pairs, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """For each new pair the index of the old pair on the same loops nearest in (s_A, s_B)
-    (−1 if none), and that distance."""
-    idx = np.full(len(new), -1)
-    dist = np.full(len(new), np.inf)
-    if len(old) == 0 or len(new) == 0:
-        return idx, dist
-    big = int(max(old.kB.max(), new.kB.max())) + 1
-    ko, kn = old.kA * big + old.kB, new.kA * big + new.kB
-    order = np.argsort(ko, kind="stable")
-    ko = ko[order]
-    lo, hi = np.searchsorted(ko, kn, "left"), np.searchsorted(ko, kn, "right")
-    owner, rows = expand(lo, hi)
-    rows = order[rows]
-    d = np.hypot(old.sA[rows] - new.sA[owner], old.sB[rows] - new.sB[owner])
-    best = np.lexsort((d, owner))
-    first = best[np.r_[True, owner[best][1:] != owner[best][:-1]]] if best.size else best
-    idx[owner[first]] = rows[first]
-    dist[owner[first]] = d[first]
-    return idx, dist
-
-
-def _moved(touching: Pairs, pairs: Pairs, tol: float) -> bool:
-    """Whether a contact of the last solve (``touching``: the pairs that held a contact) has
-    moved along the yarns by more than tol. (With every λ < 0 counted, pairs that did not push
-    kept the 4-loop wale pull's last step "moving" through all its rounds with no pair short
-    of its gap.)"""
-    if len(touching) == 0 or len(pairs) == 0:
-        return False
-    idx, dist = _match(pairs, touching, tol)
-    return bool(np.any(dist > tol))
-
-
-def _held(touching: Pairs, found: Pairs, tol: float) -> Pairs:
-    """The contacts of the last solve (``touching``) that the new search has no pair within
-    tol of (``SAME``): they stay for the next solve, A's point against its foot on B now
-    (``reseat``: the distance from that point of A to yarn B, a true requirement). Without
-    them a contact whose closest points jumped (two near minima) was dropped, its yarns came
-    together in the next solve, and the rounds cycled (the 5 x 5 diagonal pull: 12 rounds,
-    short 0.5, then 1e-4, then 0.5 ...). Kept at their old points they held the yarns apart
-    wider than 2r (a 12 x 12 stretch: smallest gap 1.08 x 2r, no contact of the search
-    active)."""
-    if len(touching) == 0:
-        return Pairs.empty()
-    _, dist = _match(found, touching, np.inf)
-    return touching.select(~(dist < tol))
-
-
-def _carry(last: tuple[Pairs, np.ndarray], pairs: Pairs) -> np.ndarray:
-    """Each new pair's multiplier from the matching pair of the last solve (0 if none)."""
-    old, lam = last
-    if len(old) == 0:
-        return np.zeros(len(pairs))
-    idx, _ = _match(old, pairs, np.inf)
-    return np.where(idx >= 0, lam[np.maximum(idx, 0)], 0.0)
