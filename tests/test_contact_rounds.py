@@ -52,6 +52,36 @@ def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_sta
     assert again and again[0][1][2] > again[0][0][2]
 
 
+def test_the_pairs_a_restart_was_for_stay_in_every_later_round_of_its_step():
+    """5 x 5 pull: the last load step restarts for 11 pairs met deep inside their gap; every
+    later round of that step has a slot for each of them (A's material point, reseated). On the
+    100 x 100 pull a restart for 2 pairs met deep in the second round solved again to the first
+    round's state, where those yarns are out of the search's reach: the next round lacked
+    them and would meet them deep again (a restart costs there some 1,400 s)."""
+    st = _study(5, 120.0)
+    calls: list[tuple[str, object]] = []
+    once, restart = st.contact.solve_once, st.contact._restart
+
+    def spy(p, x, pairs, warm, report, rounds_, note, settle=False):
+        calls.append((note, pairs))
+        return once(p, x, pairs, warm, report, rounds_, note, settle)
+
+    def spy_restart(start, deep):
+        calls.append(("restart", deep))
+        return restart(start, deep)
+
+    st.contact.solve_once, st.contact._restart = spy, spy_restart
+    assert st.run().success
+    at = [i for i, (note, _) in enumerate(calls) if note == "restart"]
+    assert at, "the 5 x 5 pull no longer restarts: pick a pull that does"
+    deep, step = calls[at[0]][1], calls[at[0] - 1][0]
+    later = [pairs for note, pairs in calls[at[0] + 2:] if note.startswith(step + ", round")]
+    assert later
+    for pairs in later:
+        for a, b, s in zip(deep.kA, deep.kB, deep.sA):
+            assert np.any((pairs.kA == a) & (pairs.kB == b) & (np.abs(pairs.sA - s) < 1e-9))
+
+
 def test_a_step_still_deep_after_its_restarts_fails_and_is_retried_not_continued(monkeypatch):
     """5 x 5 pull with no restarts allowed: the step whose solve met pairs deep inside their
     gap fails (Contact_Deep_Pairs) and is halved, instead of being continued from the nearly
