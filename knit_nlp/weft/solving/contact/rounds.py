@@ -78,10 +78,12 @@ SPARE = 0.1                # extra slots per pair of loops, relative, when (re)b
 SHRINK = 1.2               # a pool above this many times the pairs' need (with SPARE) is rebuilt
 MIN_POOL = 64              # ... but a pool of this many slots is never too large
 # a solve that ends with pairs below (1 - DEEP) of their required gap (pairs it had no slot for,
-# out of reach at the step's start: the yarns nearly crossed) restarts the step from its start
-# with those pairs, at most RESTARTS times a step: on the 6 x 6 pull continuing from the nearly
-# crossed state took 100-220 IPOPT iterations a round and still let yarns cross. A step still
-# nearly crossed after its restarts fails (DEEP_PAIRS) and is halved
+# out of reach where it started: the yarns nearly crossed) restarts its round from the round's
+# start with those pairs, at most RESTARTS times a step: on the 6 x 6 pull continuing from the
+# nearly crossed state took 100-220 IPOPT iterations a round and still let yarns cross. (From
+# the step's start, a second round's restart on the 100 x 100 pull cost a first round over
+# again, 97 iterations and 1,362 s, to reach the state the second round had started from.) A
+# step still nearly crossed after its restarts fails (DEEP_PAIRS) and is halved
 DEEP = 0.5
 RESTARTS = 2
 # a round whose pairs all meet their gaps to SETTLE (relative) already starts IPOPT at the barrier
@@ -310,15 +312,16 @@ class ContactSolver:
         """Solve at parameters p from the uncrossed state x and its pairs; solve again from
         the result with its own pairs until they meet their gaps (and, at the target, stop
         moving). A solve that ends with pairs it had no slot for far inside their gap (yarns
-        out of reach at the step's start, now nearly crossed) is not continued from there:
-        the step is solved again from its start with those pairs added (:meth:`_restart`).
+        out of reach where it started, now nearly crossed) is not continued from there: the
+        round is solved again from its start (for the first round the step's) with those pairs
+        added (:meth:`_restart`), and they stay in every later round (:meth:`_again`).
         None when a solve fails or yarns crossed; else the state, its pairs, warm data and the
         pairs' multipliers."""
         tol = TOL if final else STEP_TOL
-        start = (x, pairs, warm)
         restarts, settle = 0, False
         deep_met = Pairs.empty()        # the pairs a restart was for: in every later round
         for k in range(MAX_ROUNDS):
+            begun = (x, pairs, warm)    # where this round starts: a restart repeats it
             rep, lam = self.solve_once(p, x, pairs, warm, report, rounds,
                                        note if k == 0 else f"{note}, round {k + 1}", settle)
             if not rep.success:
@@ -342,16 +345,15 @@ class ContactSolver:
                              f"{RESTARTS} restarts: the step fails")
                 return None
             if deep.any():
-                more = self._restart(start, found.select(deep))
+                more = self._restart(begun, found.select(deep))
                 if more is not None:
                     restarts += 1
                     deep_met = deep_met.concat(found.select(deep))
-                    start = (start[0], more, start[2])
-                    x, pairs, warm = start
+                    x, pairs, warm = begun[0], more, begun[2]
                     settle = False
                     if self.log is not None:
                         self.log(f"  restart: {int(deep.sum())} pairs met deep inside their "
-                                 f"gap; from the step's start with {len(more)} pairs")
+                                 f"gap; from the round's start with {len(more)} pairs")
                     continue
             touching = pairs.select(self.touching())
             lost = lost_contacts(touching, found, self.grid.h * SAME)
@@ -407,8 +409,8 @@ class ContactSolver:
         return unrepeated(pairs, now, self.grid.h * SAME)
 
     def _restart(self, start: tuple, deep: Pairs) -> Pairs | None:
-        """The step's starting pairs with ``deep`` (pairs a solve of the step met far inside
-        their gap) carried back to the step's start, where they are still apart; None when
+        """A round's starting pairs with ``deep`` (pairs its solve met far inside their gap)
+        carried back to the round's start, where they are still apart; None when
         none of them is new there (nothing to gain)."""
         x0, pairs0, _ = start
         look = self.look(x0)
