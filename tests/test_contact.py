@@ -302,3 +302,23 @@ def test_a_failed_step_after_a_widened_search_reports_the_solved_pairs(monkeypat
                       max_halvings=1)
     assert solved[0] is not None and not run.report.success
     assert len(run.pairs) == len(run.lam_gap) == len(solved[0][1])
+
+
+def test_the_pair_search_takes_the_samples_a_chunk_at_a_time_with_the_same_answer(monkeypatch):
+    """find_pairs takes the samples' neighbours and feet CHUNK samples at a time (all at once,
+    the checker on a 100 x 100 result took more than 9.9 GB): the pairs of a crossed state
+    (the paper's 4 x 4 pull) are the same, in the same order, with chunks of 7 samples (their
+    points to 1e-14 L: numpy's vector operations may round differently on shorter arrays; at
+    the default CHUNK the 10 x 10 and 30 x 30 pulls' pairs are the same bit for bit)."""
+    from knit_nlp.weft.model.contact import pairs as P
+    from knit_nlp.weft.solving.solve import WeftSolver
+    pr = parse_problem({**diagonal_pull(4), "yarn": {"radius": 0.15}}, "pull 4")
+    base = build_nlp(pr)
+    x = WeftSolver(base, verbose=None).once(base.params.vector(), base.x0).x
+    whole = ContactSolver(base, 0.15).pairs(x)
+    monkeypatch.setattr(P, "CHUNK", 7)
+    chunked = ContactSolver(base, 0.15).pairs(x)
+    assert len(whole) > 100
+    for f in dataclasses.fields(whole):
+        np.testing.assert_allclose(getattr(chunked, f.name), getattr(whole, f.name), rtol=0,
+                                   atol=1e-14 * pr.L)

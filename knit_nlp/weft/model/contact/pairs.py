@@ -33,6 +33,7 @@ from .zones import Zones
 NEWTON_STEPS = 25
 CROSSING = 1e-9           # relative to L: a polished minimum this close is a crossing
 EDGE_STEPS = 40           # bisection steps to a designed box's edge (2^-40 of a sample)
+CHUNK = 1 << 15           # samples whose neighbours strand_feet gathers at once
 
 
 @dataclass(frozen=True)
@@ -85,8 +86,15 @@ class Pairs:
         return Pairs(*(getattr(self, f.name)[keep] for f in fields(self)))
 
     def concat(self, other: "Pairs") -> "Pairs":
-        return Pairs(*(np.concatenate([getattr(self, f.name), getattr(other, f.name)])
-                       for f in fields(self)))
+        return Pairs.joined([self, other])
+
+    @classmethod
+    def joined(cls, parts: list["Pairs"]) -> "Pairs":
+        """The pairs of all ``parts``, in order."""
+        if not parts:
+            return cls.empty()
+        return cls(*(np.concatenate([getattr(p, f.name) for p in parts])
+                     for f in fields(cls)))
 
 
 def course_samples(curves: Curves, grid: Grid) -> np.ndarray:
@@ -154,14 +162,28 @@ class Feet:
     dist: np.ndarray
 
 
-def strand_feet(pts: np.ndarray, grid: Grid, reach: float, exclusion: float) -> Feet:
-    """Valid feet of every sample on every strand within ``reach`` (see the module notes)."""
-    m, K = pts.shape[:2]
+def strand_feet(pts: np.ndarray, grid: Grid, reach: float, exclusion: float):
+    """Valid feet of every sample on every strand within ``reach`` (see the module notes),
+    yielded for ``CHUNK`` samples at a time, in sample order: a sample's feet depend only on
+    its own neighbours, and the neighbours and feet of all samples at once (some 100
+    neighbours each with the checker's 200 samples per loop) took more than 9.9 GB on a
+    100 x 100 fabric."""
     from scipy.spatial import cKDTree     # lazy: 0.4 s to import, only with contact
-    tree = cKDTree(pts.reshape(-1, 2))
-    uv = tree.query_pairs(reach, output_type="ndarray")
-    U = np.concatenate([uv[:, 0], uv[:, 1]]).astype(np.int64)
-    V = np.concatenate([uv[:, 1], uv[:, 0]]).astype(np.int64)
+    flat = pts.reshape(-1, 2)
+    tree = cKDTree(flat)
+    for lo in range(0, len(flat), CHUNK):
+        yield _feet_of(pts, grid, tree, lo, min(lo + CHUNK, len(flat)), reach, exclusion)
+
+
+def _feet_of(pts: np.ndarray, grid: Grid, tree, lo: int, hi: int, reach: float,
+             exclusion: float) -> Feet:
+    """:func:`strand_feet` of the samples lo..hi-1 (flat indices) against all (``tree``)."""
+    from scipy.spatial import cKDTree
+    m, K = pts.shape[:2]
+    near = cKDTree(pts.reshape(-1, 2)[lo:hi]).sparse_distance_matrix(tree, reach,
+                                                                      output_type="ndarray")
+    U, V = near["i"].astype(np.int64) + lo, near["j"].astype(np.int64)
+    U, V = U[U != V], V[U != V]
     cu, iu = np.divmod(U, K)
     cv, iv = np.divmod(V, K)
     S = grid.S
@@ -241,17 +263,27 @@ def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float,
                zones: Zones | None = None) -> Pairs:
     """Closest points (polished local minima of the distance) with gap below required +
     ``reach``, on an uncrossed state (``zones``: the designed zones that follow slid
-    crossings, zones.py; required gap 0 in them)."""
+    crossings, zones.py; required gap 0 in them). The samples' feet are taken a chunk at a
+    time (:func:`strand_feet`); the pairs are the same, in the same order, as from all at once."""
     pts = course_samples(curves, grid)                        # (m, K, 2)
-    feet = strand_feet(pts, grid, 2 * fab.radius + reach + grid.h, fab.exclusion)
-    if len(feet.cu) == 0:
-        return Pairs.empty()
+    within = 2 * fab.radius + reach + grid.h
     S = grid.S
-    minima = _discrete_minima(pts, feet.cu, feet.iu, feet.cv, feet.iv) & (
-        feet.dist < 2 * fab.radius + reach + grid.h)
-    closest = _closest(fab, curves, grid, feet.cu[minima], S[feet.iu[minima]],
-                       feet.cv[minima], feet.Sf[minima], reach, zones)
-    return closest.concat(_vertices(fab, curves, grid, feet, closest, reach, zones))
+    minima, lines, edges = [], [], []
+    for feet in strand_feet(pts, grid, within, fab.exclusion):
+        low = _discrete_minima(pts, feet.cu, feet.iu, feet.cv, feet.iv) & (feet.dist < within)
+        minima.append((feet.cu[low], S[feet.iu[low]], feet.cv[low], feet.Sf[low]))
+        line, edge = _vertices(fab, curves, grid, feet, reach, zones)
+        lines.append(line)
+        edges.append(edge)
+    if sum(len(c[0]) for c in minima) + sum(map(len, lines)) + sum(map(len, edges)) == 0:
+        return Pairs.empty()
+    closest = _closest(fab, curves, grid, *(np.concatenate(c) for c in zip(*minima)), reach,
+                       zones)
+    line = Pairs.joined(lines)
+    if len(closest) and len(line):
+        # drop samples next to a closest-points pair on the same two loops
+        line = line.select(~_next_to(line, closest, grid.h / 4))
+    return Pairs.joined([closest, line, *edges])
 
 
 def reseat(fab: NaturalFabric, curves: Curves, grid: Grid,
@@ -272,12 +304,13 @@ def reseat(fab: NaturalFabric, curves: Curves, grid: Grid,
     return _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, where=inside, zones=zones)
 
 
-def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float,
-              zones: Zones | None = None) -> Pairs:
+def _vertices(fab, curves, grid, feet: Feet, reach: float,
+              zones: Zones | None = None) -> tuple[Pairs, Pairs]:
     """Samples of a yarn within reach of a strand, each against its foot (polished): where two
     yarns lie along each other they touch along a line, and one pair per sample holds the
     whole line, not only its closest points. Not in designed interlocks (required gap 0: a
-    crossing may slide past a sample there), nor within h/4 of a closest-points pair."""
+    crossing may slide past a sample there); those within h/4 of a closest-points pair are
+    dropped by the caller (:func:`_next_to`). Also the pairs at the edges of designed boxes."""
     S = grid.S
     same, required = _classify(fab, grid, feet.cu, S[feet.iu], feet.cv, feet.Sf, zones)[4:]
     keep = ~same & (required > 0) & (feet.dist < required + reach)
@@ -287,20 +320,24 @@ def _vertices(fab, curves, grid, feet: Feet, closest: Pairs, reach: float,
     inside = (Sb > 1e-9 * grid.L) & (Sb < top - 1e-9 * grid.L)     # a true foot, normal to B
     out = _pairs_at(fab, curves, grid, ca[inside], Sa[inside], cb[inside], Sb[inside], reach,
                     zones=zones)[0]
-    if len(closest) and len(out):
-        # drop samples next to a closest-points pair on the same two loops
-        key_c = closest.kA * (1 << 20) + closest.kB
-        key_v = out.kA * (1 << 20) + out.kB
-        near = np.zeros(len(out), dtype=bool)
-        for q in np.unique(key_v):
-            v = np.nonzero(key_v == q)[0]
-            c = np.nonzero(key_c == q)[0]
-            if c.size:
-                d = np.abs(out.sA[v][:, None] - closest.sA[c][None, :]) + np.abs(
-                    out.sB[v][:, None] - closest.sB[c][None, :])
-                near[v] = d.min(axis=1) < grid.h / 4
-        out = out.select(~near)
-    return out.concat(_box_edges(fab, curves, grid, feet, same, required, reach, zones))
+    return out, _box_edges(fab, curves, grid, feet, same, required, reach, zones)
+
+
+def _next_to(out: Pairs, closest: Pairs, tol: float) -> np.ndarray:
+    """Which pairs of ``out`` lie within tol (|Δs_A| + |Δs_B|) of a pair of ``closest`` on the
+    same two loops: each against the closest pairs of its loops only, found in the sorted keys
+    (a scan of all pairs per pair of loops took minutes at 100 x 100)."""
+    key_c = closest.kA * (1 << 20) + closest.kB
+    key_v = out.kA * (1 << 20) + out.kB
+    order = np.argsort(key_c, kind="stable")
+    sorted_c = key_c[order]
+    owner, rows = expand(np.searchsorted(sorted_c, key_v, "left"),
+                         np.searchsorted(sorted_c, key_v, "right"))
+    rows = order[rows]
+    d = np.abs(out.sA[owner] - closest.sA[rows]) + np.abs(out.sB[owner] - closest.sB[rows])
+    near = np.zeros(len(out), dtype=bool)
+    near[owner[d < tol]] = True
+    return near
 
 
 def _pairs_at(fab, curves, grid, ca, Sa, cb, Sb, reach: float = np.inf,
