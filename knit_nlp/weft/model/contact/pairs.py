@@ -264,7 +264,8 @@ def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float,
     """Closest points (polished local minima of the distance) with gap below required +
     ``reach``, on an uncrossed state (``zones``: the designed zones that follow slid
     crossings, zones.py; required gap 0 in them). The samples' feet are taken a chunk at a
-    time (:func:`strand_feet`); the pairs are the same, in the same order, as from all at once."""
+    time (:func:`strand_feet`): the same pairs, in the same order, as from all at once (to
+    rounding: numpy may round differently on shorter arrays)."""
     pts = course_samples(curves, grid)                        # (m, K, 2)
     within = 2 * fab.radius + reach + grid.h
     S = grid.S

@@ -56,16 +56,17 @@ INFEASIBLE = "Infeasible_Problem_Detected"
 # ... and a search holding this many pairs is not widened at all: the reach widens everywhere,
 # and doubling it triples the pairs (the natural 10 x 10 jersey: 1,760 pairs at 0.02 L, 5,640 at
 # 0.04 L, 12,910 at 0.08 L, 61,958 at 0.4 L), each pair a slot of some 30 kB in the contact NLP
-# (7 GB at 215,600 pairs: the 100 x 100 pull's first load step). A 100 x 100 pull whose step let
-# yarns cross widened to 0.04 L and was killed for memory at 24 GB (docs/contact.md); a
+# (7 GB at 215,600 pairs: the 100 x 100 pull's first load step, whose widened search held
+# 641,400; an earlier run of that pull was killed for memory at 24 GB: docs/contact.md); a
 # fabric this large halves the step instead
 WIDE_PAIRS = 20_000
 MOVED = 0.5                # contact points that moved less than this many samples have settled
 # a pair the search finds within this many samples of a pushing pair's points (s_A, s_B) is that
 # contact; a pushing pair with none that close stays in the next solve (matching.lost_contacts).
-# With one sample (the old rule) a line contact on the 4-loop wale pull cycled between two minima 0.035 samples
-# apart: each round replaced the pair that pushed by the search's other one, the yarns rolled
-# back, and the shortfall grew (5e-4 to 1.1e-3 over 12 rounds, then the reach was widened)
+# With one sample (the old rule) a line contact on the 4-loop wale pull cycled between two
+# minima 0.035 samples apart: each round replaced the pair that pushed by the search's other
+# one, the yarns rolled back, and the shortfall grew (5e-4 to 1.1e-3 over 12 rounds, then the
+# reach was widened)
 SAME = 0.01
 FLIP = 1e-6               # a pair now this far (relative to L) on its other side passed through
 CROSSED = "Contact_Crossing"        # the status of a step that let yarns cross
@@ -398,10 +399,11 @@ class ContactSolver:
     def _again(self, x: np.ndarray, deep_met: Pairs, pairs: Pairs) -> Pairs:
         """The pairs a restart of this step was for (``deep_met``), reseated at the state x
         (wherever they are: the search, whose reach they may be out of here, found them
-        deep later in the step), that ``pairs`` does not hold yet. Without them the 100 x 100
-        pull's first step, restarted (1,362 s) for 2 pairs met deep in its second round, ended
-        its first solve at the first round's state again (the same 22 pairs short), where those
-        pairs are out of reach: its next round was the second round over again, without them."""
+        deep later in the step), that ``pairs`` does not hold yet: a later round may start
+        where they are out of reach again. (When restarts went back to the step's start, the
+        100 x 100 pull's first step, restarted for 2 pairs met deep in its second round, came
+        back to its first round's state, the same 22 pairs short, and began its second round
+        again without them: 1,362 s lost.)"""
         if len(deep_met) == 0:
             return deep_met
         look = self.look(x)
