@@ -80,9 +80,9 @@ def test_a_step_that_let_yarns_cross_is_halved_after_one_widening():
 
 def test_a_large_fabric_halves_a_failed_step_instead_of_widening_its_search(monkeypatch):
     """A widened search widens everywhere: doubling the reach triples the pairs. The 100 x 100
-    pull (215,600 pairs, 7 GB) widened after a step that let yarns cross and was killed for
-    memory at 24 GB. A search holding WIDE_PAIRS pairs or more is halved at once, for every
-    status (here: a fabric "large" from its first pair)."""
+    pull (215,600 pairs, 7 GB) widened its search to 641,400 pairs; an earlier run of it was
+    killed for memory at 24 GB. A failed step of a search holding WIDE_PAIRS pairs or more is
+    halved at once, for every status (here: a fabric "large" from its first pair)."""
     monkeypatch.setattr(rounds, "WIDE_PAIRS", 0)
     L = 10.0
     for status in (rounds.CROSSED, "Diverging_Iterates"):

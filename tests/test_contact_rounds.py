@@ -55,9 +55,9 @@ def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_sta
 def test_the_pairs_a_restart_was_for_stay_in_every_later_round_of_its_step():
     """5 x 5 pull: the last load step restarts for 11 pairs met deep inside their gap; every
     later round of that step has a slot for each of them (A's material point, reseated). On the
-    100 x 100 pull a restart for 2 pairs met deep in the second round solved again to the first
-    round's state, where those yarns are out of the search's reach: the next round lacked
-    them and would meet them deep again (a restart costs there some 1,400 s)."""
+    100 x 100 pull a restart (from the step's start, then) for 2 pairs met deep in the second
+    round came back to the first round's state, where those yarns are out of the search's
+    reach, and began the second round again without them (the restart cost 1,362 s)."""
     st = _study(5, 120.0)
     calls: list[tuple[str, object]] = []
     once, restart = st.contact.solve_once, st.contact._restart
