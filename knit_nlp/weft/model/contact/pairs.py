@@ -324,17 +324,25 @@ def _vertices(fab, curves, grid, feet: Feet, reach: float,
     return out, _box_edges(fab, curves, grid, feet, same, required, reach, zones)
 
 
+def same_loops(old: Pairs, new: Pairs) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair of ``new`` against every pair of ``old`` on the same two loops (k_A, k_B):
+    the new pairs' indices (ascending) and the old ones', found through the sorted loop keys,
+    never all against all."""
+    if len(old) == 0 or len(new) == 0:
+        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+    big = int(max(old.kB.max(), new.kB.max())) + 1
+    ko, kn = old.kA * big + old.kB, new.kA * big + new.kB
+    order = np.argsort(ko, kind="stable")
+    ko = ko[order]
+    owner, rows = expand(np.searchsorted(ko, kn, "left"), np.searchsorted(ko, kn, "right"))
+    return owner, order[rows]
+
+
 def _next_to(out: Pairs, closest: Pairs, tol: float) -> np.ndarray:
     """Which pairs of ``out`` lie within tol (|Δs_A| + |Δs_B|) of a pair of ``closest`` on the
-    same two loops: each against the closest pairs of its loops only, found in the sorted keys
-    (a scan of all pairs per pair of loops took minutes at 100 x 100)."""
-    key_c = closest.kA * (1 << 20) + closest.kB
-    key_v = out.kA * (1 << 20) + out.kB
-    order = np.argsort(key_c, kind="stable")
-    sorted_c = key_c[order]
-    owner, rows = expand(np.searchsorted(sorted_c, key_v, "left"),
-                         np.searchsorted(sorted_c, key_v, "right"))
-    rows = order[rows]
+    same two loops (:func:`same_loops`: a scan of all pairs per pair of loops took minutes at
+    100 x 100)."""
+    owner, rows = same_loops(closest, out)
     d = np.abs(out.sA[owner] - closest.sA[rows]) + np.abs(out.sB[owner] - closest.sB[rows])
     near = np.zeros(len(out), dtype=bool)
     near[owner[d < tol]] = True

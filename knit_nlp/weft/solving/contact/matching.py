@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...model.contact.pairs import Pairs
-from ...model.contact.ranges import expand
+from ...model.contact.pairs import Pairs, same_loops
 
 
 def unrepeated(found: Pairs, held: Pairs, tol: float) -> Pairs:
@@ -18,7 +17,7 @@ def unrepeated(found: Pairs, held: Pairs, tol: float) -> Pairs:
     the contact's force was split between them."""
     if len(held) == 0:
         return held
-    _, dist = match(found, held, np.inf)
+    _, dist = match(found, held)
     held = held.select(~(dist < tol))
     # sorted by loops then s_A, a repeat lies within tol of an earlier pair of its loops, a
     # few places back at most: compare at growing lags (memory linear in the pairs)
@@ -43,20 +42,12 @@ def loop_pair_counts(kA: np.ndarray, kB: np.ndarray) -> dict[tuple[int, int], in
     return {(int(a), int(b)): int(c) for (a, b), c in zip(keys, counts)}
 
 
-def match(old: Pairs, new: Pairs, tol: float) -> tuple[np.ndarray, np.ndarray]:
+def match(old: Pairs, new: Pairs) -> tuple[np.ndarray, np.ndarray]:
     """For each new pair the index of the old pair on the same loops nearest in (s_A, s_B)
     (−1 if none), and that distance."""
     idx = np.full(len(new), -1)
     dist = np.full(len(new), np.inf)
-    if len(old) == 0 or len(new) == 0:
-        return idx, dist
-    big = int(max(old.kB.max(), new.kB.max())) + 1
-    ko, kn = old.kA * big + old.kB, new.kA * big + new.kB
-    order = np.argsort(ko, kind="stable")
-    ko = ko[order]
-    lo, hi = np.searchsorted(ko, kn, "left"), np.searchsorted(ko, kn, "right")
-    owner, rows = expand(lo, hi)
-    rows = order[rows]
+    owner, rows = same_loops(old, new)
     d = np.hypot(old.sA[rows] - new.sA[owner], old.sB[rows] - new.sB[owner])
     best = np.lexsort((d, owner))
     first = best[np.r_[True, owner[best][1:] != owner[best][:-1]]] if best.size else best
@@ -72,7 +63,7 @@ def contacts_moved(touching: Pairs, pairs: Pairs, tol: float) -> bool:
     of its gap.)"""
     if len(touching) == 0 or len(pairs) == 0:
         return False
-    idx, dist = match(pairs, touching, tol)
+    idx, dist = match(pairs, touching)
     return bool(np.any(dist > tol))
 
 
@@ -87,7 +78,7 @@ def lost_contacts(touching: Pairs, found: Pairs, tol: float) -> Pairs:
     active)."""
     if len(touching) == 0:
         return Pairs.empty()
-    _, dist = match(found, touching, np.inf)
+    _, dist = match(found, touching)
     return touching.select(~(dist < tol))
 
 
@@ -96,5 +87,5 @@ def carry(last: tuple[Pairs, np.ndarray], pairs: Pairs) -> np.ndarray:
     old, lam = last
     if len(old) == 0:
         return np.zeros(len(pairs))
-    idx, _ = match(old, pairs, np.inf)
+    idx, _ = match(old, pairs)
     return np.where(idx >= 0, lam[np.maximum(idx, 0)], 0.0)

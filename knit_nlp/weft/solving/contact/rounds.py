@@ -248,7 +248,7 @@ class ContactSolver:
             return True
         if len(used) == 0 or len(found) == 0:
             return False
-        idx, dist = match(used, found, np.inf)
+        idx, dist = match(used, found)
         # not in an interlock's box (required gap 0): there the designed crossing slides
         # along the yarns, and a pair next to it changes side without anything passing
         # through (a 10 x 10 pull's last step was halved five times for this); a new
@@ -418,7 +418,7 @@ class ContactSolver:
         look = self.look(x0)
         back = reseat(self.fabric, look.curves, self.grid, deep, look.zones)[0]
         back = back.select(back.gap >= back.required)
-        _, dist = match(pairs0, back, np.inf)
+        _, dist = match(pairs0, back)
         back = back.select(~(dist < self.grid.h))           # not a pair the start already has
         return None if len(back) == 0 else pairs0.concat(back)
 
