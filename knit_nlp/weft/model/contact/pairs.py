@@ -172,18 +172,16 @@ def strand_feet(pts: np.ndarray, grid: Grid, reach: float, exclusion: float):
     flat = pts.reshape(-1, 2)
     tree = cKDTree(flat)
     for lo in range(0, len(flat), CHUNK):
-        yield _feet_of(pts, grid, tree, lo, min(lo + CHUNK, len(flat)), reach, exclusion)
+        near = cKDTree(flat[lo:lo + CHUNK]).sparse_distance_matrix(tree, reach,
+                                                                   output_type="ndarray")
+        U, V = near["i"].astype(np.int64) + lo, near["j"].astype(np.int64)
+        yield _feet_of(pts, grid, U[U != V], V[U != V], exclusion)
 
 
-def _feet_of(pts: np.ndarray, grid: Grid, tree, lo: int, hi: int, reach: float,
+def _feet_of(pts: np.ndarray, grid: Grid, U: np.ndarray, V: np.ndarray,
              exclusion: float) -> Feet:
-    """:func:`strand_feet` of the samples lo..hi-1 (flat indices) against all (``tree``)."""
-    from scipy.spatial import cKDTree
+    """:func:`strand_feet` of the samples U (flat indices) from their neighbours V."""
     m, K = pts.shape[:2]
-    near = cKDTree(pts.reshape(-1, 2)[lo:hi]).sparse_distance_matrix(tree, reach,
-                                                                      output_type="ndarray")
-    U, V = near["i"].astype(np.int64) + lo, near["j"].astype(np.int64)
-    U, V = U[U != V], V[U != V]
     cu, iu = np.divmod(U, K)
     cv, iv = np.divmod(V, K)
     S = grid.S
@@ -276,7 +274,7 @@ def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float,
         line, edge = _vertices(fab, curves, grid, feet, reach, zones)
         lines.append(line)
         edges.append(edge)
-    if sum(len(c[0]) for c in minima) + sum(map(len, lines)) + sum(map(len, edges)) == 0:
+    if not minima:                                            # no samples at all
         return Pairs.empty()
     closest = _closest(fab, curves, grid, *(np.concatenate(c) for c in zip(*minima)), reach,
                        zones)
