@@ -130,6 +130,17 @@ class IterationLine(ca.Callback):
             _OPEN[self.stream] = 0
 
 
+def end_lines() -> None:
+    """End every updating line still open (before a command prints its answer on stdout,
+    which a terminal shows on the same screen: ``knit-nlp control``'s summary was glued onto
+    its last IPOPT line)."""
+    for stream, width in list(_OPEN.items()):
+        if width:
+            stream.write("\n")
+            stream.flush()
+            _OPEN[stream] = 0
+
+
 # the length of the updating line open on each stream (0 or absent: none). Shared by every
 # IterationLine writing there: the solves of yarn contact each have their own line object, and
 # each must overwrite (and blank) what the last one wrote, and end the line once

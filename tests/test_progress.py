@@ -84,6 +84,15 @@ def test_a_long_control_reports_each_outer_iteration(monkeypatch, capsys, tmp_pa
     assert "control: outer iteration 1, goal misfit" in err and "trust radius" in err
 
 
+def test_a_control_ends_its_last_solve_line_before_its_summary(monkeypatch, capsys, tmp_path):
+    """Every IPOPT iterate shown (QUIET_FOR 0): the control's last solve left its line open,
+    and the summary on stdout was glued onto it in a terminal."""
+    monkeypatch.setattr("knit_nlp.weft.solving.solve.QUIET_FOR", 0.0)
+    assert main(["control", "place_stitch", "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "IPOPT iterate" in err and err.endswith("\n")
+
+
 def test_a_long_jacquard_newton_solve_shows_progress(monkeypatch, capsys, tmp_path):
     """The jacquard static solver's Newton iterations (made to speak at once) on stderr."""
     monkeypatch.setattr("knit_nlp.jacquard.newton.QUIET_FOR", 0.0)

@@ -12,6 +12,7 @@ from PIL import Image
 from ...errors import ArgumentError, ProblemError, quoted, shown
 from ...jsonio import write_json
 from ...outdir import output_name, prepare_out
+from ...progress import end_lines
 from ...problems import resolve
 from ...tomlio import load_toml, read_regular_file
 from ..model.params import MATERIAL
@@ -34,7 +35,9 @@ def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
     cp = parse_control(path, doc)
     prepare_out(str(out), cp.problem.name, ("control",))
     ans = control(cp)
-    print(control_summary(ans, ans.save(out)))
+    paths = ans.save(out)
+    end_lines()
+    print(control_summary(ans, paths))
     return 0 if ans.success else 1
 
 
@@ -64,6 +67,7 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     ans.name = name
     js, png = ans.save(out)
     result = ans.to_json()
+    end_lines()
     print(f"fit: {result['status']} in {result['iterations']} iterations, "
           f"{result['n_observations']} observed points, rms residual {result['rms_residual']:.4g}")
     for name, v in result["parameters"].items():
