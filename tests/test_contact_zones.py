@@ -154,3 +154,35 @@ def test_expand_lists_every_index_of_every_range_with_its_owner():
     want = [(i, r) for i in range(200) for r in range(lo[i], hi[i])]
     assert list(zip(owner.tolist(), rows.tolist())) == want
     assert expand(np.zeros(0, int), np.zeros(0, int))[0].size == 0
+
+
+def _natural_result(pr) -> dict:
+    """A result JSON's loops: the natural fabric of ``pr``."""
+    m, n = pr.courses, pr.wales
+    return {"loops": {"coefficients": np.broadcast_to(pr.natural.coeffs, (m, n, 8)).tolist(),
+                      "course_starts": pr.natural_starts()[:, 0].tolist()}}
+
+
+def test_check_names_the_pairs_of_loops_that_lost_designed_crossings_and_where():
+    """A 5 x 5 jersey: natural, nothing lost. Its middle course moved 100 L away: every
+    interlock of course 3 with courses 2 and 4 is lost, listed per pair of loops (natural
+    count, count now, lost), the pairs with a loop in wale 1 or 5 marked at the edge and the
+    others inside the fabric, the line saying how many pairs are inside; the listed losses
+    add up to the count."""
+    pr = parse_problem(unclamped(5, 5), "five")
+    result = _natural_result(pr)
+    natural = check(result, pr)
+    assert natural.lost_crossings == 0 and natural.lost == [] and "(between" not in natural.line()
+    result["loops"]["course_starts"][2][0] += 100 * L
+    report = check(result, pr)
+    assert report.ok                           # nothing crossed anew: losses are not violations
+    assert sum(p["lost"] for p in report.lost) == report.lost_crossings > 0
+    courses = {tuple(sorted((p["loops"][0][0], p["loops"][1][0]))) for p in report.lost}
+    assert courses <= {(2, 3), (3, 4), (1, 3), (3, 5)} and (2, 3) in courses
+    for p in report.lost:
+        wales = {p["loops"][0][1], p["loops"][1][1]}
+        courses_of = {p["loops"][0][0], p["loops"][1][0]}
+        assert p["edge"] == bool(wales & {1, 5} or courses_of & {1, 5})
+        assert p["count"] == 0 and p["lost"] == p["natural"] > 0
+    inside = sum(not p["edge"] for p in report.lost)
+    assert inside > 0 and f"{inside} of them inside the fabric" in report.line()

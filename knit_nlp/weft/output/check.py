@@ -53,6 +53,7 @@ class CheckReport:
     interlock_below_2r: int = 0                   # in designed interlocks (crossing is theirs)
     samples: int = SAMPLES
     notes: list[str] = field(default_factory=list)
+    lost: list[dict[str, Any]] = field(default_factory=list)   # per pair of loops
 
     @property
     def ok(self) -> bool:
@@ -75,12 +76,23 @@ class CheckReport:
                 text += f"; {self.interlock_below_2r} pairs in designed interlocks below 2r"
         else:
             text += "; no yarn radius, gaps not checked"
-        return text + f"; {self.lost_crossings} designed crossings lost"
+        return text + f"; {self.lost_crossings} designed crossings lost" + self._where_lost()
+
+    def _where_lost(self) -> str:
+        """Between how many pairs of loops the lost crossings are, and how many of those
+        pairs lie inside the fabric (no loop on its edge)."""
+        if not self.lost:
+            return ""
+        inside = sum(not p["edge"] for p in self.lost)
+        where = ("all at the fabric's edges" if not inside else
+                 f"{inside} of them inside the fabric")
+        return f" (between {len(self.lost)} pairs of loops, {where})"
 
     def to_json(self) -> dict[str, Any]:
         return {"problem": self.problem, "ok": self.ok, "radius": self.radius,
                 "samples_per_loop": self.samples, "gap_tolerance": GAP_TOL,
                 "new_crossings": self.new_crossings, "lost_designed_crossings": self.lost_crossings,
+                "lost_crossings": self.lost,
                 "short_gaps": self.short_gaps, "gaps_below_2r": self.below_2r,
                 "thick_yarn_pairs_below_2r": self.thick_below_2r,
                 "interlock_pairs_below_2r": self.interlock_below_2r,
@@ -140,7 +152,8 @@ def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
         new.append({"loops": [_loop(a, n), _loop(b, n)], "count": int(here.sum()),
                     "natural": int(here.sum()) - extra,
                     "where": np.round(found.xy[here], 6).tolist()})
-    report = CheckReport(problem.name, radius, new, verdict.lost, [], 0, None, samples=samples)
+    report = CheckReport(problem.name, radius, new, verdict.lost, [], 0, None, samples=samples,
+                         lost=_lost(verdict.lost_pairs, found.counts(), fab, problem))
     if radius is None:
         return report
     pairs = find_pairs(fab, curves, grid, reach=2 * radius,
@@ -164,6 +177,23 @@ def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
     report.interlock_below_2r = int(np.sum(below & interlock))
     report.smallest_gap = float(pairs.gap[free].min()) if free.any() else None
     return report
+
+
+def _lost(lost: dict[tuple[int, int], int], counts: dict[tuple[int, int], int],
+          fab: NaturalFabric, problem: WeftProblem) -> list[dict[str, Any]]:
+    """Each pair of loops with designed crossings lost (crossings.judge: fewer than the
+    natural count, slides into a neighbouring loop not counted): its loops, its crossings now,
+    in the natural fabric and lost, and whether a loop of it is on the fabric's edge (first or
+    last course or wale: there a course's yarn ends, or no course lies below or above)."""
+    n, m = problem.wales, problem.courses
+
+    def edge(k: int) -> bool:
+        return k // n in (0, m - 1) or k % n in (0, n - 1)
+
+    return [{"loops": [_loop(a, n), _loop(b, n)], "count": counts.get((a, b), 0),
+             "natural": fab.crossings((b // n - a // n, b % n - a % n)), "lost": v,
+             "edge": edge(a) or edge(b)}
+            for (a, b), v in sorted(lost.items())]
 
 
 def _loop(k: int, n: int) -> list[int]:

@@ -12,7 +12,7 @@ fabric (``NaturalFabric.crossings`` of their offset: 4 for vertically neighbouri
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -88,10 +88,12 @@ REACH = 2                  # offsets |Δi|, |Δj| <= REACH are searched for natu
 class Verdict:
     """Crossings judged against the natural fabric, per pair of loops: ``new`` maps each pair
     of loops (k_A, k_B) with more crossings than its natural count to how many more;
-    ``lost`` counts natural crossings missing."""
+    ``lost`` counts natural crossings missing, and ``lost_pairs`` maps each pair of loops with
+    fewer crossings than its natural count to how many fewer."""
 
     new: dict[tuple[int, int], int]
     lost: int
+    lost_pairs: dict[tuple[int, int], int] = field(default_factory=dict)
 
     @property
     def clean(self) -> bool:
@@ -125,7 +127,8 @@ def judge(fab: NaturalFabric, found: Crossings, courses: int, wales: int) -> Ver
             moved = min(excess[(a, b)], deficit[key])
             excess[(a, b)] -= moved
             deficit[key] -= moved
-    return Verdict({k: v for k, v in excess.items() if v > 0}, sum(deficit.values()))
+    return Verdict({k: v for k, v in excess.items() if v > 0}, sum(deficit.values()),
+                   {k: v for k, v in deficit.items() if v > 0})
 
 
 def designed_offsets(fab: NaturalFabric) -> list[tuple[int, int]]:
