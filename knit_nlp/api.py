@@ -46,8 +46,9 @@ DEFAULT_MODEL = "weft"      # a problem file without ``model``
 class Study:
     """How a model's study points are solved and summarised (``knit_nlp.studies``).
 
-    ``prepare(doc)`` is built once per document in a worker; ``solve(prepared, changes, x0)``
-    gives (result JSON, solution vector); ``row(result JSON)`` the values a summary keeps;
+    ``prepare(doc)`` is built once per document in a worker; ``solve(prepared, changes, x0,
+    x0_changes)`` gives (result JSON, solution vector) from the warm start x0 (solved at the
+    changes ``x0_changes``; both None without one); ``row(result JSON)`` the values a summary keeps;
     ``warm``: points along a path start from the last one's solution; ``ship(doc, problem)``
     the document workers get; ``check(problem, doc, key, values)`` raises ``ValueError`` for a
     key a sweep cannot vary; ``changes(problem, [(key, values, value), ...])`` a point's

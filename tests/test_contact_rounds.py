@@ -290,3 +290,33 @@ def test_a_warm_start_whose_contact_rounds_fail_takes_a_load_step_from_it():
     assert route.startswith("load steps with contact from the start (the contact rounds")
     assert second.extra["contact"]["new_crossings"] == 0
     assert second.rigid_clamps[1].force[0] > first.rigid_clamps[1].force[0] > 0
+
+
+def test_a_study_path_steps_each_contact_point_from_the_last_at_its_parameters(monkeypatch,
+                                                                               tmp_path):
+    """A study path warm-starts each point from the last one's solution; with contact, load
+    steps from there need the parameters it was solved at. The tasks carried x0 alone: one step
+    at the target, then the whole load from the natural fabric where it failed (the 10 x 10
+    diagonal pull with r = 0.15 swept along its pull in three points took 48.8 s, its second
+    point 24.0 s; with the start's parameters 33.9 s and 7.8 s: docs/contact.md)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from knit_nlp.studies import LoadPath, run_study
+    from knit_nlp.weft import study as weft_study
+    from knit_nlp.weft.model.params import WeftParams
+    seen = []
+    real = weft_study.solve_with_contact
+
+    def spy(base, solver, contact, params, continuation=None, x_start=None, p_start=None):
+        seen.append((x_start is not None, p_start))
+        return real(base, solver, contact, params, continuation, x_start, p_start)
+
+    monkeypatch.setattr(weft_study, "solve_with_contact", spy)
+    doc = {**diagonal_pull(4), "yarn": {"radius": R}}
+    points = [{"displacements": {"2": [d, 0.5 * d]}} for d in (1.0, 2.0)]
+    with ThreadPoolExecutor(1) as threads:
+        summary = run_study("c", [LoadPath("pull", doc, points)], tmp_path, executor=threads)
+    assert summary["complete"] and all(row["success"] for row in summary["points"])
+    assert seen[0] == (False, None)
+    at_first = WeftParams.of(parse_problem(doc, "d")).with_(**points[0]).vector()
+    assert seen[1][0] and np.array_equal(seen[1][1], at_first)

@@ -76,6 +76,16 @@ def test_study_workers_keep_quiet():
     assert line.stream.getvalue() == ""
 
 
+def test_study_workers_keep_their_contact_solves_quiet(monkeypatch, capsys):
+    """A worker's contact solves (the contact NLP's own IPOPT instances) keep quiet too: in a
+    sweep of the diagonal pull with r = 0.15 their lines ran into the sweep's line."""
+    from knit_nlp.weft.model.cases import diagonal_pull
+    monkeypatch.setattr("knit_nlp.weft.solving.solve.QUIET_FOR", 0.0)
+    built = prepare_point({**diagonal_pull(4), "yarn": {"radius": 0.15}})
+    result = built.run()
+    assert result.extra["contact"]["solves"] > 0 and capsys.readouterr().err == ""
+
+
 def test_a_long_control_reports_each_outer_iteration(monkeypatch, capsys, tmp_path):
     """A control that outlasts QUIET_FOR (here 0) prints one line per outer iteration."""
     monkeypatch.setattr("knit_nlp.weft.inverse.control.QUIET_FOR", 0.0)

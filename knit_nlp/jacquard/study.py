@@ -74,10 +74,11 @@ def prepare_point(doc: dict[str, Any]) -> dict[str, Any]:
     return doc
 
 
-def solve_point(doc: dict[str, Any], changes: dict[str, Any], x0: np.ndarray | None
-                ) -> tuple[dict[str, Any], np.ndarray]:
+def solve_point(doc: dict[str, Any], changes: dict[str, Any], x0: np.ndarray | None,
+                x0_changes: dict[str, Any] | None = None) -> tuple[dict[str, Any], np.ndarray]:
     """One study point: the document with ``changes`` written in, solved by its own method;
-    the result JSON and the final positions (``x0`` is not used: no warm start)."""
+    the result JSON and the final positions (``x0`` and ``x0_changes`` are not used: no warm
+    start)."""
     for key, value in changes.items():
         doc = set_key(doc, key, value)
     result = solve(parse_problem(doc, f"<study {doc.get('name', '')}>"))

@@ -1,8 +1,8 @@
 """What a worker runs: one point of a study, rebuilt from plain data (worker side).
 
 A task is a :class:`PointTask`: the problem as its TOML document (a dict; jacquard designs
-inlined), the point's changes, the warm start (the previous point's solution vector, or None)
-and the per-point timeout. Nothing else is shipped: no CasADi object, no file name a worker
+inlined), the point's changes, the warm start (the previous point's solution vector, or None, and the
+changes it was solved at) and the per-point timeout. Nothing else is shipped: no CasADi object, no file name a worker
 would have to read. The worker asks the document's model (``knit_nlp.api.MODELS``, its
 ``study`` entry) to prepare the document (memoised per process, so a worker that solves several
 points of one path builds once: for weft, the transcription the document's own
@@ -54,6 +54,7 @@ class PointTask:
     submitter: tuple[str, int] = ("", 0)
     attempt: int = 0          # differs on a rerun: Dask keys tasks by their arguments and would
     #                           otherwise hand back the lost attempt's error
+    x0_changes: dict[str, Any] | None = None   # the changes x0 was solved at (the last point's)
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,8 @@ def solve_point(task: PointTask) -> PointOutcome:
         watchdog.daemon = True
         watchdog.start()
     try:
-        result, x = model_of(task.doc).study.solve(_prepared(task.doc), task.changes, task.x0)
+        result, x = model_of(task.doc).study.solve(_prepared(task.doc), task.changes, task.x0,
+                                                   task.x0_changes)
         return PointOutcome(result, x)
     except Exception as err:  # noqa: BLE001 - any solver error is this point's failure
         last = traceback.format_exception_only(type(err), err)[-1].strip()

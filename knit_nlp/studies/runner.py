@@ -220,7 +220,8 @@ class _Run:
     def _submit(self, st: _PathState, alone: bool) -> None:
         self.submitted += 1
         task = PointTask(st.path.doc, st.path.points[st.next], st.x, self.timeout,
-                         this_process(), self.submitted)
+                         this_process(), self.submitted,
+                         None if st.x is None else st.path.points[st.next - 1])
         try:
             fut = self.executor.submit(solve_point, task)
         except BrokenExecutor:          # a local pool that lost a process: replace it

@@ -64,9 +64,11 @@ class WeftStudy:
                           self.solver.violation(rep.x, params.vector()))
 
     def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
-            continuation: int | None = None, start_from: WeftResult | None = None) -> WeftResult:
-        """Solve at ``params`` (default: the problem's own) from ``x0``, or from another solved
-        model's loops lifted into this one (``start_from``), and return the typed result."""
+            continuation: int | None = None, start_from: WeftResult | None = None,
+            x0_params: WeftParams | None = None) -> WeftResult:
+        """Solve at ``params`` (default: the problem's own) from ``x0`` (a solution at
+        ``x0_params``, if known: only yarn contact uses them), or from another solved model's
+        loops lifted into this one (``start_from``), and return the typed result."""
         params = params or self.params
         if start_from is not None:
             x0 = self.nlp.lift(start_from.coefficients, start_from.starts)
@@ -82,7 +84,7 @@ class ContactStudy(WeftStudy):
 
     def __init__(self, problem: WeftProblem, *, verbose: bool | None = False) -> None:
         super().__init__(problem, Full(), verbose=verbose)
-        self.contact = ContactSolver(self.nlp, problem.yarn.radius)
+        self.contact = ContactSolver(self.nlp, problem.yarn.radius, verbose=verbose)
         self.block: dict[str, Any] = {}
         self._p_start: np.ndarray | None = None
 
@@ -101,9 +103,13 @@ class ContactStudy(WeftStudy):
         return result
 
     def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
-            continuation: int | None = None, start_from: WeftResult | None = None) -> WeftResult:
-        """As :meth:`WeftStudy.run`; load steps from ``start_from`` start at its parameters."""
-        self._p_start = None if start_from is None else start_from.params.vector()
+            continuation: int | None = None, start_from: WeftResult | None = None,
+            x0_params: WeftParams | None = None) -> WeftResult:
+        """As :meth:`WeftStudy.run`; load steps from ``start_from`` start at its parameters,
+        from ``x0`` at ``x0_params`` (unknown: one step at the target, then the natural
+        fabric)."""
+        at = start_from.params if start_from is not None else x0_params
+        self._p_start = None if at is None else at.vector()
         try:
             return super().run(params, x0, continuation, start_from)
         finally:
@@ -122,9 +128,10 @@ class AdaptiveStudy:
         return WeftParams.of(self.problem)
 
     def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
-            continuation: int | None = None, start_from: WeftResult | None = None) -> WeftResult:
-        """Refine from the corners at ``params``; ``x0`` (a vector of another grid) is not
-        used, and a ``start_from`` is refused: the refinement starts from the corner form."""
+            continuation: int | None = None, start_from: WeftResult | None = None,
+            x0_params: WeftParams | None = None) -> WeftResult:
+        """Refine from the corners at ``params``; ``x0`` (a vector of another grid) and
+        ``x0_params`` are not used, and a ``start_from`` is refused: the refinement starts from the corner form."""
         if start_from is not None:
             raise ValueError("start does not apply to adaptive representatives: they start "
                              "from the corner form")
@@ -160,11 +167,14 @@ def prepare_point(doc: dict[str, Any]) -> WeftStudy | AdaptiveStudy:
 
 
 def solve_point(built: WeftStudy | AdaptiveStudy, changes: dict[str, Any],
-                x0: np.ndarray | None) -> tuple[dict[str, Any], np.ndarray]:
+                x0: np.ndarray | None, x0_changes: dict[str, Any] | None = None
+                ) -> tuple[dict[str, Any], np.ndarray]:
     """One study point: the built problem at the parameters ``changes`` names
-    (``WeftParams.with_`` keyword arguments), warm-started from ``x0``; the result JSON and
-    the solution vector."""
-    result = built.run(built.params.with_(**changes), x0=x0)
+    (``WeftParams.with_`` keyword arguments), warm-started from ``x0`` (solved at the changes
+    ``x0_changes``: yarn contact steps the load from there); the result JSON and the solution
+    vector."""
+    at = None if x0 is None or x0_changes is None else built.params.with_(**x0_changes)
+    result = built.run(built.params.with_(**changes), x0=x0, x0_params=at)
     return result.to_json(), result.x
 
 

@@ -145,8 +145,10 @@ class ContactRun:
 class ContactSolver:
     """Contact rounds for one problem (the base NLP and its solver are the caller's)."""
 
-    def __init__(self, base: FullNLP, radius: float, per_loop: int | None = None) -> None:
+    def __init__(self, base: FullNLP, radius: float, per_loop: int | None = None, *,
+                 verbose: bool | None = False) -> None:
         pr = base.problem
+        self.verbose = verbose           # the progress lines of its solves (WeftSolver)
         self.base, self.radius = base, float(radius)
         self.fabric = NaturalFabric.of(pr, radius)
         per_loop = per_loop or max(16, int(np.ceil(pr.L / radius)))
@@ -236,7 +238,7 @@ class ContactSolver:
             kB += [b] * v
         t0 = time.perf_counter()
         self.cnlp = build_contact_nlp(self.base, np.array(kA), np.array(kB))
-        self.solver = WeftSolver(self.cnlp, ipopt=WARM)
+        self.solver = WeftSolver(self.cnlp, ipopt=WARM, verbose=self.verbose)
         self.solver.deadline = self.deadline
         self.settler = None                        # built again when a round settles
         self.build_s += time.perf_counter() - t0
@@ -338,7 +340,8 @@ class ContactSolver:
         if self.settler is None:
             t0 = time.perf_counter()
             mu = SETTLE_MU * self.base.problem.solver.tol
-            self.settler = WeftSolver(self.cnlp, ipopt={**WARM, "mu_init": mu})
+            self.settler = WeftSolver(self.cnlp, ipopt={**WARM, "mu_init": mu},
+                                      verbose=self.verbose)
             self.build_s += time.perf_counter() - t0
         self.settler.deadline = self.deadline
         return self.settler
