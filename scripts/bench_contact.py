@@ -42,7 +42,7 @@ def timed_pull(n: int, radius: float | None, budget: float) -> dict:
         from knit_nlp.weft.output.check import check
         rep = check(r.to_json(), pr)            # the independent checker, outside the timing
         row["checked"] = (f"check: {len(rep.new_crossings)} new crossings, "
-                          f"{len(rep.short_gaps)} gaps below 2r(1-1e-3), smallest "
+                          f"{rep.n_short} gaps below 2r(1-1e-3), smallest "
                           f"{rep.smallest_gap / (2 * radius) if rep.smallest_gap else None}")
         c = r.extra["contact"]
         row.update(active=c["active"], gap_over_2r=c["smallest_gap_over_2r"],

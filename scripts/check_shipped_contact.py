@@ -55,7 +55,7 @@ def check_one(name: str, radius_l: float, budget: float, out: str | None = None)
             "status": res.status, "active": block.get("active"),
             "gap_over_2r": block.get("smallest_gap_over_2r"),
             "paper_new_crossings": len(before.new_crossings),
-            "new_crossings": len(after.new_crossings), "short_gaps": len(after.short_gaps),
+            "new_crossings": len(after.new_crossings), "short_gaps": after.n_short,
             "clean": res.success and after.ok}
 
 
