@@ -48,8 +48,8 @@ class Study:
 
     ``prepare(doc)`` is built once per document in a worker; ``solve(prepared, changes, x0,
     x0_changes)`` gives (result JSON, solution vector) from the warm start x0 (solved at the
-    changes ``x0_changes``; both None without one); ``row(result JSON)`` the values a summary keeps;
-    ``warm``: points along a path start from the last one's solution; ``ship(doc, problem)``
+    changes ``x0_changes``; both None without one); ``row(result JSON)`` the values a summary
+    keeps; ``warm``: points along a path start from the last one's solution; ``ship(doc, problem)``
     the document workers get; ``check(problem, doc, key, values)`` raises ``ValueError`` for a
     key a sweep cannot vary; ``changes(problem, [(key, values, value), ...])`` a point's
     changes; ``key_unit(problem, key)`` the unit of a key's values (the sweep picture's axis)."""

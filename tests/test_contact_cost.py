@@ -94,8 +94,19 @@ def test_a_large_fabric_widens_its_search_only_around_the_loops_that_crossed(mon
     tried once more with the search widened to WIDE_CROSSED around the loops that crossed,
     then halved; a shorter step that crosses where the search is already wide is halved at
     once. (The 100 x 100 pull was halved down to 0.047 of its load by crossings near its pinned
-    corner.) The reach elsewhere stays REACH."""
+    corner.) The reach elsewhere stays REACH. Not where the wider search would hold more than
+    GROWTH times the pairs (memory): there the step is halved at once."""
     monkeypatch.setattr(rounds, "WIDE_PAIRS", 0)
+    monkeypatch.setattr(rounds, "GROWTH", np.inf)
+    assert _around_seen() == [(rounds.REACH * 10.0, 0), (rounds.REACH * 10.0, 1),
+                              (rounds.REACH * 10.0, 1)]
+    monkeypatch.setattr(rounds, "GROWTH", 0.0)
+    assert _around_seen() == [(rounds.REACH * 10.0, 0), (rounds.REACH * 10.0, 0)]
+
+
+def _around_seen() -> list[tuple[float, int]]:
+    """(reach, loops searched wider) at every attempt of a run whose steps all cross at loop
+    (1, 1)."""
     contact, base = _solver()
     seen: list[tuple[float, int]] = []
 
@@ -109,7 +120,7 @@ def test_a_large_fabric_widens_its_search_only_around_the_loops_that_crossed(mon
     report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
     contact.run(base.params.vector(), WeftParams.natural(base.problem).vector(), base.x0, 2,
                 report, max_halvings=1)
-    assert seen == [(rounds.REACH * 10.0, 0), (rounds.REACH * 10.0, 1), (rounds.REACH * 10.0, 1)]
+    return seen
 
 
 def test_the_search_widened_around_loops_finds_the_wide_pairs_there_only():

@@ -1,13 +1,13 @@
 """What a worker runs: one point of a study, rebuilt from plain data (worker side).
 
 A task is a :class:`PointTask`: the problem as its TOML document (a dict; jacquard designs
-inlined), the point's changes, the warm start (the previous point's solution vector, or None, and the
-changes it was solved at) and the per-point timeout. Nothing else is shipped: no CasADi object, no file name a worker
-would have to read. The worker asks the document's model (``knit_nlp.api.MODELS``, its
-``study`` entry) to prepare the document (memoised per process, so a worker that solves several
-points of one path builds once: for weft, the transcription the document's own
-``[reduction]`` names) and to solve the point, and returns a :class:`PointOutcome`: the result
-JSON and the solution vector, or a reason.
+inlined), the point's changes, the warm start (the previous point's solution vector and the
+changes it was solved at, or None) and the per-point timeout. Nothing else is shipped: no
+CasADi object, no file name a worker would have to read. The worker asks the document's model
+(``knit_nlp.api.MODELS``, its ``study`` entry) to prepare the document (memoised per process,
+so a worker that solves several points of one path builds once: for weft, the transcription
+the document's own ``[reduction]`` names) and to solve the point, and returns a
+:class:`PointOutcome`: the result JSON and the solution vector, or a reason.
 
 A watchdog thread ends the worker *process* (``os._exit``) when a point outlives its timeout:
 CasADi releases the GIL while IPOPT runs, so the thread fires even inside a solve, and ending

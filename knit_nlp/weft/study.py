@@ -131,7 +131,8 @@ class AdaptiveStudy:
             continuation: int | None = None, start_from: WeftResult | None = None,
             x0_params: WeftParams | None = None) -> WeftResult:
         """Refine from the corners at ``params``; ``x0`` (a vector of another grid) and
-        ``x0_params`` are not used, and a ``start_from`` is refused: the refinement starts from the corner form."""
+        ``x0_params`` are not used, and a ``start_from`` is refused: the refinement starts from
+        the corner form."""
         if start_from is not None:
             raise ValueError("start does not apply to adaptive representatives: they start "
                              "from the corner form")

@@ -64,8 +64,10 @@ WIDE_PAIRS = 20_000
 # crossed: every loop within this many courses and wales of one of them (the 100 x 100 pull's
 # steps crossed near its pinned corner, courses 5-13, wales 2-4, and were halved to 0.047 of the
 # load within its budget: docs/contact.md). Once per step size, and only where the crossings
-# add loops; those loops keep the wider reach for the rest of the run
+# add loops and the pairs grow by at most GROWTH times (memory, as above); those loops keep the
+# wider reach for the rest of the run
 AROUND = 2
+GROWTH = 1.5
 MOVED = 0.5                # contact points that moved less than this many samples have settled
 # a pair the search finds within this many samples of a pushing pair's points (s_A, s_B) is that
 # contact; a pushing pair with none that close stays in the next solve (matching.lost_contacts).
@@ -212,6 +214,21 @@ class ContactSolver:
             return False
         self.around = grown
         return True
+
+    def _widened(self, x: np.ndarray, held: int) -> Pairs | None:
+        """The pairs of x searched wider around the loops that crossed (:meth:`widen_around`),
+        or None (``around`` as it was) when that adds no loop or more than ``GROWTH`` times
+        the ``held`` pairs."""
+        before = self.around
+        if not self.widen_around():
+            return None
+        wider = self.pairs(x)
+        if len(wider) > GROWTH * held:
+            self.around = before
+            return None
+        if self.log is not None:
+            self.log(f"  search widened around {self.around.size} loops: {len(wider)} pairs")
+        return wider
 
     def _slots(self, pairs: Pairs) -> bool:
         """Make sure every pair of loops has enough slots; True when rebuilt. The pool grows by
@@ -491,14 +508,12 @@ class ContactSolver:
                     self.reach *= 2
                     pairs = self.pairs(x)
                     continue
-                if (report.status == CROSSED and len(pairs) >= WIDE_PAIRS and not widened
-                        and self.widen_around()):
+                if report.status == CROSSED and len(pairs) >= WIDE_PAIRS and not widened:
                     # a large fabric: wider only where the yarns crossed, once per step size
-                    widened = True
-                    pairs = self.pairs(x)
-                    if self.log is not None:
-                        self.log(f"  search widened around {self.around.size} loops")
-                    continue
+                    wider = self._widened(x, len(pairs))
+                    if wider is not None:
+                        pairs, widened = wider, True
+                        continue
                 if np.array_equal(p_target, p_natural):
                     # no load to step (a start at unknown parameters): a shorter step is the
                     # same step; the caller tries the natural fabric
