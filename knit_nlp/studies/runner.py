@@ -146,6 +146,7 @@ class _PathState:
     path: LoadPath
     next: int = 0
     x: np.ndarray | None = None
+    x_changes: dict[str, Any] | None = None   # the point x was solved at
     rows: list[dict[str, Any]] = field(default_factory=list)
     new: int = 0
     busy: bool = False
@@ -198,7 +199,7 @@ class _Run:
         with atomic_file(npy) as fh:
             np.save(fh, out.x)
         write_json(js, out.result)          # last: a point counts as cached once its JSON exists
-        st.x = out.x if st.warm else None
+        st.x, st.x_changes = (out.x, st.path.points[st.next]) if st.warm else (None, None)
         self._record(st, _row(st.path, st.next, out.result))
 
     def replay_cache(self) -> None:
@@ -209,7 +210,7 @@ class _Run:
                 if cached is None:          # missing or damaged: solved (again) from here
                     break
                 result, x = cached
-                st.x = x if st.warm else None
+                st.x, st.x_changes = (x, st.path.points[st.next]) if st.warm else (None, None)
                 self._record(st, _row(st.path, st.next, result))
 
     # -- submitting --------------------------------------------------------------------------
@@ -220,8 +221,7 @@ class _Run:
     def _submit(self, st: _PathState, alone: bool) -> None:
         self.submitted += 1
         task = PointTask(st.path.doc, st.path.points[st.next], st.x, self.timeout,
-                         this_process(), self.submitted,
-                         None if st.x is None else st.path.points[st.next - 1])
+                         this_process(), self.submitted, st.x_changes)
         try:
             fut = self.executor.submit(solve_point, task)
         except BrokenExecutor:          # a local pool that lost a process: replace it
