@@ -9,9 +9,8 @@ that vanished are reported as lost). Gaps: every local minimum of the distance b
 pieces of yarn that are not one piece (pairs.find_pairs, polished on the continuous
 centrelines) closer than 2r·(1 − ``GAP_TOL``) is counted, and one closer than its requirement
 min(2r, natural gap)·(1 − ``GAP_TOL``) (natural.py, "Thick yarn") is a violation (the
-``LISTED`` shortest of those are listed). Pieces in
-a designed box, natural or around a designed crossing that slid (zones.py, as the solver has
-them), have no required gap.
+``LISTED`` shortest of those are listed). Pieces in a designed box, natural or around a
+designed crossing that slid (zones.py, as the solver has them), have no required gap.
 """
 from __future__ import annotations
 
