@@ -10,7 +10,7 @@ import pytest
 
 from knit_nlp.weft.api import solve
 from knit_nlp.weft.model.cases import diagonal_pull, unclamped
-from knit_nlp.weft.model.contact.crossings import find_crossings, judge
+from knit_nlp.weft.model.contact.crossings import Crossings, find_crossings, judge
 from knit_nlp.weft.model.contact.curves import Curves
 from knit_nlp.weft.model.contact.natural import NaturalFabric
 from knit_nlp.weft.model.contact.pairs import Grid
@@ -185,6 +185,25 @@ def test_crossing_judge_counts_against_the_natural_fabric():
     verdict = judge(fab, find_crossings(Curves.of(pull.coefficients, pull.starts, L),
                                         Grid(5, 5, L, 100)), 5, 5)
     assert not verdict.clean
+
+
+def test_a_sheared_row_of_interlocks_is_judged_as_slides_in_any_order():
+    """Two courses of 4 loops: three interlocks each slid one loop along (one crossing of
+    loops (1,j) and (2,j+1) each, one fewer on (1,j)-(2,j)), as by the 100 x 100 pull's pinned
+    corner. Every excess crossing has a missing one next to it: no new crossing, none lost. The
+    greedy pairing spent (1,2)-(2,2)'s missing crossing on (1,1)-(2,2) and (1,3)-(2,3)'s on
+    (1,2)-(2,3), and called (1,3)-(2,4) new; the steps of that pull were halved for it."""
+    pr = parse_problem(unclamped(2, 4), "x")
+    fab = NaturalFabric.of(pr, 0.15)
+    pairs = [(j, 4 + j) for j in range(4) for _ in range(4 if j == 3 else 3)]
+    pairs += [(j, 5 + j) for j in range(3)]
+    kA, kB = (np.array(v) for v in zip(*pairs))
+    z = np.zeros(len(pairs))
+    verdict = judge(fab, Crossings(kA, z, kB, z, np.zeros((len(pairs), 2))), 2, 4)
+    assert verdict.clean and verdict.lost == 0 and verdict.lost_pairs == {}
+    extra = Crossings(np.append(kA, 0), np.append(z, 0), np.append(kB, 6), np.append(z, 0),
+                      np.zeros((len(pairs) + 1, 2)))
+    assert judge(fab, extra, 2, 4).new == {(0, 6): 1}     # two loops along: not a slide
 
 
 def test_natural_gaps_of_the_jersey_preset():

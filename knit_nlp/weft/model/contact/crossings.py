@@ -109,7 +109,9 @@ def judge(fab: NaturalFabric, found: Crossings, courses: int, wales: int) -> Ver
     designed crossing may slide past the end of a loop into the next loop of its course: one
     crossing too many on a pair of loops next to one too few on the pair that shares a loop
     with it and whose other loop is the neighbour in the same course is such a slide, not a
-    new crossing."""
+    new crossing. Slides are paired with missing crossings by a maximum matching
+    (:func:`_slides`), so that a row of interlocks that each slid one loop along is seen as
+    slides however the pairs are ordered."""
     counts = found.counts()
     natural: dict[tuple[int, int], int] = {}
     for di, dj in designed_offsets(fab):
@@ -118,17 +120,43 @@ def judge(fab: NaturalFabric, found: Crossings, courses: int, wales: int) -> Ver
                 natural[(i * wales + j, (i + di) * wales + j + dj)] = fab.crossings((di, dj))
     excess = {k: c - natural.get(k, 0) for k, c in counts.items() if c > natural.get(k, 0)}
     deficit = {k: c - counts.get(k, 0) for k, c in natural.items() if counts.get(k, 0) < c}
-    for (a, b) in list(excess):
-        for na, nb in ((a - 1, b), (a + 1, b), (a, b - 1), (a, b + 1)):
-            same_course = (na // wales == a // wales) and (nb // wales == b // wales)
-            key = (min(na, nb), max(na, nb))
-            if not same_course or deficit.get(key, 0) <= 0 or excess[(a, b)] <= 0:
-                continue
-            moved = min(excess[(a, b)], deficit[key])
-            excess[(a, b)] -= moved
-            deficit[key] -= moved
+    _slides(excess, deficit, wales)
     return Verdict({k: v for k, v in excess.items() if v > 0}, sum(deficit.values()),
                    {k: v for k, v in deficit.items() if v > 0})
+
+
+def _slides(excess: dict[tuple[int, int], int], deficit: dict[tuple[int, int], int],
+            wales: int) -> None:
+    """Take the slides out of ``excess`` and ``deficit`` (in place): each crossing too many
+    on loops (a, b) may stand for one too few on (a ± 1, b) or (a, b ± 1), the neighbour in
+    the same course. A maximum bipartite matching of single crossings (SciPy's Hopcroft-Karp)
+    pairs as many as can be paired; a greedy pass, pair by pair, could spend the missing
+    crossing a later slide needed (a sheared row of interlocks by the 100 x 100 pull's pinned
+    corner: (11,1)-(12,2), (11,2)-(12,3), (11,3)-(12,4) against (11,1)-(12,1), (11,2)-(12,2),
+    (11,3)-(12,3); the greedy pass left (11,3)-(12,4) "new")."""
+    units = [k for k, c in excess.items() for _ in range(c)]
+    holes: dict[tuple[int, int], list[int]] = {}      # each missing crossing's index
+    owner: list[tuple[int, int]] = []
+    for key, c in deficit.items():
+        holes[key] = list(range(len(owner), len(owner) + c))
+        owner += [key] * c
+    rows, cols = [], []
+    for i, (a, b) in enumerate(units):
+        for na, nb in ((a - 1, b), (a + 1, b), (a, b - 1), (a, b + 1)):
+            if na // wales != a // wales or nb // wales != b // wales:
+                continue                               # not the neighbour in the same course
+            for j in holes.get((min(na, nb), max(na, nb)), ()):
+                rows.append(i)
+                cols.append(j)
+    if not rows:
+        return
+    from scipy.sparse import csr_matrix                # lazy, as find_crossings' cKDTree
+    from scipy.sparse.csgraph import maximum_bipartite_matching
+    graph = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(units), len(owner)))
+    for i, j in enumerate(maximum_bipartite_matching(graph, perm_type="column")):
+        if j >= 0:
+            excess[units[i]] -= 1
+            deficit[owner[j]] -= 1
 
 
 def designed_offsets(fab: NaturalFabric) -> list[tuple[int, int]]:
