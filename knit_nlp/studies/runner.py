@@ -157,6 +157,11 @@ class _PathState:
     def warm(self) -> bool:
         return model_of(self.path.doc).study.warm
 
+    def solved(self, x: np.ndarray) -> None:
+        """The current point was solved to x: the next one's warm start, with its changes
+        (none where the model does not warm-start)."""
+        self.x, self.x_changes = (x, self.path.points[self.next]) if self.warm else (None, None)
+
 
 def _worker_lost(err: BaseException) -> bool:
     """Did the executor lose the worker running the point (a broken local pool, a process
@@ -199,7 +204,7 @@ class _Run:
         with atomic_file(npy) as fh:
             np.save(fh, out.x)
         write_json(js, out.result)          # last: a point counts as cached once its JSON exists
-        st.x, st.x_changes = (out.x, st.path.points[st.next]) if st.warm else (None, None)
+        st.solved(out.x)
         self._record(st, _row(st.path, st.next, out.result))
 
     def replay_cache(self) -> None:
@@ -210,7 +215,7 @@ class _Run:
                 if cached is None:          # missing or damaged: solved (again) from here
                     break
                 result, x = cached
-                st.x, st.x_changes = (x, st.path.points[st.next]) if st.warm else (None, None)
+                st.solved(x)
                 self._record(st, _row(st.path, st.next, result))
 
     # -- submitting --------------------------------------------------------------------------

@@ -48,7 +48,7 @@ class CheckReport:
     problem: str
     radius: float | None
     new_crossings: list[dict[str, Any]]
-    lost_crossings: int
+    lost: list[dict[str, Any]]                    # designed crossings lost, per pair of loops
     short_gaps: list[dict[str, Any]]              # below their requirement: violations
     #                                                (the LISTED shortest; ``n_short`` all)
     below_2r: int                                 # below 2r (thick yarn pairs included)
@@ -57,8 +57,11 @@ class CheckReport:
     interlock_below_2r: int = 0                   # in designed interlocks (crossing is theirs)
     samples: int = SAMPLES
     notes: list[str] = field(default_factory=list)
-    lost: list[dict[str, Any]] = field(default_factory=list)   # per pair of loops
     n_short: int = 0                              # gaps below their requirement, all of them
+
+    @property
+    def lost_crossings(self) -> int:
+        return sum(p["lost"] for p in self.lost)
 
     @property
     def ok(self) -> bool:
@@ -158,8 +161,9 @@ def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
         new.append({"loops": [_loop(a, n), _loop(b, n)], "count": int(here.sum()),
                     "natural": int(here.sum()) - extra,
                     "where": np.round(found.xy[here], 6).tolist()})
-    report = CheckReport(problem.name, radius, new, verdict.lost, [], 0, None, samples=samples,
-                         lost=_lost(verdict.lost_pairs, found.counts(), fab, problem))
+    report = CheckReport(problem.name, radius, new,
+                         _lost(verdict.lost_pairs, found.counts(), fab, problem), [], 0, None,
+                         samples=samples)
     if radius is None:
         return report
     pairs = find_pairs(fab, curves, grid, reach=2 * radius,

@@ -12,7 +12,7 @@ fabric (``NaturalFabric.crossings`` of their offset: 4 for vertically neighbouri
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -88,12 +88,15 @@ REACH = 2                  # offsets |Δi|, |Δj| <= REACH are searched for natu
 class Verdict:
     """Crossings judged against the natural fabric, per pair of loops: ``new`` maps each pair
     of loops (k_A, k_B) with more crossings than its natural count to how many more;
-    ``lost`` counts natural crossings missing, and ``lost_pairs`` maps each pair of loops with
-    fewer crossings than its natural count to how many fewer."""
+    ``lost_pairs`` maps each pair of loops with fewer crossings than its natural count to how
+    many fewer, and ``lost`` counts them all."""
 
     new: dict[tuple[int, int], int]
-    lost: int
-    lost_pairs: dict[tuple[int, int], int] = field(default_factory=dict)
+    lost_pairs: dict[tuple[int, int], int]
+
+    @property
+    def lost(self) -> int:
+        return sum(self.lost_pairs.values())
 
     @property
     def clean(self) -> bool:
@@ -121,7 +124,7 @@ def judge(fab: NaturalFabric, found: Crossings, courses: int, wales: int) -> Ver
     excess = {k: c - natural.get(k, 0) for k, c in counts.items() if c > natural.get(k, 0)}
     deficit = {k: c - counts.get(k, 0) for k, c in natural.items() if counts.get(k, 0) < c}
     _slides(excess, deficit, wales)
-    return Verdict({k: v for k, v in excess.items() if v > 0}, sum(deficit.values()),
+    return Verdict({k: v for k, v in excess.items() if v > 0},
                    {k: v for k, v in deficit.items() if v > 0})
 
 
