@@ -11,14 +11,16 @@ written in the two loops' variables (eq. 1 by the cell rule of ``curves.py``), �
 No contact variables and no rows: the KKT system keeps the paper's size, and its Hessian gains
 the blocks between the loops of a pair. Gradient and Hessian are closed form (numpy, only the
 pairs within d̂; ``--check`` compares them with finite differences). E_c is NaN where d ≤ 0,
-so IPOPT's line search cuts a step back before yarns touch (CasADi reports the NaN, IPOPT
-"cuts back alpha"). Each load step is solved for each d̂ of ``--dhat`` (× 2r) in turn, warm.
+so IPOPT's line search cuts a step back before yarns touch (CasADi warns of each NaN on
+stderr, IPOPT "cuts back alpha"); a pair already at d <= 0 where a step starts gets its own ε
+to start just inside. Each load step is solved for each d̂ of ``--dhat`` (× 2r) in turn, warm.
 
     OMP_NUM_THREADS=1 python scripts/try_barrier_contact.py [--size 6] [--steps 4] \
         [--dhat 0.1 0.01 0.001] [--force 0.1] [--first] [--budget 150] [--check]
 
-prints each load step: pairs, IPOPT iterations per d̂, seconds, IPOPT's status, whether the
-state crossed yarns (``crossings.judge``) and the gaps the search finds short of 2r there.
+prints each load step: pairs, IPOPT iterations per d̂, seconds, IPOPT's status, the rows'
+largest violation at the end and at the start, whether the state is free of new crossings
+(``crossings.judge``) and the gaps the search finds short of 2r(1 − 1e-3) there.
 """
 from __future__ import annotations
 
