@@ -89,59 +89,6 @@ def test_a_large_fabric_halves_a_failed_step_instead_of_widening_its_search(monk
         assert _reaches(status) == [rounds.REACH * L] * 2        # halved once, then given up
 
 
-def test_a_large_fabric_widens_its_search_only_around_the_loops_that_crossed(monkeypatch):
-    """Where the search is too large to widen everywhere, a step that let yarns cross is
-    tried once more with the search widened to WIDE_CROSSED around the loops that crossed,
-    then halved; a shorter step that crosses where the search is already wide is halved at
-    once. (The 100 x 100 pull was halved down to 0.047 of its load by crossings near its pinned
-    corner.) The reach elsewhere stays REACH. Not where the wider search would hold more than
-    GROWTH times the pairs (memory): there the step is halved at once."""
-    monkeypatch.setattr(rounds, "WIDE_PAIRS", 0)
-    monkeypatch.setattr(rounds, "GROWTH", np.inf)
-    assert _around_seen() == [(rounds.REACH * 10.0, 0), (rounds.REACH * 10.0, 1),
-                              (rounds.REACH * 10.0, 1)]
-    monkeypatch.setattr(rounds, "GROWTH", 0.0)
-    assert _around_seen() == [(rounds.REACH * 10.0, 0), (rounds.REACH * 10.0, 0)]
-
-
-def _around_seen() -> list[tuple[float, int]]:
-    """(reach, loops searched wider) at every attempt of a run whose steps all cross at loop
-    (1, 1)."""
-    contact, base = _solver()
-    seen: list[tuple[float, int]] = []
-
-    def step(p, x, pairs, warm, final, report, rounds_, note):
-        seen.append((contact.reach, contact.around.size))
-        contact.crossing = np.array([0])          # what crossed() records: loop (1, 1)
-        report.status = rounds.CROSSED
-        return None
-
-    contact.step = step
-    report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
-    contact.run(base.params.vector(), WeftParams.natural(base.problem).vector(), base.x0, 2,
-                report, max_halvings=1)
-    return seen
-
-
-def test_the_search_widened_around_loops_finds_the_wide_pairs_there_only():
-    """Around every loop, the pairs of a search at WIDE_CROSSED; around none, those at REACH;
-    around some, the wide pairs that touch them and the narrow ones elsewhere."""
-    contact, base, _ = _pull(4)
-    x = base.x0
-    narrow = contact.pairs(x)
-    contact.reach = rounds.WIDE_CROSSED * 10.0
-    wide = contact.pairs(x)
-    contact.reach = rounds.REACH * 10.0
-    assert len(wide) > len(narrow)
-    contact.around = np.arange(16)
-    assert np.array_equal(np.sort(contact.pairs(x).sA), np.sort(wide.sA))
-    contact.around = np.array([5])
-    some = contact.pairs(x)
-    on5 = (some.kA == 5) | (some.kB == 5)
-    assert on5.sum() == np.sum((wide.kA == 5) | (wide.kB == 5))
-    assert (~on5).sum() == np.sum((narrow.kA != 5) & (narrow.kB != 5))
-
-
 def test_a_step_out_of_time_neither_widens_nor_halves():
     """A step stopped at the deadline ends the run: a widened search after it (at 100 x 100 a
     search of some 700,000 pairs) or a shorter step has no time left to run."""

@@ -60,14 +60,6 @@ INFEASIBLE = "Infeasible_Problem_Detected"
 # 641,400; an earlier run of that pull was killed for memory at 24 GB: docs/contact.md); a
 # fabric this large halves the step instead
 WIDE_PAIRS = 20_000
-# ... there a step that let yarns cross searches at WIDE_CROSSED only around the loops that
-# crossed: every loop within this many courses and wales of one of them (the 100 x 100 pull's
-# steps crossed near its pinned corner, courses 5-13, wales 2-4, and were halved to 0.047 of the
-# load within its budget: docs/contact.md). Once per step size, and only where the crossings
-# add loops and the pairs grow by at most GROWTH times (memory, as above); those loops keep the
-# wider reach for the rest of the run
-AROUND = 2
-GROWTH = 1.5
 MOVED = 0.5                # contact points that moved less than this many samples have settled
 # a pair the search finds within this many samples of a pushing pair's points (s_A, s_B) is that
 # contact; a pushing pair with none that close stays in the next solve (matching.lost_contacts).
@@ -169,8 +161,6 @@ class ContactSolver:
         self.last_pairs: tuple[Pairs, np.ndarray, np.ndarray] | None = None
         self.deadline = np.inf           # the wall-clock budget shared with the paper's solves
         self._look: Look | None = None
-        self.around = np.zeros(0, dtype=int)   # loops searched at WIDE_CROSSED (AROUND)
-        self.crossing = np.zeros(0, dtype=int)  # the loops of the last crossed step
 
     def look(self, x_base: np.ndarray) -> Look:
         """A base-layout state's curves, crossings, verdict and designed zones. The last
@@ -186,49 +176,9 @@ class ContactSolver:
         return self._look
 
     def pairs(self, x_base: np.ndarray) -> Pairs:
-        """Contact pairs of a base-layout state: within ``reach`` of their required gap, and
-        within ``WIDE_CROSSED`` L on the loops ``around`` (:meth:`widen_around`)."""
+        """Contact pairs of a base-layout state."""
         look = self.look(x_base)
-        found = find_pairs(self.fabric, look.curves, self.grid, self.reach, look.zones)
-        wide = WIDE_CROSSED * self.grid.L
-        if self.around.size == 0 or self.reach >= wide:
-            return found
-        more = find_pairs(self.fabric, look.curves, self.grid, wide, look.zones)
-        return Pairs.joined([found.select(~self._around(found)), more.select(self._around(more))])
-
-    def _around(self, pairs: Pairs) -> np.ndarray:
-        """Which pairs have a loop among ``around``."""
-        return np.isin(pairs.kA, self.around) | np.isin(pairs.kB, self.around)
-
-    def widen_around(self) -> bool:
-        """Search at ``WIDE_CROSSED`` around the loops of the last crossed step
-        (``crossing``): every loop within ``AROUND`` courses and wales of one; False when that
-        adds no loop (or no loop crossed)."""
-        n, m = self.grid.wales, self.grid.courses
-        near = [(c + dc) * n + w + dw for k in self.crossing.tolist()
-                for c, w in [divmod(k, n)]
-                for dc in range(-AROUND, AROUND + 1) for dw in range(-AROUND, AROUND + 1)
-                if 0 <= c + dc < m and 0 <= w + dw < n]
-        grown = np.union1d(self.around, np.array(near, dtype=int))
-        if grown.size == self.around.size:
-            return False
-        self.around = grown
-        return True
-
-    def _widened(self, x: np.ndarray, held: int) -> Pairs | None:
-        """The pairs of x searched wider around the loops that crossed (:meth:`widen_around`),
-        or None (``around`` as it was) when that adds no loop or more than ``GROWTH`` times
-        the ``held`` pairs."""
-        before = self.around
-        if not self.widen_around():
-            return None
-        wider = self.pairs(x)
-        if len(wider) > GROWTH * held:
-            self.around = before
-            return None
-        if self.log is not None:
-            self.log(f"  search widened around {self.around.size} loops: {len(wider)} pairs")
-        return wider
+        return find_pairs(self.fabric, look.curves, self.grid, self.reach, look.zones)
 
     def _slots(self, pairs: Pairs) -> bool:
         """Make sure every pair of loops has enough slots; True when rebuilt. The pool grows by
@@ -288,7 +238,6 @@ class ContactSolver:
         verdict = self.look(x_base).verdict
         if not verdict.clean:
             n = self.grid.wales
-            self.crossing = np.unique(np.array(list(verdict.new), dtype=int))
             self.why = "new crossings between loops " + ", ".join(
                 f"({a // n + 1},{a % n + 1})-({b // n + 1},{b % n + 1})"
                 for a, b in list(verdict.new)[:4])
@@ -311,7 +260,6 @@ class ContactSolver:
                           < -FLIP * self.grid.L)
         if through.any():
             self.why = f"{int(through.sum())} pairs passed through"
-            self.crossing = np.unique(np.concatenate([found.kA[through], found.kB[through]]))
         return bool(np.any(through))
 
     def solve_once(self, p_base: np.ndarray, x_base: np.ndarray, pairs: Pairs,
@@ -483,7 +431,6 @@ class ContactSolver:
         by :meth:`step` and halved when it fails or lets yarns cross."""
         rounds: list[Round] = []
         x, tau, dtau, halvings = x_start, 0.0, 1.0 / steps, 0
-        self.around, widened = np.zeros(0, dtype=int), False
         pairs, lam, warm = self.pairs(x), None, None
         solved = pairs                 # the pairs of the last solved step (lam's pairs)
         while tau < 1.0:
@@ -508,12 +455,6 @@ class ContactSolver:
                     self.reach *= 2
                     pairs = self.pairs(x)
                     continue
-                if report.status == CROSSED and len(pairs) >= WIDE_PAIRS and not widened:
-                    # a large fabric: wider only where the yarns crossed, once per step size
-                    wider = self._widened(x, len(pairs))
-                    if wider is not None:
-                        pairs, widened = wider, True
-                        continue
                 if np.array_equal(p_target, p_natural):
                     # no load to step (a start at unknown parameters): a shorter step is the
                     # same step; the caller tries the natural fabric
@@ -524,10 +465,8 @@ class ContactSolver:
                     report.success = False
                     break
                 dtau /= 2
-                widened = False
                 continue
             x, pairs, warm, lam = out
-            widened = False
             solved = pairs
             tau, halvings, self.reach = nxt, 0, REACH * self.base.problem.L
             report.success, report.status = True, "Solve_Succeeded"
@@ -538,7 +477,6 @@ class ContactSolver:
         # pairs of the last solved step with their multipliers
         if lam is None:
             lam = np.zeros(len(solved))
-        self.around = np.zeros(0, dtype=int)          # a later run (a study's) starts afresh
         return ContactRun(report, solved, lam, rounds,
                           0 if self.cnlp is None else self.cnlp.n_variables,
                           0 if self.cnlp is None else self.cnlp.n_constraints,
