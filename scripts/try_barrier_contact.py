@@ -44,8 +44,9 @@ def barrier(d: np.ndarray, dhat: float) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 class Prefix:
-    """Every loop's integrals from 0 to each cell start, by the cell rule: I (N, M+1, 2),
-    ∂I/∂a (N, M+1, 2, nc) and, with ``second``, ∂²I/∂a² (N, M+1, 2, nc, nc)."""
+    """Every loop's derivatives of I(a; s) = ∫₀ˢ (cos θ, sin θ) from 0 to each cell start, by
+    the cell rule (the positions are ``Curves``'): ∂I/∂a (N, M+1, 2, nc) and, with ``second``,
+    ∂²I/∂a² (N, M+1, 2, nc, nc)."""
 
     def __init__(self, coeffs: np.ndarray, L: float, t: int, second: bool) -> None:
         from knit_nlp.weft.model.contact.curves import basis_at, cell_nodes
@@ -57,7 +58,7 @@ class Prefix:
         def prefix(inc: np.ndarray) -> np.ndarray:
             return np.concatenate([np.zeros_like(inc[:, :1]), np.cumsum(inc, 1)], 1)
 
-        self.I = prefix(np.stack([c @ hw, s @ hw], -1))
+        self.second = second
         self.dI = prefix(np.stack([-np.einsum("nmq,q,mqc->nmc", s, hw, phi),
                                    np.einsum("nmq,q,mqc->nmc", c, hw, phi)], 2))
         if second:
@@ -72,19 +73,20 @@ class Points:
     def __init__(self, k: np.ndarray, s: np.ndarray, L: float, t: int) -> None:
         from knit_nlp.weft.model.contact.curves import basis_at, cell_of, cell_rule
         M, xi, self.w = cell_rule(t)
-        self.k, self.j = np.asarray(k), cell_of(s, L, t)
-        self.ell = np.asarray(s, dtype=float) - self.j * (L / M)
+        self.k, self.s = np.asarray(k), np.asarray(s, dtype=float)
+        self.j = cell_of(self.s, L, t)
+        self.ell = self.s - self.j * (L / M)
         self.phin = basis_at((self.j * (L / M))[:, None] + self.ell[:, None] * xi, L, t)
-        self.phis = basis_at(np.asarray(s, dtype=float), L, t)
+        self.phis = basis_at(self.s, L, t)
 
-    def at(self, coeffs, starts, pre: Prefix, sel, second: bool = False) -> list[np.ndarray]:
-        """P, ∂I/∂a and (``second``) ∂²I/∂a² of the points ``sel``."""
+    def at(self, coeffs, pre: Prefix, sel, second: bool = False) -> list[np.ndarray]:
+        """∂I/∂a and (``second``; ``pre`` must hold the second derivatives) ∂²I/∂a² of the
+        points ``sel``."""
         k, j, ell, phin = self.k[sel], self.j[sel], self.ell[sel], self.phin[sel]
         th = np.einsum("pqc,pc->pq", phin, coeffs[k])
         lw = ell[:, None] * self.w
         c, s = np.cos(th) * lw, np.sin(th) * lw
-        out = [starts[k] + pre.I[k, j] + np.stack([c.sum(1), s.sum(1)], -1),
-               pre.dI[k, j] + np.stack([-np.einsum("pq,pqc->pc", s, phin),
+        out = [pre.dI[k, j] + np.stack([-np.einsum("pq,pqc->pc", s, phin),
                                         np.einsum("pq,pqc->pc", c, phin)], 1)]
         if second:
             out.append(pre.d2I[k, j] - np.stack([np.einsum("pq,pqc,pqd->pcd", c, phin, phin),
@@ -100,7 +102,7 @@ class BarrierEnergy:
         from knit_nlp.weft.model.basis import n_coeffs
         pr = base.problem
         self.base, self.L, self.t, self.nc = base, pr.L, pr.t, n_coeffs(pr.t)
-        self.kB, self.sigma, self.req = pairs.kB, pairs.sigma, pairs.required
+        self.sigma, self.req = pairs.sigma, pairs.required
         self.A, self.B = Points(pairs.kA, pairs.sA, pr.L, pr.t), Points(pairs.kB, pairs.sB,
                                                                           pr.L, pr.t)
         self.kappa, self.dhat, self.eps = kappa, dhat, eps
@@ -124,34 +126,44 @@ class BarrierEnergy:
         self._x, self._st = None, {}
 
     def state(self, x: np.ndarray) -> dict:
+        """Gaps of every pair at x (positions and angles by ``Curves``, the package's cell
+        rule); the derivatives' tables come later, for the pairs within d̂ (:meth:`_first`)."""
+        from knit_nlp.weft.model.contact.curves import Curves
         x = np.array(x, dtype=float)                     # a copy: CasADi reuses its buffers
         if self._x is not None and np.array_equal(x, self._x):
             return self._st
         base, N = self.base, self.base.problem.n_loops
         coeffs = base.x.get(x, "coeffs").T.reshape(N, -1)
-        starts = base.x.get(x, "starts").T.reshape(N, 2)
-        pre = Prefix(coeffs, self.L, self.t, second=False)
-        every = slice(None)
-        PA, dIA = self.A.at(coeffs, starts, pre, every)
-        PB, dIB = self.B.at(coeffs, starts, pre, every)
-        thB = np.einsum("pc,pc->p", self.B.phis, coeffs[self.kB])
+        curves = Curves(coeffs, base.x.get(x, "starts").T.reshape(N, 2), self.L, self.t)
+        dv = curves.points(self.A.k, self.A.s) - curves.points(self.B.k, self.B.s)
+        thB = curves.angle(self.B.k, self.B.s)
         T = np.stack([np.cos(thB), np.sin(thB)], 1)
         Nn = np.stack([-np.sin(thB), np.cos(thB)], 1)
-        g = self.sigma * np.sum((PA - PB) * Nn, 1)
+        g = self.sigma * np.sum(dv * Nn, 1)
         self._x = x
-        self._st = dict(coeffs=coeffs, starts=starts, dIA=dIA, dIB=dIB, T=T, N=Nn,
-                        dT=np.sum((PA - PB) * T, 1), g=g, d=g - self.req + self.eps)
+        self._st = dict(coeffs=coeffs, T=T, N=Nn, dT=np.sum(dv * T, 1), g=g,
+                        d=g - self.req + self.eps, pre=None)
         return self._st
+
+    def _first(self, st: dict, on: np.ndarray, second: bool = False) -> tuple:
+        """∂I/∂a at A's and B's points of the pairs ``on``: (dI_A, dI_B), or with ``second``
+        (dI_A, d²I_A, dI_B, d²I_B). The loops' table is kept for x."""
+        pre = st["pre"]
+        if pre is None or (second and not pre.second):
+            pre = st["pre"] = Prefix(st["coeffs"], self.L, self.t, second)
+        A = self.A.at(st["coeffs"], pre, on, second)
+        B = self.B.at(st["coeffs"], pre, on, second)
+        return (*A, *B) if second else (A[0], B[0])
 
     def energy(self, x: np.ndarray) -> float:
         d = self.state(x)["d"]
         return np.nan if np.any(d <= 0) else self.kappa * self.profile(d, self.dhat)[0].sum()
 
-    def _grad_g(self, st: dict, on: np.ndarray) -> np.ndarray:
+    def _grad_g(self, st: dict, on: np.ndarray, dIA: np.ndarray, dIB: np.ndarray) -> np.ndarray:
         """∂g/∂(a_A, X_A, a_B, X_B) of the pairs ``on`` (transcription/contact.py's)."""
         sg, Nn = self.sigma[on][:, None], st["N"][on]
-        gA = sg * np.einsum("pdc,pd->pc", st["dIA"][on], Nn)
-        gB = -sg * np.einsum("pdc,pd->pc", st["dIB"][on], Nn) \
+        gA = sg * np.einsum("pdc,pd->pc", dIA, Nn)
+        gB = -sg * np.einsum("pdc,pd->pc", dIB, Nn) \
             - sg * st["dT"][on][:, None] * self.B.phis[on]
         return np.concatenate([gA, sg * Nn, gB, -sg * Nn], 1)
 
@@ -161,7 +173,8 @@ class BarrierEnergy:
         on = st["d"] < self.dhat
         if on.any():
             b1 = self.profile(st["d"][on], self.dhat)[1]
-            np.add.at(out, self.gidx[on], self._grad_g(st, on) * (self.kappa * b1)[:, None])
+            grad = self._grad_g(st, on, *self._first(st, on))
+            np.add.at(out, self.gidx[on], grad * (self.kappa * b1)[:, None])
         return out
 
     def hessian(self, x: np.ndarray) -> np.ndarray:
@@ -172,10 +185,8 @@ class BarrierEnergy:
             return np.zeros(self.sp.nnz())
         nc, m = self.nc, self.nc + 2
         _, b1, b2 = self.profile(st["d"][on], self.dhat)
-        grad = self._grad_g(st, on)
-        pre = Prefix(st["coeffs"], self.L, self.t, second=True)
-        _, dIA, d2A = self.A.at(st["coeffs"], st["starts"], pre, on, second=True)
-        _, dIB, d2B = self.B.at(st["coeffs"], st["starts"], pre, on, second=True)
+        dIA, d2A, dIB, d2B = self._first(st, on, second=True)
+        grad = self._grad_g(st, on, dIA, dIB)
         sg = self.sigma[on][:, None, None]
         Nn, T, phB = st["N"][on], st["T"][on], self.B.phis[on]
 
