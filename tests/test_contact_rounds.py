@@ -327,3 +327,29 @@ def test_a_study_path_steps_each_contact_point_from_the_last_at_its_parameters(m
     assert len(seen) == 2 and seen[0] == (False, None)
     at_first = WeftParams.of(parse_problem(doc, "d")).with_(**points[0]).vector()
     assert seen[1][0] and np.array_equal(seen[1][1], at_first)
+
+
+def test_the_listed_active_contacts_alone_hold_the_answer():
+    """Agreement between two methods: the answer of the contact rounds (load steps from the
+    natural fabric, hundreds of pairs, several solves) is found again by one IPOPT solve from
+    the natural fabric of a fresh contact NLP holding only the contacts the result lists as
+    active (scripts/bound_contact.py: the oracle, docs/contact.md, sixth session). It fails
+    if the rounds stop short of a minimum of their active set, or if the listed set misses a
+    contact that holds the answer (the answer is then another state, or crosses, or has gaps
+    below 2r)."""
+    from knit_nlp.weft.solving.solve import SolveReport
+    st = _study(6, 120.0)
+    res = st.run()
+    assert res.success
+    pairs, _, _ = st.contact.last_pairs
+    listed = pairs.select(st.contact.touching())
+    assert len(listed) == res.extra["contact"]["active"] >= 10
+    fresh = _study(6, 120.0)
+    c, base = fresh.contact, fresh.nlp
+    c.deadline = np.inf
+    spent = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
+    rep, _ = c.solve_once(fresh.params.vector(), base.x0, listed, None, spent, [], "listed")
+    x = rep.x[:base.n_variables]
+    moved = float(np.max(np.abs(x - res.x)))
+    assert rep.success and moved < 1e-4, (rep.status, moved)
+    assert c.clean(x) and not c.violations(c.pairs(x), 1e-3).any()
