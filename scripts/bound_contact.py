@@ -6,10 +6,10 @@ with contact and the solve without, in one process (same-run ratios).
 
 For each n x n diagonal pull (``bench_contact``'s problem, r = 0.15):
 
-1. the solve without contact (``weft.api.solve``, the NLP's build included, as in
-   ``bench_contact.py``);
-2. the package's solve with contact (load steps and rounds, the same build included), which
-   lists the active contacts of its answer (``ContactSolver.touching``);
+1. the solve without contact (a ``WeftStudy`` built and run, the NLP's build included: what
+   ``weft.api.solve`` in ``bench_contact.py`` does);
+2. the package's solve with contact (a ``ContactStudy``: load steps and rounds, the same
+   build included), which lists the active contacts of its answer (``ContactSolver.touching``);
 3. the oracle: a fresh contact NLP with a slot for exactly those contacts (their material
    points, sides and required gaps), solved once by IPOPT at the target, (a) from the natural
    fabric, (b) from the paper's solution without contact (its solve counted). No pair search,

@@ -334,9 +334,8 @@ def test_the_listed_active_contacts_alone_hold_the_answer():
     natural fabric, hundreds of pairs, several solves) is found again by one IPOPT solve from
     the natural fabric of a fresh contact NLP holding only the contacts the result lists as
     active (scripts/bound_contact.py: the oracle, docs/contact.md, sixth session). It fails
-    if the rounds stop short of a minimum of their active set, or if the listed set misses a
-    contact that holds the answer (the answer is then another state, or crosses, or has gaps
-    below 2r)."""
+    if the listed set misses a contact that holds the answer (the answer is then another
+    state, or crosses, or has gaps below 2r): red with ``active.ACTIVE`` 1e-2 or 1e-1."""
     from knit_nlp.weft.solving.solve import SolveReport
     st = _study(6, 120.0)
     res = st.run()
