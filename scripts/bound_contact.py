@@ -52,7 +52,7 @@ def oracle(n: int, contacts, budget: float, start: str) -> dict:
     from knit_nlp.weft.model.cases import diagonal_pull
     from knit_nlp.weft.solving.solve import DEFAULT_START, SolveReport, start_point
     from knit_nlp.weft.output.check import check
-    from knit_nlp.weft.study import ContactStudy, WeftStudy
+    from knit_nlp.weft.study import ContactStudy
     st = ContactStudy(bc._problem(diagonal_pull(n), bc.RADIUS, budget))
     base, c, p = st.nlp, st.contact, st.params.vector()
     c.deadline = time.perf_counter() + budget
@@ -70,7 +70,7 @@ def oracle(n: int, contacts, budget: float, start: str) -> dict:
     # paper's NLP (the contact variables dropped, as the package's solve reports it)
     on_base = SolveReport(rep.success, rep.status, xb, rep.lam_g[:base.n_constraints],
                           rep.objective, rep.iterations, rep.solve_s)
-    checked = check(WeftStudy.result(st, on_base, st.params).to_json(), st.nlp.problem)
+    checked = check(st.result(on_base, st.params).to_json(), st.nlp.problem)
     return {"seconds": seconds, "iterations": rep.iterations, "paper_iterations": paper_its,
             "status": rep.status, "x": xb, "objective": rep.objective,
             "new_crossings": len(checked.new_crossings), "short": checked.n_short}
@@ -85,7 +85,6 @@ def bound(n: int, budget: float) -> None:
         return
     pairs, _, _ = st.contact.last_pairs
     contacts = pairs.select(st.contact.touching())
-    x_pkg = st.contact.last[2][:st.nlp.n_variables]
     print(f"{n}x{n}: without contact {plain:.2f} s; with contact {withc:.2f} s "
           f"({withc / plain:.1f} x), {len(pairs):,} pairs in its last solve, "
           f"{len(contacts)} active, objective {res.fun:.6g}", flush=True)
@@ -97,7 +96,7 @@ def bound(n: int, budget: float) -> None:
         print(f"  oracle from {where}: "
               f"{o['seconds']:.2f} s ({o['seconds'] / plain:.1f} x the solve without), "
               f"{its} IPOPT iterations, {o['status']}, objective {o['objective']:.6g}, "
-              f"largest difference from the package's answer {np.max(np.abs(o['x'] - x_pkg)):.2g}; "
+              f"largest difference from the package's answer {np.max(np.abs(o['x'] - res.x)):.2g}; "
               f"checker: {o['new_crossings']} pairs of loops with new crossings, "
               f"{o['short']} gaps below 2r(1-1e-3)", flush=True)
 

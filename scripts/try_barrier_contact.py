@@ -25,6 +25,8 @@ largest violation at the end and at the start, whether the state is free of new 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import time
 
 import casadi as ca
@@ -250,16 +252,13 @@ def solver(base, bar: BarrierEnergy, tol: float, budget: float, print_level: int
 def setup(n: int, budget: float):
     """The n x n diagonal pull with r = RADIUS: (problem, full NLP, the package's contact
     search for it)."""
-    import dataclasses
-
     from knit_nlp.weft.model.cases import diagonal_pull
-    from knit_nlp.weft.model.problem import Yarn, parse_problem
     from knit_nlp.weft.solving.contact.rounds import ContactSolver
     from knit_nlp.weft.transcription.factory import transcribe
     from knit_nlp.weft.model.parametrisation import Full
-    pr = parse_problem(diagonal_pull(n), f"<diagonal pull {n}>")
-    pr = dataclasses.replace(pr, yarn=Yarn(RADIUS),
-                             solver=dataclasses.replace(pr.solver, max_time=budget))
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import bench_contact                 # the benchmark's problem: its radius, our budget
+    pr = bench_contact._problem(diagonal_pull(n), RADIUS, budget)
     base = transcribe(pr, Full())
     return pr, base, ContactSolver(base, RADIUS)
 
