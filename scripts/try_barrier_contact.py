@@ -1,5 +1,5 @@
 """Try yarn contact as Incremental Potential Contact's barrier in IPOPT's objective, instead of
-the package's gap rows (docs/contact.md, "Cost (measured)", fifth session: tried, not kept).
+the package's gap rows (docs/contact.md, "Tried and not kept").
 
 The energy of the pairs the package's search finds (``model/contact/pairs.py``; material points
 fixed during a solve, as the rows' slots are) is added to the paper's objective:

@@ -333,7 +333,7 @@ def test_the_listed_active_contacts_alone_hold_the_answer():
     """Agreement between two methods: the answer of the contact rounds (load steps from the
     natural fabric, hundreds of pairs, several solves) is found again by one IPOPT solve from
     the natural fabric of a fresh contact NLP holding only the contacts the result lists as
-    active (scripts/bound_contact.py: the oracle, docs/contact.md, sixth session). It fails
+    active (scripts/bound_contact.py: the oracle, docs/contact.md, "Cost (measured)"). It fails
     if the listed set misses a contact that holds the answer (the answer is then another
     state, or crosses, or has gaps below 2r): red with ``active.ACTIVE`` 1e-2 or 1e-1."""
     from knit_nlp.weft.solving.solve import SolveReport

@@ -1,5 +1,5 @@
-"""The barrier energy of scripts/try_barrier_contact.py (docs/contact.md, fifth session: IPC's
-barrier in IPOPT's objective, tried and not kept): its closed-form gradient and the Hessian of
+"""The barrier energy of scripts/try_barrier_contact.py (docs/contact.md, "Tried and not
+kept": IPC's barrier in IPOPT's objective): its closed-form gradient and the Hessian of
 the normal gap against central differences, so the measured iteration counts are those of
 correct derivatives."""
 from __future__ import annotations
