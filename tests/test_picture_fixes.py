@@ -1,0 +1,66 @@
+"""Pictures that hid what they draw (issue 41, "Docs and pictures"): the animation's legend and
+grips, the sweep's coinciding grips, the control picture's start over the natural shape, the
+course key's ticks, the jacquard panels' key and their stretch, the yarn's thickness."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from imagecheck import check_explained
+from knit_nlp.problems import resolve
+from knit_nlp.weft.model.centrelines import natural_centrelines
+from knit_nlp.weft.model.problem import load_problem
+from knit_nlp.weft.output.plot import animate, course_ticks, held_points
+
+
+@pytest.mark.parametrize("courses", range(1, 160))
+def test_course_key_ticks_are_evenly_spaced_course_numbers(courses):
+    """Every course up to ten; beyond, at most ten ticks, all courses, one round step
+    (1, 2 or 5 x 10^k) apart: not the uneven 1, 4, 7, 11, ... of rounded equal divisions."""
+    ticks = course_ticks(courses)
+    assert 1 <= ticks.min() and ticks.max() <= courses and len(ticks) <= 10
+    if courses <= 10:
+        assert list(ticks) == list(range(1, courses + 1))
+        return
+    steps = set(np.diff(ticks))
+    assert len(steps) == 1, ticks
+    step = steps.pop()
+    assert step / 10 ** np.floor(np.log10(step)) in (1, 2, 5)
+    assert courses - ticks.max() < step and ticks.min() == step
+
+
+def test_animation_frames_hold_their_legend_and_draw_the_grips_where_they_hold(
+        tmp_path, saved_figures, monkeypatch):
+    """Every GIF frame's texts (legend included) lie inside the frame and name the grips, its
+    course key is ticked at whole courses (it had 0.5, 1.0, 1.5, ...); the grips drawn in a
+    frame are at the held material points of that frame's loops: for the natural loops, the
+    problem's natural positions of its clamps."""
+    from knit_nlp.weft.output import plot
+    ticks = []
+    grab = plot.PillowWriter.grab_frame
+
+    def recording(self, **kwargs):
+        bar = [ax for ax in self.fig.axes if ax.get_label() == "<colorbar>"][0]
+        low, high = bar.get_ylim()
+        ticks.append([t for t in bar.get_yticks() if low <= t <= high])
+        return grab(self, **kwargs)
+    monkeypatch.setattr(plot.PillowWriter, "grab_frame", recording)
+    pr = load_problem(resolve("hold_top_pull_corner"))
+    natural = natural_centrelines(pr, 121)
+    moved = natural + np.array([0.5, -0.25])
+    frames = [("natural", natural), ("a long title " * 8, moved)]
+    animate(tmp_path / "a.gif", natural, frames, pr.units, problem=pr)
+    assert len(saved_figures.frames) == 2
+    for frame in saved_figures.frames:
+        check_explained(frame)
+        assert any("clamp[1] (8 points)" in t for t in frame.legend), frame.legend
+        assert "point clamp" in frame.legend
+    bars, singles = held_points(pr, natural)
+    grouped = [c for c in pr.clamps if c.expanded]
+    exact = np.array([pr.natural_position(c.loop, c.s) for c in grouped])
+    np.testing.assert_allclose(bars[0][1], exact, atol=2e-3 * pr.L)
+    exact = np.array([pr.natural_position(c.loop, c.s) for c in pr.clamps if not c.expanded])
+    np.testing.assert_allclose(singles, exact, atol=2e-3 * pr.L)
+    np.testing.assert_allclose(held_points(pr, moved)[1], exact + [0.5, -0.25], atol=2e-3 * pr.L)
+    animate(tmp_path / "b.gif", natural[:4], [("4 courses", natural[:4])], pr.units)
+    assert ticks == [list(range(1, pr.courses + 1))] * 2 + [[1, 2, 3, 4]], ticks
