@@ -64,3 +64,41 @@ def test_animation_frames_hold_their_legend_and_draw_the_grips_where_they_hold(
     np.testing.assert_allclose(held_points(pr, moved)[1], exact + [0.5, -0.25], atol=2e-3 * pr.L)
     animate(tmp_path / "b.gif", natural[:4], [("4 courses", natural[:4])], pr.units)
     assert ticks == [list(range(1, pr.courses + 1))] * 2 + [[1, 2, 3, 4]], ticks
+
+
+UNITS = {"material.k_b": "N/mm", "material.k_a": "N/mm"}
+
+
+def _sweep_summary(forces: dict[str, list[float]], others: list[float] | None = None) -> dict:
+    """A sweep summary over k_b = 0.01, 0.02, 0.03 (and, with ``others``, a second key)."""
+    points = []
+    for second in others or [None]:
+        for q, kb in enumerate((0.01, 0.02, 0.03)):
+            label = {"material.k_b": kb} | ({} if second is None else {"material.k_a": second})
+            points.append({"path": f"p{q}", "index": q, "label": label, "success": True,
+                           "status": "ok", "energy": {"total": 1.0 + q},
+                           "grips": {g: [f[q] * (second or 1.0), 0.0] for g, f in forces.items()}})
+    return {"points": points}
+
+
+def test_sweep_overview_tells_coinciding_grips_apart(tmp_path, saved_figures):
+    """Two clamps pulling with equal force magnitudes (a two-clamp pull) are drawn in two
+    colours (each colour's pixels in the force panel), the second named as lying on the first;
+    with a second key each combination keeps one colour, a grip its line style."""
+    from imagecheck import near, pixels_in_axes, read_rgb
+    from knit_nlp.studies.overview import plot_overview
+    png = plot_overview(tmp_path / "s.png", _sweep_summary({"clamp[1]": [1, 2, 4],
+                                                             "clamp[2]": [1, 2, 4]}),
+                        ["material.k_b"], "test", key_units=UNITS)
+    rgb = read_rgb(png)
+    force = saved_figures.axes["s.png"][1]
+    for colour in ("#1f77b4", "#ff7f0e"):                  # C0, C1
+        assert len(pixels_in_axes(force, near(rgb, colour, 0.08))) > 100, colour
+    legend = saved_figures.explained("s.png").legend
+    assert "clamp[2] (equal to clamp[1]: its line lies on clamp[1]'s)" in legend, legend
+    assert "clamp[1]" in legend
+    png = plot_overview(tmp_path / "t.png", _sweep_summary({"clamp[1]": [1, 2, 4],
+                                                             "clamp[2]": [1, 3, 5]}, [1.0, 2.0]),
+                        ["material.k_b", "material.k_a"], "test", key_units=UNITS)
+    legend = saved_figures.explained("t.png").legend
+    assert "clamp[2], material.k_a = 1.0" in legend, legend
