@@ -102,3 +102,20 @@ def test_sweep_overview_tells_coinciding_grips_apart(tmp_path, saved_figures):
                         ["material.k_b", "material.k_a"], "test", key_units=UNITS)
     legend = saved_figures.explained("t.png").legend
     assert "clamp[2], material.k_a = 1.0" in legend, legend
+
+
+def test_control_picture_names_the_natural_shape_as_the_start_when_they_coincide(tmp_path,
+                                                                                  saved_figures):
+    """place_stitch starts from the natural fabric: one drawing named for both (the dashed
+    start lay exactly on the natural loops and hid them); a start a thousandth of the extent
+    away is its own shape."""
+    from knit_nlp.cli import main
+    from knit_nlp.weft.inverse.plot import same_shape
+    assert main(["control", "place_stitch", "--out", str(tmp_path)]) == 0
+    legend = saved_figures.explained("place_stitch.control.png").legend
+    assert "natural, also the start (before control)" in legend, legend
+    assert "natural" not in legend and "start (before control)" not in legend
+    natural = natural_centrelines(load_problem(resolve("hold_top_pull_corner")))
+    extent = np.ptp(natural.reshape(-1, 2), axis=0).max()
+    assert same_shape(natural, natural + 1e-8 * extent)
+    assert not same_shape(natural, natural + 1e-3 * extent)
