@@ -119,3 +119,34 @@ def test_control_picture_names_the_natural_shape_as_the_start_when_they_coincide
     extent = np.ptp(natural.reshape(-1, 2), axis=0).max()
     assert same_shape(natural, natural + 1e-8 * extent)
     assert not same_shape(natural, natural + 1e-3 * extent)
+
+
+def test_jacquard_panels_have_a_key_and_draw_a_small_stretch_magnified():
+    """The fabric panels' key names the pillar loops, the red underlaps, the shaded cells and
+    the blue inlay; a displacement of 0.01 mm (far below a pixel) is drawn as arrows magnified
+    to about 1.5 wale spacings (x100 here, a round factor), from each particle's natural place
+    to natural + 100 u, and the key says by how much."""
+    from matplotlib.patches import PathPatch
+    from knit_nlp.jacquard import load_problem as load_jacquard, solve_static
+    from knit_nlp.jacquard.render import ARROW_COLOUR, figure
+    from knit_nlp.jacquard.springs import natural_positions
+    result = solve_static(load_jacquard(resolve("jacquard_letter_k")))
+    fig, axes = figure(result)
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    for words in ("pillar loop (ground yarn)", "fall-plate underlap, thick (front bar)",
+                  "cell with a thick front (shaded; net: none)", "inlay underlap, thin"):
+        assert any(words in label for label in labels), (words, labels)
+    p = result.problem
+    natural = natural_positions(p)
+    u = np.zeros_like(natural)
+    u[:, 1] = 0.01 * natural[:, 1] / natural[:, 1].max()          # 0.01 mm at the top
+    fig, axes = figure(type(result)(**{**vars(result), "positions": natural + u}))
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert f"drawn x100 (largest {0.01:.3g} mm)" in labels[-1], labels
+    arrows = [a for a in axes["simulated"].patches if isinstance(a, PathPatch)
+              and a.get_facecolor()[:3] == pytest.approx((0x11 / 255,) * 3)]
+    assert len(arrows) == 1 and ARROW_COLOUR == "#111111"
+    verts = arrows[0].get_path().vertices.reshape(-1, 6, 2)
+    moved = u[:, 1] > 0                                            # zero arrows are left out
+    np.testing.assert_allclose(verts[:, 0], natural[moved], atol=1e-12)
+    np.testing.assert_allclose(verts[:, 2], natural[moved] + 100 * u[moved], atol=1e-12)
