@@ -150,3 +150,53 @@ def test_jacquard_panels_have_a_key_and_draw_a_small_stretch_magnified():
     moved = u[:, 1] > 0                                            # zero arrows are left out
     np.testing.assert_allclose(verts[:, 0], natural[moved], atol=1e-12)
     np.testing.assert_allclose(verts[:, 2], natural[moved] + 100 * u[moved], atol=1e-12)
+
+
+def test_the_yarn_is_drawn_as_wide_as_it_is(tmp_path, saved_figures):
+    """With ``--yarn`` the picture shows the yarn's width 2r, not the centreline's line width:
+    0.7 r to either side of a deformed centreline (outside its 1.8 pt line, inside the band)
+    the picture is at least half as dark as on the centreline (median over the samples; the
+    band was a faint 0.3 alpha under the line: the yarn looked as thin as the line)."""
+    import json
+    from imagecheck import read_rgb, to_pixels
+    from knit_nlp.cli import main
+    r = 0.3
+    problem = tmp_path / "small.toml"
+    problem.write_text(SMALL_PULL + f"[yarn]\nradius = {r}\n")
+    out = tmp_path / "out"
+    assert main(["solve", str(problem), "--out", str(out), "--yarn"]) == 0
+    assert json.loads((out / "small.full.json").read_text())["success"]
+    lines = np.load(out / "small.full.npz")["deformed"]
+    rgb = read_rgb(out / "small.full.png")
+    dark = 1.0 - rgb @ np.array([0.299, 0.587, 0.114])
+    ax = saved_figures.axes["small.full.png"][0]
+    ratios = []
+    for course in lines:
+        c = np.concatenate(list(course))[5:-5]                  # away from the clamped ends
+        t = np.gradient(c, axis=0)
+        n = np.column_stack([-t[:, 1], t[:, 0]]) / np.hypot(*t.T)[:, None]
+
+        def at(pts):
+            px = np.round(to_pixels(ax, pts, rgb.shape[0]) - 0.5).astype(int)
+            return dark[px[:, 1], px[:, 0]]
+        centre = at(c)
+        side = np.minimum(at(c + 0.7 * r * n), at(c - 0.7 * r * n))
+        ratios.append(side / np.maximum(centre, 1e-3))
+    assert 0.7 * r * ax.transform[0, 0] > 4.0                     # the band is wider than the line
+    assert np.median(np.concatenate(ratios)) > 0.5, np.median(np.concatenate(ratios))
+
+
+SMALL_PULL = """
+name = "small"
+[fabric]
+courses = 2
+wales = 3
+[[clamp]]
+loop = [1, 1]
+point = "start"
+position = [0.0, 0.0]
+[[clamp]]
+loop = [2, 3]
+point = "H"
+displacement = [1.0, 0.5]
+"""
