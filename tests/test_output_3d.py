@@ -112,9 +112,14 @@ def test_files_read_back_as_written(tmp_path):
                                   np.repeat([1, 2, 3], [len(p) for p in courses]))
     tube = tube_mesh(c, r)
     read = meshio.read(ply)
-    np.testing.assert_allclose(read.points, tube.points, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(read.points, tube.points.astype(np.float32))
     np.testing.assert_array_equal(read.cells_dict["triangle"], tube.triangles)
     np.testing.assert_array_equal(read.point_data["course"], tube.course + 1)
+    from knit_nlp.weft.output.files3d import write_tube_ply
+    small = meshio.read(write_tube_ply(tmp_path / "small.ply", c, r, vertices=2000))
+    kept = c[:, :, list(range(0, 40, 3)) + [40]]   # 9 loops x 40 segments x 12 sides / 2000: every 3rd
+    assert len(small.points) <= 2000
+    np.testing.assert_array_equal(small.points, tube_mesh(kept, r).points.astype(np.float32))
 
 
 @pytest.mark.parametrize("bad", [np.zeros((3, 3, 5, 2)), np.full((2, 2, 5, 3), np.nan)])

@@ -9,7 +9,8 @@ meshio (a maintained mesh I/O library; the package writes no mesh format by hand
   factor 1) draws the yarn at its true thickness.
 - ``<stem>.tube.ply``, the tubes' triangle mesh (:func:`tubes.tube_mesh`) with vertex colours
   (red, green, blue: the course key's viridis) and a ``course`` property, for Blender (File >
-  Import > Stanford PLY) and ParaView.
+  Import > Stanford PLY) and ParaView; coordinates as float32, at most about MESH_VERTICES
+  vertices (a large fabric's loops thinned to every k-th sample; the .vtu keeps them all).
 
 Lengths are in the problem's length unit (VTK and PLY carry none; the caller says which).
 Input: centrelines (m courses, n wales, S samples, 3) as in :mod:`knit_nlp.weft.output.tubes`.
@@ -21,7 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from ...atomic import temporary_path
-from .tubes import SIDES, check_centrelines, course_colours, course_path, tube_mesh
+from .tubes import SIDES, check_centrelines, course_colours, course_path, thinned, tube_mesh
+
+MESH_VERTICES = 2_000_000      # a .ply's tubes have at most about this many vertices
 
 
 def polyline_arrays(centrelines: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -72,12 +75,18 @@ def write_centrelines_vtu(path: Path, centrelines: np.ndarray, radius: float,
     return _write(path, mesh, "vtu")
 
 
-def write_tube_ply(path: Path, centrelines: np.ndarray, radius: float, sides: int = SIDES) -> Path:
-    """``path`` (.ply, binary): the tubes of radius r as triangles, vertex colours by course."""
+def write_tube_ply(path: Path, centrelines: np.ndarray, radius: float, sides: int = SIDES,
+                   vertices: int = MESH_VERTICES) -> Path:
+    """``path`` (.ply, binary, float32 coordinates): the tubes of radius r as triangles, vertex
+    colours by course. Tubes that would have more than ``vertices`` vertices are built on
+    every k-th sample of each loop (its ends kept: ``tubes.thinned``); a 100 x 100 fabric of
+    61 samples per loop is written on every 4th (81 MB instead of 410 MB)."""
     import meshio
-    tube = tube_mesh(centrelines, radius, sides)
-    rgb = np.round(255 * course_colours(int(tube.course.max()) + 1)[tube.course, :3]).astype(np.uint8)
-    mesh = meshio.Mesh(tube.points, [("triangle", tube.triangles.astype(np.int32))],
+    c, _ = thinned(check_centrelines(centrelines, radius), sides, vertices)
+    tube = tube_mesh(c, radius, sides)
+    rgb = np.round(255 * course_colours(len(c))[tube.course, :3]).astype(np.uint8)
+    mesh = meshio.Mesh(tube.points.astype(np.float32),
+                       [("triangle", tube.triangles.astype(np.int32))],
                        point_data={"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2],
                                    "course": (tube.course + 1).astype(np.int32)})
     return _write(path, mesh, "ply", binary=True)

@@ -57,46 +57,53 @@ def course_path(course: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(pts), np.concatenate(wale)
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of (..., 3) arrays, kept as (..., 1)."""
+    return np.einsum("...i,...i->...", a, b)[..., None]
+
+
 def unit_tangents(path: np.ndarray) -> np.ndarray:
-    """Unit tangents of a polyline (P, 3) by central differences (second-order one-sided at
-    the ends)."""
-    t = np.gradient(path, axis=0, edge_order=2 if len(path) > 2 else 1)
-    norm = np.linalg.norm(t, axis=1)
+    """Unit tangents of polylines (..., P, 3) by central differences (second-order one-sided
+    at the ends)."""
+    t = np.gradient(path, axis=-2, edge_order=2 if path.shape[-2] > 2 else 1)
+    norm = np.linalg.norm(t, axis=-1, keepdims=True)
     if np.any(norm <= 0):
         raise ValueError("a centreline has two equal consecutive samples: no tangent there")
-    return t / norm[:, None]
+    return t / norm
 
 
 def rotation_minimising_frames(path: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Normals u and binormals v (P, 3) along a polyline with unit tangents t, by double
-    reflection (Wang et al. 2008, algorithm 1): u is carried from sample to sample by the
-    reflection in the bisector plane of the chord, then in that of the tangents; each u is
-    made exactly normal to its tangent (Gram-Schmidt) against rounding."""
-    helper = np.eye(3)[np.argmin(np.abs(t[0]))]
+    """Normals u and binormals v (..., P, 3) along polylines (..., P, 3) with unit tangents t,
+    by double reflection (Wang et al. 2008, algorithm 1): u is carried from sample to sample
+    by the reflection in the bisector plane of the chord, then in that of the tangents; each u
+    is made exactly normal to its tangent (Gram-Schmidt) against rounding. Polylines of one
+    length are carried together (the loop runs along the samples only)."""
+    helper = np.eye(3)[np.argmin(np.abs(t[..., 0, :]), axis=-1)]
     u = np.empty_like(path)
-    u[0] = np.cross(t[0], helper)
-    u[0] /= np.linalg.norm(u[0])
-    for q in range(len(path) - 1):
-        v1 = path[q + 1] - path[q]
-        c1 = v1 @ v1
-        r_l = u[q] - (2.0 / c1) * (v1 @ u[q]) * v1
-        t_l = t[q] - (2.0 / c1) * (v1 @ t[q]) * v1
-        v2 = t[q + 1] - t_l
-        c2 = v2 @ v2
-        nxt = r_l - (2.0 / c2) * (v2 @ r_l) * v2 if c2 > 1e-30 else r_l
-        nxt -= (nxt @ t[q + 1]) * t[q + 1]
-        u[q + 1] = nxt / np.linalg.norm(nxt)
+    first = np.cross(t[..., 0, :], helper)
+    u[..., 0, :] = first / np.linalg.norm(first, axis=-1, keepdims=True)
+    for q in range(path.shape[-2] - 1):
+        v1 = path[..., q + 1, :] - path[..., q, :]
+        c1 = _dot(v1, v1)
+        r_l = u[..., q, :] - (2.0 / c1) * _dot(v1, u[..., q, :]) * v1
+        t_l = t[..., q, :] - (2.0 / c1) * _dot(v1, t[..., q, :]) * v1
+        v2 = t[..., q + 1, :] - t_l
+        c2 = _dot(v2, v2)
+        turn = c2 > 1e-30                   # tangents that do not turn: one reflection
+        nxt = np.where(turn, r_l - (2.0 / np.where(turn, c2, 1.0)) * _dot(v2, r_l) * v2, r_l)
+        nxt -= _dot(nxt, t[..., q + 1, :]) * t[..., q + 1, :]
+        u[..., q + 1, :] = nxt / np.linalg.norm(nxt, axis=-1, keepdims=True)
     return u, np.cross(t, u)
 
 
 def tube_rings(path: np.ndarray, radius: float, sides: int = SIDES) -> np.ndarray:
-    """The tube's vertices (P, sides, 3): ring q is path[q] + r (cos α u_q + sin α v_q),
-    α = 2πk/sides."""
+    """The tubes' vertices (..., P, sides, 3) about polylines (..., P, 3): ring q is
+    path[q] + r (cos α u_q + sin α v_q), α = 2πk/sides."""
     t = unit_tangents(path)
     u, v = rotation_minimising_frames(path, t)
     a = 2 * np.pi * np.arange(sides) / sides
-    return path[:, None] + radius * (np.cos(a)[None, :, None] * u[:, None]
-                                     + np.sin(a)[None, :, None] * v[:, None])
+    return path[..., None, :] + radius * (np.cos(a)[:, None] * u[..., None, :]
+                                          + np.sin(a)[:, None] * v[..., None, :])
 
 
 @dataclass(frozen=True)
@@ -127,12 +134,15 @@ def tube_mesh(centrelines: np.ndarray, radius: float, sides: int = SIDES) -> Tub
     """The tubes of radius ``radius`` around every course's centreline (one tube per course,
     open at its ends), as a triangle mesh."""
     c = check_centrelines(centrelines, radius)
+    paths = [course_path(course) for course in c]
+    rings: dict[int, np.ndarray] = {}
+    for size in {len(p) for p, _ in paths}:          # courses of one length: one batch
+        same = [i for i, (p, _) in enumerate(paths) if len(p) == size]
+        rings.update(zip(same, tube_rings(np.stack([paths[i][0] for i in same]), radius, sides)))
     pts, tris, course, wale, centres = [], [], [], [], []
     offset = 0
-    for i in range(len(c)):
-        path, w = course_path(c[i])
-        ring = tube_rings(path, radius, sides)
-        pts.append(ring.reshape(-1, 3))
+    for i, (path, w) in enumerate(paths):
+        pts.append(rings[i].reshape(-1, 3))
         centres.append(np.repeat(path, sides, axis=0))
         course.append(np.full(len(path) * sides, i))
         wale.append(np.repeat(w, sides))
