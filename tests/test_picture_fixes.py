@@ -200,3 +200,20 @@ loop = [2, 3]
 point = "H"
 displacement = [1.0, 0.5]
 """
+
+
+def test_the_solution_pictures_course_key_uses_the_even_ticks():
+    """The solution picture's colourbar of 30 courses is ticked 5, 10, ..., 30 (it was 1, 4,
+    7, 11, 14, ...)."""
+    from matplotlib.collections import LineCollection
+    from knit_nlp.figures import new_figure
+    from knit_nlp.units import Units
+    from knit_nlp.weft.output.plot import colour_key
+    fig = new_figure()
+    ax = fig.subplots()
+    mapped = LineCollection([np.zeros((2, 2))] * 30, array=np.arange(1, 31))
+    mapped.set_clim(0.5, 30.5)
+    ax.add_collection(mapped)
+    colour_key(fig, ax, mapped, "course", 30, Units())
+    bar = [a for a in fig.axes if a.get_label() == "<colorbar>"][0]
+    assert list(bar.get_yticks()) == [5, 10, 15, 20, 25, 30]
