@@ -23,6 +23,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.ticker import FormatStrFormatter
 
 from ...figures import legend_below, new_figure, save_figure
 from .plot import course_ticks
@@ -109,7 +110,10 @@ def _oblique(ax, c: np.ndarray, courses: range, radius: float, colours: np.ndarr
     # a flat fabric's z axis is a few pixels tall at true aspect: one tick there (its
     # thickness is read in the side views), both ends where it has room
     z = [lo[2], hi[2]] if hi[2] - lo[2] > 0.1 * (hi - lo)[:2].max() else [0.5 * (lo[2] + hi[2])]
-    ax.set_zticks([float(f"{v:.2g}") for v in z])
+    step = 10.0 ** np.floor(np.log10(hi[2] - lo[2]))
+    ax.set_zticks(np.unique(np.round(np.array(z) / step) * step) + 0.0)
+    ax.zaxis.set_major_formatter(FormatStrFormatter("%.3g"))
+    ax.computed_zorder = False                 # the crossings' markers stay on top
     ax.view_init(ELEVATION, AZIMUTH)
     for axis, name in zip((ax.set_xlabel, ax.set_ylabel, ax.set_zlabel), "xyz"):
         axis(f"{name} [{unit}]", fontsize=8)
@@ -164,7 +168,7 @@ def plot_tubes(path: Path, centrelines: np.ndarray, radius: float,
     near = _near(x, [shown], radius)
     if len(near):
         ax3.plot(near[:, 0], near[:, 1], near[:, 2], "o", ms=4, mfc="none", mec=CROSSING,
-                 mew=1.0, label=mark)
+                 mew=1.0, label=mark, zorder=5)
     j, band, pair = n // 2, window(m, SIDE_LOOPS), window(m, 2)
     wales = window(n, SIDE_LOOPS)
     views = (([(c[k, j], k) for k in band], (1, 2), 0, 1.0,
