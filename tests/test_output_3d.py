@@ -131,8 +131,9 @@ def test_bad_centrelines_are_refused(tmp_path, bad):
 def test_picture_shows_the_tube_at_its_thickness(tmp_path, saved_figures):
     """The PNG (8 x 8.5 in at 110 dpi) has three panels with coloured pixels, explains itself
     (units on the axes, the yarn and the crossings in the legend), and in the side view
-    along +y, straight courses along x at z = 0 show coloured pixels over a height of 2r (to
-    1.5 px) at the axes' scale."""
+    along +y, straight courses along x at z = 0 show coloured pixels over a height of 2r at the
+    axes' scale (to 2.5 px of 59: an antialiased edge pixel each side may fall below the
+    colour threshold, the 0.7 pt outline reaches half a pixel out; 0.8 r would be 12 px off)."""
     r = 0.25
     c = stockinette_like(3, 3, r)
     png = plot_tubes(tmp_path / "t.png", c, r, c[:, :, [10, 30]].reshape(-1, 3), "mm", "test")
@@ -159,4 +160,4 @@ def test_picture_shows_the_tube_at_its_thickness(tmp_path, saved_figures):
                                          int(0.5 * (x0 + x1))])
     height_px = rows.max() - rows.min() + 1
     px_per_unit = side.transform[1, 1]
-    assert abs(height_px - 2 * r * px_per_unit) < 1.5, (height_px, 2 * r * px_per_unit)
+    assert abs(height_px - 2 * r * px_per_unit) < 2.5, (height_px, 2 * r * px_per_unit)
