@@ -335,19 +335,19 @@ def arrow_path(base: np.ndarray, d: np.ndarray, head: float) -> MplPath:
 
 def draw_displacement(ax: "Axes", p: JacquardProblem, natural: np.ndarray, x: np.ndarray,
                       window: int | None = None) -> list:
-    """Arrows from each (drawn, thinned to ARROWS each way) particle's natural position along
-    its displacement, magnified so that a small stretch can be seen; the legend entry says by
+    """Arrows from each drawn particle's natural position (every repeat drawn, thinned to
+    ARROWS each way) along its displacement, magnified so that a small stretch can be seen; the legend entry says by
     how much and the largest displacement. Nothing for a fabric that did not move."""
     from matplotlib.lines import Line2D
     u = (x - natural).reshape(p.courses, p.wales, 2)
     largest = float(np.hypot(u[..., 0], u[..., 1]).max())
     if largest <= 1e-12 * max(p.w, p.h):
         return []
-    t = _Tiling(p, natural, window)
-    step = max(1, int(np.ceil(max(min(t.nw, p.wales), min(t.nc, p.courses)) / ARROWS)))
-    rows, cols = np.arange(0, min(t.nc, p.courses), step), np.arange(0, min(t.nw, p.wales), step)
-    base = natural.reshape(p.courses, p.wales, 2)[np.ix_(rows, cols)].reshape(-1, 2)
-    d = u[np.ix_(rows, cols)].reshape(-1, 2)
+    t, moved = _Tiling(p, natural, window), _Tiling(p, x, window)
+    step = max(1, int(np.ceil(max(t.nw, t.nc) / ARROWS)))
+    jj, ii = np.meshgrid(np.arange(0, t.nc, step), np.arange(0, t.nw, step), indexing="ij")
+    base = t.root(ii.ravel(), jj.ravel())             # every drawn repeat's particles
+    d = moved.root(ii.ravel(), jj.ravel()) - base
     scale = displacement_scale(largest, p.w)
     arrows = PathPatch(arrow_path(base, d * scale, 0.25 * p.w), facecolor=ARROW_COLOUR,
                        edgecolor=ARROW_COLOUR, linewidth=0.8, zorder=6)
