@@ -27,10 +27,12 @@ from matplotlib.ticker import FormatStrFormatter
 
 from ...figures import legend_below, new_figure, save_figure
 from .plot import course_ticks
-from .tubes import (CAPSULE_ARC, CROSSING, DPI, SIDES, check_centrelines, course_colours,
-                    course_path, thinned, tube_rings)
+from .tubes import SIDES, check_centrelines, course_colours, course_path, thinned, tube_rings
 
-LIGHT = np.array([-0.4, -0.6, 0.7]) / np.linalg.norm([-0.4, -0.6, 0.7])
+DPI = 110
+CROSSING = "crimson"
+CAPSULE_ARC = 7             # points on each half circle of a side view's capsule
+LIGHT = np.array([-0.4, -0.6, 0.7]) / np.linalg.norm([-0.4, -0.6, 0.7])   # from above
 ELEVATION, AZIMUTH = 28.0, -60.0           # the oblique view (degrees)
 OBLIQUE_LOOPS = 12                         # the oblique view shows at most this many x this many loops
 SIDE_LOOPS = 4                             # the side views show this many loops along their axis

@@ -1,35 +1,27 @@
 """The yarn in three dimensions as a tube of radius r (issue 39, item 3): the tube's surface
-around each course's centreline, and a PNG of it from the side and obliquely.
+around each course's centreline, as rings and as a triangle mesh (the PNG:
+:mod:`knit_nlp.weft.output.picture3d`; the files: :mod:`knit_nlp.weft.output.files3d`).
 
 Every function takes plain arrays, so any model that has space curves can use it:
 ``centrelines`` (m courses, n wales, S samples, 3) in the problem's length unit, each loop's
 samples from its start to its end (a loop's last sample is the next loop's first, as the planar
-model's ``.npz`` arrays have them); ``radius`` the yarn's radius r in that unit; ``crossings``
-(k, 3) points to mark (designed crossings, where one yarn passes over another).
+model's ``.npz`` arrays have them); ``radius`` the yarn's radius r in that unit.
 
 The tube is the surface swept by a circle of radius r in the plane normal to the centreline:
 ring q around centreline point c_q is c_q + r (cos α u_q + sin α v_q), with (t_q, u_q, v_q) a
 rotation-minimising frame (the double-reflection method of Wang, Jüttler, Zheng and Liu,
 ACM TOG 27(1), 2008), so rings do not twist along the yarn and every vertex lies at distance r
-from its centreline point, in the plane normal to the tangent there. The ends are left open.
-
-Side views draw the exact projection of a tube (the union of discs of radius r around the
-projected centreline: a capsule per segment, far ones first), on axes of true aspect; the
-oblique view draws every tube face in one depth-sorted collection, shaded by a light from the
-viewer's upper left.
+from its centreline point, in the plane normal to the tangent there (tangents by central
+differences, second order at the ends). The ends are left open.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 SIDES = 12                  # vertices per ring of a tube
 FACE_BUDGET = 40_000        # the oblique view's tube faces: samples are thinned to stay below
-CAPSULE_ARC = 7             # points on each half circle of a side view's capsule
-DPI = 110
-CROSSING = "crimson"
 
 
 def check_centrelines(centrelines: np.ndarray, radius: float) -> np.ndarray:
