@@ -153,7 +153,7 @@ def test_picture_shows_the_tube_at_its_thickness(tmp_path, saved_figures):
         for j in range(2):
             flat[i, j, :, 0], flat[i, j, :, 1] = x[10 * j:10 * j + 11], 1.5 * i
     png = plot_tubes(tmp_path / "flat.png", flat, r, None, "mm")
-    side = saved_figures.axes["flat.png"][2]
+    side = saved_figures.axes["flat.png"][1]         # the side views come first
     rgb = read_rgb(png)
     x0, y0, x1, y1 = side.box
     rows = np.flatnonzero(saturated(rgb)[int(935 - y1) + 3:int(935 - y0) - 3,

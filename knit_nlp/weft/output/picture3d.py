@@ -158,19 +158,34 @@ def plot_tubes(path: Path, centrelines: np.ndarray, radius: float,
     shown, step = thinned(c[rows.start:rows.stop, cols.start:cols.stop])
     fig = new_figure(figsize=(8.0, 8.5), dpi=DPI, layout="constrained")
     grid = fig.add_gridspec(3, 1, height_ratios=(2.8, 1.0, 1.0))
-    ax3 = fig.add_subplot(grid[0], projection="3d")
+    # the side views first: the legend takes its swatch of the yarn from the first axes
     yarn = f"yarn: a tube of radius {_fmt(radius)} {unit}, coloured by course (side views: " \
         "its exact outline, far parts drawn first)"
+    mark = f"designed crossing: one yarn passes over the other ({len(x)} in all)"
+    _side_views(fig, grid, c, x, radius, colours, unit, yarn, mark)
+    ax3 = fig.add_subplot(grid[0], projection="3d")
     _oblique(ax3, shown, rows, radius, colours, unit, yarn)
     whole = len(rows) == m and len(cols) == n
     ax3.set_title("oblique view" + ("" if whole else f" of {_span(rows, 'course')}, "
                                     f"{_span(cols, 'wale')}")
                   + ("" if step == 1 else f" (1 sample in {step} of each loop)"), fontsize=9)
-    mark = f"designed crossing: one yarn passes over the other ({len(x)} in all)"
     near = _near(x, [shown], radius)
     if len(near):
         ax3.plot(near[:, 0], near[:, 1], near[:, 2], "o", ms=4, mfc="none", mec=CROSSING,
                  mew=1.0, label=mark, zorder=5)
+    _course_key(fig, ax3, m)
+    fig.suptitle((title + ": " if title else "") + f"yarn as a tube of radius {_fmt(radius)} "
+                 f"{unit}, {m} x {n} loops", fontsize=10)
+    legend_below(fig, max_columns=1)
+    return save_figure(fig, path, dpi=DPI)
+
+
+def _side_views(fig, grid, c: np.ndarray, x: np.ndarray, radius: float, colours: np.ndarray,
+                unit: str, yarn: str, mark: str) -> None:
+    """The two side views (rows 1 and 2 of ``grid``): the middle wale's loops in SIDE_LOOPS
+    courses looking along -x, and the middle two courses over SIDE_LOOPS wales looking
+    along +y, with the crossings that fall in each."""
+    m, n = c.shape[:2]
     j, band, pair = n // 2, window(m, SIDE_LOOPS), window(m, 2)
     wales = window(n, SIDE_LOOPS)
     views = (([(c[k, j], k) for k in band], (1, 2), 0, 1.0,
@@ -188,11 +203,6 @@ def plot_tubes(path: Path, centrelines: np.ndarray, radius: float,
         ax.set_ylabel(f"z [{unit}]")
         ax.set_title(name + " (true aspect)", fontsize=9)
         ax.tick_params(labelsize=7)
-    _course_key(fig, ax3, m)
-    fig.suptitle((title + ": " if title else "") + f"yarn as a tube of radius {_fmt(radius)} "
-                 f"{unit}, {m} x {n} loops", fontsize=10)
-    legend_below(fig, max_columns=1)
-    return save_figure(fig, path, dpi=DPI)
 
 
 def _course_key(fig, axes, m: int) -> None:
