@@ -42,7 +42,7 @@ def draw_yarn(ax: Axes, result: Any, deformed: np.ndarray) -> None:
                                      facecolors=[c[:3] + (YARN_ALPHA,) for c in colours],
                                      edgecolors=edges, linewidths=YARN_EDGE, zorder=YARN_ZORDER,
                                      label=f"yarn, radius {yarn.radius:g} "
-                                     f"{result.problem.units.length} (drawn 2r wide)"))
+                                     f"{result.problem.units.length}"))
     contacts = result.extra.get("contact", {}).get("contacts", [])
     if contacts:
         pts = np.array([c["point"] for c in contacts])
