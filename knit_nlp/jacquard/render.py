@@ -8,7 +8,10 @@ P(i,j) -> P(i,j+1), its lateral unit is perpendicular to that, scaled by the wal
 So that the motif reads as it does on a real fabric's face, a bar's underlaps are drawn as wide
 as their structure (thick wide, thin narrow, net not at all: a net cell's jacquard yarn stays
 in its own wale, hidden by the pillar loop) and each cell is tinted by its front (fall-plate)
-structure. Periodic repeats are tiled; a fixed patch is drawn once.
+structure. Periodic repeats are tiled; a fixed patch is drawn once. A key under the fabric
+panels names each of these; the simulated panel also draws each particle's displacement as an
+arrow from its natural place, magnified by a round factor (named in the key) so that a stretch
+of a fraction of a millimetre can be seen.
 
 Curves are cubic Bezier paths (the exact form of a uniform Catmull-Rom spline), one compound
 path per bar and structure, so the SVG holds a few dozen path elements instead of one per yarn.
@@ -198,8 +201,8 @@ def draw_fabric(ax: "Axes", p: JacquardProblem, x: np.ndarray, title: str,
     ax.set_ylim(cells[..., 1].min() - pad, cells[..., 1].max() + pad)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=10)
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
     ax.set_facecolor(BACKGROUND)
     ax.figure.get_layout_engine().execute(ax.figure)     # the layout a draw would make ...
     ax.apply_aspect()                                     # ... without drawing everything
@@ -268,7 +271,90 @@ def figure(result: Solved, window: int | None = None) -> tuple["Figure", dict[st
                        for q in p.pulls)
     draw_fabric(axes["simulated"], p, result.positions,
                 f"simulated ({result.solver})" + (f": {pulled}" if pulled else ""), window)
+    handles = fabric_key(p)
+    if np.isfinite(result.positions).all():
+        handles += draw_displacement(axes["simulated"], p, result.network.natural,
+                                     result.positions, window)
+    fig.legend(handles=handles, loc="outside lower right", ncol=3, fontsize=8, frameon=False)
     return fig, axes
+
+
+def fabric_key(p: JacquardProblem) -> list:
+    """Legend entries for what the fabric panels draw: the pillar loops, each bar's underlaps
+    by structure (as wide as drawn relative to each other) and the tinted cells."""
+    from matplotlib.lines import Line2D
+    used = {s.name: {k for k, c in STRUCTURE_CODES.items() if (s.codes == c).any()}
+            for s in p.systems}
+    out = [Line2D([], [], color=COLOURS["ground"], lw=1.5, label="pillar loop (ground yarn)")]
+    for struct in ("thick", "thin"):
+        if struct in used.get("fall_plate", ()):
+            out.append(Line2D([], [], color=COLOURS["fall_plate"], lw=12 * WIDTH[struct],
+                              label=f"fall-plate underlap, {struct} (front bar)"))
+    for struct in ("thick", "thin"):
+        if struct in used.get("inlay", ()):
+            out.append(Line2D([], [], color=COLOURS["inlay"], lw=12 * INLAY_SCALE * WIDTH[struct],
+                              label=f"inlay underlap, {struct} (back bar, under the loops)"))
+    for struct in ("thick", "thin"):
+        if struct in used.get("fall_plate", ()):
+            out.append(Patch(facecolor=COLOURS["fall_plate"], alpha=TINT[struct],
+                             label=f"cell with a {struct} front (shaded; net: none)"))
+    return out
+
+
+ARROWS = 16            # at most this many displacement arrows each way
+ARROW_COLOUR = "#111111"
+
+
+def displacement_scale(largest: float, w: float) -> float:
+    """The magnification that draws the largest displacement about 1.5 wale spacings long,
+    rounded down to 1, 2 or 5 x 10^k (at least 1: nothing is drawn shorter than it is)."""
+    if largest <= 0:
+        return 1.0
+    raw = 1.5 * w / largest
+    k = 10.0 ** np.floor(np.log10(raw))
+    return float(max(1.0, max(d * k for d in (1, 2, 5) if d * k <= raw)))
+
+
+def arrow_path(base: np.ndarray, d: np.ndarray, head: float) -> MplPath:
+    """One compound path of arrows from ``base`` (k, 2) along ``d`` (k, 2): a shaft and a
+    closed triangular head (length ``head``, or half the arrow if shorter; half as wide), so
+    that the SVG holds one path for all of them. Arrows of zero length are left out."""
+    length = np.hypot(d[:, 0], d[:, 1])
+    keep = length > 0
+    base, d, length = base[keep], d[keep], length[keep]
+    t = d / length[:, None]
+    n = np.column_stack([-t[:, 1], t[:, 0]])
+    hl = np.minimum(head, 0.5 * length)[:, None]
+    tip = base + d
+    neck = tip - hl * t
+    verts = np.stack([base, neck, tip, neck + 0.5 * hl * n, neck - 0.5 * hl * n, tip], axis=1)
+    codes = np.array([MplPath.MOVETO, MplPath.LINETO, MplPath.MOVETO, MplPath.LINETO,
+                      MplPath.LINETO, MplPath.CLOSEPOLY], dtype=MplPath.code_type)
+    return MplPath(verts.reshape(-1, 2), np.tile(codes, len(base)))
+
+
+def draw_displacement(ax: "Axes", p: JacquardProblem, natural: np.ndarray, x: np.ndarray,
+                      window: int | None = None) -> list:
+    """Arrows from each drawn particle's natural position (every repeat drawn, thinned to
+    ARROWS each way) along its displacement, magnified so that a small stretch can be seen; the legend entry says by
+    how much and the largest displacement. Nothing for a fabric that did not move."""
+    from matplotlib.lines import Line2D
+    u = (x - natural).reshape(p.courses, p.wales, 2)
+    largest = float(np.hypot(u[..., 0], u[..., 1]).max())
+    if largest <= 1e-12 * max(p.w, p.h):
+        return []
+    t, moved = _Tiling(p, natural, window), _Tiling(p, x, window)
+    step = max(1, int(np.ceil(max(t.nw, t.nc) / ARROWS)))
+    jj, ii = np.meshgrid(np.arange(0, t.nc, step), np.arange(0, t.nw, step), indexing="ij")
+    base = t.root(ii.ravel(), jj.ravel())             # every drawn repeat's particles
+    d = moved.root(ii.ravel(), jj.ravel()) - base
+    scale = displacement_scale(largest, p.w)
+    arrows = PathPatch(arrow_path(base, d * scale, 0.25 * p.w), facecolor=ARROW_COLOUR,
+                       edgecolor=ARROW_COLOUR, linewidth=0.8, zorder=6)
+    _add(ax, arrows)
+    return [Line2D([], [], color=ARROW_COLOUR, marker=">", lw=1.2, ms=5,
+                   label=f"particle displacement from its natural place, drawn x{scale:g} "
+                   f"(largest {largest:.3g} mm)")]
 
 
 def compact_svg(text: str) -> str:

@@ -60,6 +60,20 @@ def grip_force(row: dict[str, Any], grip: str) -> float:
     return np.nan if value is None else float(np.hypot(*value))
 
 
+def _grip_label(grip: str, where: str, before: Sequence[str], earlier: Sequence[np.ndarray],
+                force: np.ndarray, keep: np.ndarray) -> str:
+    """A grip's legend label; a grip whose forces equal an earlier grip's at every drawn point
+    (to 1e-9 of the largest, e.g. the two clamps of a pull) says that its line lies on that
+    one's, drawn over it."""
+    label = f"{grip}, {where}" if where else grip
+    for other, f in zip(before, earlier):
+        a, b = force[keep], f[keep]
+        scale = max(float(np.nanmax(np.abs(np.r_[a, b, 0.0]))), 1e-300)
+        if len(a) and np.allclose(a, b, rtol=0, atol=1e-9 * scale, equal_nan=True):
+            return f"{label} (equal to {other}: its line lies on {other}'s)"
+    return label
+
+
 def _abscissa(values: list[Any]) -> np.ndarray:
     """Numbers as they are; X,Y pairs as the distance from the first."""
     arr = np.array(values, dtype=float)
@@ -81,10 +95,9 @@ def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], titl
     axes = fig.subplots(1, 2 if grips else 1, squeeze=False)[0]
     x_key, others = keys[0], keys[1:]
     group = lambda r: tuple(str(r["label"][k]) for k in others)  # noqa: E731
-    for combination, (name, members) in enumerate(itertools.groupby(sorted(rows, key=group),
-                                                                    key=group)):
-        members = list(members)
-        colour = f"C{combination % 10}"     # one colour per combination of the other keys
+    combinations = [(name, list(members)) for name, members in
+                    itertools.groupby(sorted(rows, key=group), key=group)]
+    for combination, (name, members) in enumerate(combinations):
         x = _abscissa([r["label"][x_key] for r in members])
         ok = np.array([bool(r["success"]) for r in members])
         order = np.argsort(x, kind="stable")
@@ -92,12 +105,17 @@ def plot_overview(path: Path, summary: dict[str, Any], keys: Sequence[str], titl
         where = ", ".join(f"{k} = {v}" for k, v in zip(others, name))
         series = [(axes[0], [r["energy"]["total"] if "energy" in r else np.nan for r in members],
                    where or "stored energy", 0)]
-        series += [(axes[1], [grip_force(r, g) for r in members],
-                    f"{g}, {where}" if where else g, k) for k, g in enumerate(grips)]
-        for ax, y, label, style in series:     # one line style and marker per grip
+        forces = [np.array([grip_force(r, g) for r in members]) for g in grips]
+        series += [(axes[1], f, _grip_label(g, where, grips[:k], forces[:k], f, keep), k)
+                   for k, (g, f) in enumerate(zip(grips, forces))]
+        for ax, y, label, style in series:
+            # one colour per combination of the other keys, one line style and marker per grip;
+            # with a single combination, one colour per grip as well
+            colour = f"C{(combination if len(combinations) > 1 else style) % 10}"
             ax.plot(x[keep], np.asarray(y, dtype=float)[keep], color=colour, label=label,
                     ls=STYLES[style % len(STYLES)], marker=MARKERS[style % len(MARKERS)],
-                    ms=6 - style % len(MARKERS), mfc="none" if style else colour)
+                    ms=6 - style % len(MARKERS), mfc="none" if style else colour,
+                    zorder=2 + style)
             if (~ok).any():
                 ax.plot(x[~ok], np.zeros((~ok).sum()), "x", color=colour, ms=9, mew=2,
                         label=FAILED)

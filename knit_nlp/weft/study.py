@@ -226,4 +226,4 @@ def animate_points(gif: Path, problem: WeftProblem,
     shown = [(f"{problem.name}: natural", natural)] + [(label, nlp.centrelines(x))
                                                        for label, x in frames if x is not None]
     from .output.plot import animate      # matplotlib only when drawing
-    return animate(gif, natural, shown, problem.units, fps)
+    return animate(gif, natural, shown, problem.units, fps, problem=problem)

@@ -20,22 +20,38 @@ from ..output.reactions import SolvedFabric
 GOAL, TRAVEL, OPENING = "darkorange", "darkorange", "magenta"
 
 
+def same_shape(a: np.ndarray, b: np.ndarray, rel: float = 1e-6) -> bool:
+    """Whether two sampled shapes coincide (every point within ``rel`` of their extent: far
+    below a pixel), so that drawing both would hide one under the other."""
+    if a.shape != b.shape:
+        return False
+    pts = np.concatenate([a.reshape(-1, 2), b.reshape(-1, 2)])
+    return bool(np.max(np.abs(a - b)) <= rel * float(np.max(np.ptp(pts, axis=0))))
+
+
 def plot_control(path: Path, result: SolvedFabric, natural: np.ndarray, start: np.ndarray,
                  achieved: np.ndarray, goals: np.ndarray, reached: np.ndarray,
                  travel: list[tuple[np.ndarray, np.ndarray]],
                  openings: list[tuple[np.ndarray, str]], title: str) -> Path:
     """The equilibrium at the answer drawn as a solve's picture (``result``: its grips, the
-    force each clamp applies), with the start shape dashed, each goal (diamond) and the point
+    force each clamp applies), with the start shape dashed (or, where it is the natural
+    shape, the natural loops named as both), each goal (diamond) and the point
     that reached for it (dot), an arrow from each actuated clamp's start target to its answer,
     and each opening's two points joined (``openings``: ((2, 2) points, its legend label))."""
     units = result.problem.units
     pts = np.concatenate([natural.reshape(-1, 2), start.reshape(-1, 2), achieved.reshape(-1, 2),
                           goals.reshape(-1, 2)])
     fig, ax = _figure(pts.max(axis=0) - pts.min(axis=0))
-    ax.add_collection(LineCollection(course_lines(start), colors="0.45", linewidths=0.8,
-                                     linestyles="dashed", label="start (before control)",
-                                     zorder=1.5))
+    same = same_shape(start, natural)
+    if not same:
+        ax.add_collection(LineCollection(course_lines(start), colors="0.45", linewidths=0.8,
+                                         linestyles="dashed", label="start (before control)",
+                                         zorder=1.5))
     mapped, forces = draw_solution(ax, result, natural, achieved, "course")
+    if same:                                # one drawing, named for both
+        for artist in ax.collections:
+            if artist.get_label() == "natural":
+                artist.set_label("natural, also the start (before control)")
     if len(goals):
         ax.plot(goals[:, 0], goals[:, 1], "D", mfc="none", color=GOAL, ms=11, mew=2, zorder=8,
                 label="goal")

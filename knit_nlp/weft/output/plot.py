@@ -26,6 +26,7 @@ from .reactions import SolvedFabric
 from .yarn import draw_yarn
 
 DPI = 110
+GIF_DPI = 80                   # an animation's frames
 REACTION, LOAD, GRIP = "crimson", "royalblue", "black"
 ARROW_FRACTION = 0.15          # the largest arrow is this fraction of the fabric's extent
 KEY_WIDTH = 0.3               # the fraction of the width under the picture kept for the reference arrow
@@ -173,7 +174,18 @@ def colour_key(fig: Figure, ax: Axes, mapped: Any, colour: str | None, courses: 
         fig.colorbar(mapped, ax=ax, label=f"displacement [{units.length}]", shrink=0.8)
         return
     bar = fig.colorbar(mapped, ax=ax, label="course (deformed loops)", shrink=0.8)
-    bar.set_ticks(np.unique(np.linspace(1, courses, min(courses, 10)).round().astype(int)))
+    bar.set_ticks(course_ticks(courses))
+
+
+def course_ticks(courses: int, most: int = 10) -> np.ndarray:
+    """Evenly spaced course numbers for a course key: every course up to ``most`` courses, else
+    the multiples of the smallest of 1, 2, 5 x 10^k that gives at most ``most`` ticks (5, 10,
+    15, ... rather than the uneven 1, 4, 7, 11 of rounded equal divisions)."""
+    if courses <= most:
+        return np.arange(1, courses + 1)
+    step = next(d * 10 ** e for e in range(int(np.log10(courses)) + 1) for d in (1, 2, 5)
+                if courses // (d * 10 ** e) <= most)
+    return np.arange(step, courses + 1, step)
 
 
 def _draw_grips(ax: Axes, result: SolvedFabric) -> None:
@@ -251,13 +263,39 @@ def plot_solution(path: Path, result: SolvedFabric, natural: np.ndarray,
     return save_figure(fig, path, dpi=DPI)
 
 
+def held_points(problem: Any, lines: np.ndarray) -> tuple[list[tuple[str, np.ndarray]], np.ndarray]:
+    """Where a frame's grips hold, from its sampled loops ``lines`` (m, n, S, 2; S samples
+    evenly spaced in s over [0, L]) by interpolation at each held point's s: (legend label,
+    (k, 2) points) of every shorthand clamp table and rigid clamp, and the single point
+    clamps' positions."""
+    s = np.linspace(0.0, problem.L, lines.shape[2])
+
+    def at(loop: tuple[int, int], where: float) -> np.ndarray:
+        curve = lines[loop[0] - 1, loop[1] - 1]
+        return np.array([np.interp(where, s, curve[:, 0]), np.interp(where, s, curve[:, 1])])
+    groups: dict[str, list[np.ndarray]] = defaultdict(list)
+    singles = []
+    for c in problem.clamps:
+        (groups[c.table].append(at(c.loop, c.s)) if c.expanded else singles.append(at(c.loop, c.s)))
+    bars = [(f"{name} ({len(pts)} points)", np.array(pts)) for name, pts in groups.items()]
+    bars += [(f"rigid_clamp[{k}] ({len(rc.points)} points)",
+              np.array([at(loop, where) for loop, _, where in rc.points]))
+             for k, rc in enumerate(problem.rigid_clamps, start=1)]
+    return bars, np.array(singles).reshape(-1, 2)
+
+
 def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndarray]],
-            units: Units, fps: int = 4) -> Path:
+            units: Units, fps: int = 4, problem: Any = None) -> Path:
     """A GIF of deformed centrelines ``frames`` ((title, (m, n, S, 2)) each) over the natural
-    loops, framed to hold every frame: a loading path from a continuation solve or a study."""
+    loops, framed to hold every frame: a loading path from a continuation solve or a study.
+    With ``problem`` (the WeftProblem) every frame draws its grips where they hold
+    (:func:`held_points`: a shorthand table's or rigid clamp's points as a bar, point clamps
+    as squares). The layout is settled at the GIF's resolution, so the legend under the
+    picture lies inside every frame."""
     pts = np.concatenate([natural.reshape(-1, 2)] + [d.reshape(-1, 2) for _, d in frames])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     fig, ax = _figure(hi - lo, width=6.0)
+    fig.set_dpi(GIF_DPI)
     ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0,
                                      label="natural"))
     m = len(natural)
@@ -265,23 +303,50 @@ def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndar
                         linewidths=1.6)
     lc.set_clim(0.5, m + 0.5)
     ax.add_collection(lc)
-    fig.colorbar(lc, ax=ax, label="course (deformed loops)", shrink=0.8)
-    legend_below(fig)
+    fig.colorbar(lc, ax=ax, label="course (deformed loops)", shrink=0.8).set_ticks(course_ticks(m))
+    grips = _grip_artists(ax, problem, frames[0][1])
     pad = 0.03 * (hi - lo).max()
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
     ax.set_xlabel(f"x [{units.length}]")
     ax.set_ylabel(f"y [{units.length}]")
+    ax.set_title(max((t for t, _ in frames), key=len), fontsize=9)
+    legend_below(fig, max_columns=2)
+    settle_layout(fig)                      # at GIF_DPI, with the longest title
     writer = PillowWriter(fps=fps)
     with temporary_path(path) as tmp:
-        with writer.saving(fig, str(tmp), dpi=80):
+        with writer.saving(fig, str(tmp), dpi=GIF_DPI):
             for title, lines in frames:
                 lc.set_segments(course_lines(lines))
+                _move_grips(grips, problem, lines)
                 ax.set_title(title, fontsize=9)
                 fit_titles(fig)
                 writer.grab_frame()
     return path
+
+
+def _grip_artists(ax: Axes, problem: Any, lines: np.ndarray) -> list[Any]:
+    """The grips' lines of the first frame (bars, then the point clamps), labelled for the
+    legend; none without a problem."""
+    if problem is None:
+        return []
+    bars, singles = held_points(problem, lines)
+    out = [ax.plot(b[:, 0], b[:, 1], "-", color=GRIP, lw=3, alpha=0.6, solid_capstyle="butt",
+                   zorder=3, label=label)[0] for label, b in bars]
+    if len(singles):
+        out += ax.plot(singles[:, 0], singles[:, 1], "s", color=GRIP, ms=5, zorder=4,
+                       label="point clamp")
+    return out
+
+
+def _move_grips(artists: list[Any], problem: Any, lines: np.ndarray) -> None:
+    """The grips' lines of :func:`_grip_artists` moved to where they hold in ``lines``."""
+    if not artists:
+        return
+    bars, singles = held_points(problem, lines)
+    for artist, pts in zip(artists, [b for _, b in bars] + ([singles] if len(singles) else [])):
+        artist.set_data(pts[:, 0], pts[:, 1])
 
 
 def plot_force_displacement(path: Path, rows: Sequence[dict[str, Any]], units: Units,

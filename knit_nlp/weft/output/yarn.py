@@ -8,7 +8,9 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
 
-YARN_ALPHA = 0.3
+YARN_ALPHA = 0.6         # the band's fill; its outline (YARN_EDGE pt, the course colour darkened)
+YARN_EDGE = 0.5          # is opaque, so the yarn's width 2r reads even where it is a few pixels
+YARN_ZORDER = 2.5        # over the coloured centrelines (zorder 2, 1.8 pt), which it covers
 CONTACT = "black"
 
 
@@ -25,16 +27,20 @@ def yarn_bands(lines: np.ndarray, radius: float) -> list[np.ndarray]:
 
 
 def draw_yarn(ax: Axes, result: Any, deformed: np.ndarray) -> None:
-    """Bands of width 2r around every course (coloured like the courses) and a marker at every
-    active contact (the midpoint of its two centreline points)."""
+    """Bands of width 2r around every course (coloured like the courses, outlined, drawn over
+    the centrelines so that the picture shows the yarn's width, not the centreline's line
+    width) and a marker at every active contact (the midpoint of its two centreline
+    points)."""
     yarn = result.problem.yarn
     if yarn is None:
         raise ValueError("the yarn has no thickness here: add [yarn] radius to draw it")
     m = len(deformed)
     cmap = matplotlib.colormaps["viridis"]
     colours = [cmap((i + 0.5) / m) for i in range(m)]
-    ax.add_collection(PolyCollection(yarn_bands(deformed, yarn.radius), facecolors=colours,
-                                     edgecolors="none", alpha=YARN_ALPHA, zorder=1.5,
+    edges = [tuple(0.6 * np.array(c[:3])) + (1.0,) for c in colours]
+    ax.add_collection(PolyCollection(yarn_bands(deformed, yarn.radius),
+                                     facecolors=[c[:3] + (YARN_ALPHA,) for c in colours],
+                                     edgecolors=edges, linewidths=YARN_EDGE, zorder=YARN_ZORDER,
                                      label=f"yarn, radius {yarn.radius:g} "
                                      f"{result.problem.units.length}"))
     contacts = result.extra.get("contact", {}).get("contacts", [])
