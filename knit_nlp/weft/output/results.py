@@ -229,5 +229,6 @@ class WeftResult(Outcome):
             frames = [(f"{self.problem.name}: load factor 0", natural)] + [
                 (f"{self.problem.name}: load factor {tau:.3g}", r.centrelines(samples))
                 for tau, r in steps]
-            paths.append(animate_frames(out(".gif"), natural, frames, self.problem.units))
+            paths.append(animate_frames(out(".gif"), natural, frames, self.problem.units,
+                                        problem=self.problem))
         return paths
