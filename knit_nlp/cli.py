@@ -49,8 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     for model in MODELS.values():
         groups: dict[str, Any] = {}
         for names, options, group in model.flags:
-            target = solve if group is None else groups.setdefault(
-                group, solve.add_mutually_exclusive_group())
+            if group is not None and group not in groups:   # one group per name, made once
+                groups[group] = solve.add_mutually_exclusive_group()
+            target = solve if group is None else groups[group]
             target.add_argument(*names, **{**options, "help": f"{model.name}: {options['help']}"})
     solve.set_defaults(run=_cmd_solve)
     compare = sub.add_parser("compare", help="solve full and reduced models and compare them "

@@ -140,3 +140,18 @@ def test_missing_file_and_bad_arguments(tmp_path, capsys):
     directory = tmp_path / "dir.toml"
     directory.mkdir()
     assert main(["solve", str(directory)]) == 2
+
+
+def test_every_command_has_help(capsys):
+    """``--help`` of the program and of every command prints its usage and exits 0 (``solve
+    --help`` once ended in argparse's "empty group" traceback: a mutually exclusive group was
+    made for every flag, leaving empty ones)."""
+    from knit_nlp.cli import _parser
+    commands = next(a for a in _parser()._actions if a.dest == "command").choices
+    assert {"solve", "list", "control", "fit", "overlay", "check"} <= set(commands)
+    for argv in (["--help"], *([c, "--help"] for c in commands)):
+        assert main(argv) == 0, argv
+        out = capsys.readouterr().out
+        assert out.startswith("usage: knit-nlp") and "Traceback" not in out, argv
+    assert main(["solve", "--help"]) == 0
+    assert "--reduced" in capsys.readouterr().out
