@@ -120,8 +120,8 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
         obs = load_observations(observations, {pr.name: pr}, other_cases=True)
     picture = read_image(image)
     stem = overlay_name(result_path, image)
+    ans = overlay(shape, parsed, obs)               # refused matches: nothing written
     prepare_out(str(out), stem, ("overlay",))
-    ans = overlay(shape, parsed, obs)
     t = ans.transform
     caption = (f"{shape.result.get('problem', '')}: similarity scale {t.scale:.4g} px/unit, "
                f"rotation {np.degrees(t.rotation):.3f} deg; largest match residual "
