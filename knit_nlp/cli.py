@@ -69,7 +69,7 @@ def _parser() -> argparse.ArgumentParser:
                               "print accuracy against time for each, with the fastest within "
                               "the verdict's limits")
     compare.set_defaults(run=_cmd_compare)
-    sub.add_parser("list", help="list the named problems").set_defaults(run=_cmd_list)
+    sub.add_parser("list", help="list the named problems (and those in their folders)").set_defaults(run=_cmd_list)
     _sweep_parser(sub)
     for model in MODELS.values():
         for name, help_text, arguments, run in model.commands:
@@ -103,10 +103,11 @@ def _model_command(run: Any) -> Any:
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
-    rows = [(shown(n), shown(m), shown(d, 200)) for n, m, d in named_problems()]
+    rows = [(shown(n), shown(m), shown(d, 200)) for n, m, d in named_problems(folders=True)]
     width = max((len(r[0]) for r in rows), default=4)
+    kind = max((len(r[1]) for r in rows), default=8)
     for name, model, description in rows:
-        print(f"{name:<{width}}  {model:<8}  {description}")
+        print(f"{name:<{width}}  {model:<{kind}}  {description}")
     return 0
 
 
