@@ -46,6 +46,10 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument("--out", default="results", help="output folder (default: results)")
     solve.add_argument("--force", action="store_true",
                        help="overwrite results of another problem in --out")
+    solve.add_argument("--size", default=None, metavar="COURSESxWALES",
+                       help="weft: solve a shipped pull (diagonal_pull, wada_fig7, "
+                            "course_stretch) resized, its pull scaled with it; the resized "
+                            "problem file is written to --out (e.g. --size 30x30)")
     for model in MODELS.values():
         groups: dict[str, Any] = {}
         for names, options, group in model.flags:
@@ -127,7 +131,11 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     path = resolve(args.problem)
     doc = load_toml(path)
     model = model_of(doc, path)
+    if args.size is not None:
+        path, doc = _resized(args, path, doc)
     problem = model.parse(model.document(doc, path), path)
+    if args.size is not None:                   # checked: now written, as the result's source
+        _write_problem(args, path, doc)
     wrong = _foreign_flags(args, model)
     if wrong:
         flags = " ".join(f for f, _ in wrong)
@@ -143,6 +151,30 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         paths = result.save(out, **model.save_options(args))
         print(model.summary(result, paths))
     return 0 if result.success else 1
+
+
+def _resized(args: argparse.Namespace, path: Path, doc: dict[str, Any]) -> tuple[Path, dict]:
+    """``solve --size``: the shipped pull resized (weft/model/resize.py) and the file it is
+    to be written to, ``<out>/<name>.toml``."""
+    from .weft.model.resize import parse_size, resized
+    courses, wales = parse_size(args.size)
+    new = resized(doc, str(path), courses, wales)
+    return Path(args.out) / f"{new['name']}.toml", new
+
+
+def _write_problem(args: argparse.Namespace, target: Path, doc: dict[str, Any]) -> None:
+    """Write the resized problem (refused in one line over a file with other content unless
+    --force), the source its result records."""
+    from .weft.model.resize import toml_text
+    from .atomic import write_text
+    text = toml_text(doc)
+    prepare_out(args.out, doc["name"], ())
+    if target.exists() and (not target.is_file() or target.read_bytes() != text.encode()
+                            and not args.force):
+        raise ArgumentError(f"--size {args.size}", f"{target} exists with other content: "
+                            "remove it, choose another --out, or pass --force")
+    write_text(target, text)
+    print(f"wrote {target}: {doc['description']}")
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
