@@ -145,12 +145,26 @@ def _cmd_solve(args: argparse.Namespace) -> int:
                             f"{model.name} problem: drop {flags} ({model.name} flags: {own})")
     options = model.solve_options(args, problem, path)
     out = prepare_out(args.out, problem.name, model.outputs)
+    _warn_implausible(problem, path)
     check_overwrite(out.glob(f"{problem.name}.*.json"), path, args.force)
     result = model.solve(problem, **options)
     with np.errstate(invalid="ignore", over="ignore"):  # a diverged run: NaN figures (null)
         paths = result.save(out, **model.save_options(args))
         print(model.summary(result, paths))
     return 0 if result.success else 1
+
+
+def _warn_implausible(problem: Any, path: Path) -> None:
+    """One stderr line before a weft solve whose pull asks the crossing springs to stretch
+    beyond a loop length (weft/model/reach.py, ``overstretch``)."""
+    if problem.model != "weft":
+        return
+    from .weft.model.reach import overstretch
+    targets = np.array([c.target for c in problem.clamps]).reshape(-1, 2)
+    rigid = np.array([[*r.translation, r.rotation] for r in problem.rigid_clamps]).reshape(-1, 3)
+    found = overstretch(problem, targets, rigid)
+    if found:
+        print(f"knit-nlp: {shown(path, 200)}: warning: {found}", file=sys.stderr)
 
 
 def _resized(args: argparse.Namespace, path: Path, doc: dict[str, Any]) -> tuple[Path, dict]:
