@@ -212,3 +212,12 @@ def test_control_says_it_solves_the_full_model_when_given_a_reduction(write_prob
         targets.append(json.loads((tmp_path / f"{name}.control.json").read_text())
                        ["actuated"][0]["target"])
     np.testing.assert_allclose(targets[0], targets[1], atol=1e-7)
+
+
+def test_a_control_answer_that_tears_the_fabric_says_so(write_problem, tmp_path, capsys):
+    """A goal 40 units off on a 4 x 4 fabric: the gripper drags the fabric apart, and the
+    summary names the springs stretched beyond a loop length (output/plausibility.py)."""
+    path = write_problem(FABRIC.format(bounds="", gx=40.0, gy=40.0), "far.toml")
+    main(["control", str(path), "--out", str(tmp_path)])
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if "IMPLAUSIBLE" in ln)
+    assert "crossing springs stretched beyond a loop length" in line
