@@ -46,11 +46,16 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument("--out", default="results", help="output folder (default: results)")
     solve.add_argument("--force", action="store_true",
                        help="overwrite results of another problem in --out")
+    solve.add_argument("--size", default=None, metavar="COURSESxWALES",
+                       help="weft: solve a shipped pull (diagonal_pull, wada_fig7, "
+                            "course_stretch) resized, its pull scaled with it; the resized "
+                            "problem file is written to --out (e.g. --size 30x30)")
     for model in MODELS.values():
         groups: dict[str, Any] = {}
         for names, options, group in model.flags:
-            target = solve if group is None else groups.setdefault(
-                group, solve.add_mutually_exclusive_group())
+            if group is not None and group not in groups:   # one group per name, made once
+                groups[group] = solve.add_mutually_exclusive_group()
+            target = solve if group is None else groups[group]
             target.add_argument(*names, **{**options, "help": f"{model.name}: {options['help']}"})
     solve.set_defaults(run=_cmd_solve)
     compare = sub.add_parser("compare", help="solve full and reduced models and compare them "
@@ -68,7 +73,7 @@ def _parser() -> argparse.ArgumentParser:
                               "print accuracy against time for each, with the fastest within "
                               "the verdict's limits")
     compare.set_defaults(run=_cmd_compare)
-    sub.add_parser("list", help="list the named problems").set_defaults(run=_cmd_list)
+    sub.add_parser("list", help="list the named problems (and those in their folders)").set_defaults(run=_cmd_list)
     _sweep_parser(sub)
     for model in MODELS.values():
         for name, help_text, arguments, run in model.commands:
@@ -102,10 +107,11 @@ def _model_command(run: Any) -> Any:
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
-    rows = [(shown(n), shown(m), shown(d, 200)) for n, m, d in named_problems()]
+    rows = [(shown(n), shown(m), shown(d, 200)) for n, m, d in named_problems(folders=True)]
     width = max((len(r[0]) for r in rows), default=4)
+    kind = max((len(r[1]) for r in rows), default=8)
     for name, model, description in rows:
-        print(f"{name:<{width}}  {model:<8}  {description}")
+        print(f"{name:<{width}}  {model:<{kind}}  {description}")
     return 0
 
 
@@ -125,7 +131,11 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     path = resolve(args.problem)
     doc = load_toml(path)
     model = model_of(doc, path)
+    if args.size is not None:
+        path, doc = _resized(args, path, doc)
     problem = model.parse(model.document(doc, path), path)
+    if args.size is not None:                   # checked: now written, as the result's source
+        _write_problem(args, path, doc)
     wrong = _foreign_flags(args, model)
     if wrong:
         flags = " ".join(f for f, _ in wrong)
@@ -135,12 +145,50 @@ def _cmd_solve(args: argparse.Namespace) -> int:
                             f"{model.name} problem: drop {flags} ({model.name} flags: {own})")
     options = model.solve_options(args, problem, path)
     out = prepare_out(args.out, problem.name, model.outputs)
+    _warn_implausible(problem, path)
     check_overwrite(out.glob(f"{problem.name}.*.json"), path, args.force)
     result = model.solve(problem, **options)
     with np.errstate(invalid="ignore", over="ignore"):  # a diverged run: NaN figures (null)
         paths = result.save(out, **model.save_options(args))
         print(model.summary(result, paths))
     return 0 if result.success else 1
+
+
+def _warn_implausible(problem: Any, path: Path) -> None:
+    """One stderr line before a weft solve whose pull asks the crossing springs to stretch
+    beyond a loop length (weft/model/reach.py, ``overstretch``)."""
+    if problem.model != "weft":
+        return
+    from .weft.model.reach import overstretch
+    targets = np.array([c.target for c in problem.clamps]).reshape(-1, 2)
+    rigid = np.array([[*r.translation, r.rotation] for r in problem.rigid_clamps]).reshape(-1, 3)
+    found = overstretch(problem, targets, rigid)
+    if found:
+        print(f"knit-nlp: {shown(path, 200)}: warning: {found}", file=sys.stderr)
+
+
+def _resized(args: argparse.Namespace, path: Path, doc: dict[str, Any]) -> tuple[Path, dict]:
+    """``solve --size``: the shipped pull resized (weft/model/resize.py) and the file it is
+    to be written to, ``<out>/<name>.toml``."""
+    from .weft.model.resize import parse_size, resized
+    courses, wales = parse_size(args.size)
+    new = resized(doc, str(path), courses, wales)
+    return Path(args.out) / f"{new['name']}.toml", new
+
+
+def _write_problem(args: argparse.Namespace, target: Path, doc: dict[str, Any]) -> None:
+    """Write the resized problem (refused in one line over a file with other content unless
+    --force), the source its result records."""
+    from .weft.model.resize import toml_text
+    from .atomic import write_text
+    text = toml_text(doc)
+    prepare_out(args.out, doc["name"], ())
+    if target.exists() and (not target.is_file() or target.read_bytes() != text.encode()
+                            and not args.force):
+        raise ArgumentError(f"--size {args.size}", f"{target} exists with other content: "
+                            "remove it, choose another --out, or pass --force")
+    write_text(target, text)
+    print(f"wrote {target}: {doc['description']}")
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:

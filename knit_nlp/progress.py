@@ -5,6 +5,12 @@ With ``--verbose`` every iterate is shown. Otherwise the line stays silent for t
 second, so no solve runs silently for long; once half the ``[solver] max_time`` budget is
 spent it says so once, naming the budget, so a user whose solve is heading for its time limit
 knows before it gets there.
+
+The line tells the time since the solve began (its ``[solver] max_time`` budget's start, shared
+by every IPOPT solve of one answer: a contact solve's paper-model start, load steps and rounds
+each have their own line object), and, while a continuation or contact load steps run
+(:meth:`IterationLine.at`), the share of the load reached and an estimate of the time left at
+the pace so far: elapsed on the path × (1 − f) / f.
 """
 from __future__ import annotations
 
@@ -66,6 +72,17 @@ class IterationLine(ca.Callback):
         self.clock.start()
         self.warned = False
 
+    def at(self, fraction: float) -> None:
+        """:func:`loading` (for a solver's own line)."""
+        loading(fraction)
+
+    def elapsed(self, took: float) -> float:
+        """Seconds since the solve began: since its ``max_time`` budget started (the deadline
+        less the budget) when both are known, else since this line's clock started."""
+        if np.isfinite(self.deadline) and np.isfinite(self.budget):
+            return max(took, time.perf_counter() - (self.deadline - self.budget))
+        return took
+
     def get_n_in(self) -> int:
         return ca.nlpsol_n_out()
 
@@ -95,6 +112,7 @@ class IterationLine(ca.Callback):
         took = self.clock.due()
         if took is None:
             return [0]
+        took = self.elapsed(took)
         if not self.warned and took > self.budget / 2:
             self.warned = True
             warning = (f"  warning: this solve has used {took:.0f} s, half its [solver] "
@@ -104,7 +122,8 @@ class IterationLine(ca.Callback):
             _OPEN[self.stream] = 0
         g = np.asarray(arg[2]).ravel()
         line = (f"  {self.stage}IPOPT iterate {self.count:5d}  objective "
-                f"{float(arg[1]):.10g}  max violation {self.violation(g):.2e}  {took:.0f} s  ")
+                f"{float(arg[1]):.10g}  max violation {self.violation(g):.2e}  elapsed "
+                f"{duration(took)}{path_told()}  ")
         # over the line open on this stream, blanking the rest of a longer one (another solve's)
         self.stream.write("\r" + line.ljust(_OPEN.get(self.stream, 0)))
         _OPEN[self.stream] = len(line)
@@ -123,11 +142,43 @@ class IterationLine(ca.Callback):
         return float(np.max(np.maximum(np.maximum(lbg - g, g - ubg), 0.0)))
 
     def done(self) -> None:
-        """End the updating line (if one is open on this line's stream)."""
+        """End the updating line (if one is open on this line's stream) and the loading path."""
+        _PATH.clear()
         if _OPEN.get(self.stream, 0):
             self.stream.write("\n")
             self.stream.flush()
             _OPEN[self.stream] = 0
+
+
+def loading(fraction: float) -> None:
+    """A loading path has reached ``fraction`` of its load (0 at its start): the progress lines
+    add the share reached and the time left at the pace so far (shared by every line, as a
+    path's solves may use several: contact's load steps and rounds)."""
+    if _PATH.get("t0") is None or fraction <= 0 or fraction < _PATH["fraction"]:
+        _PATH["t0"] = time.perf_counter()
+    _PATH["fraction"] = float(fraction)
+
+
+def duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``."""
+    s = int(round(seconds))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
+def path_told() -> str:
+    """``; 62% of the load reached, about 1 min 30 s left`` while a loading path runs
+    (:meth:`IterationLine.at`), else ''."""
+    f, t0 = _PATH.get("fraction"), _PATH.get("t0")
+    if f is None or t0 is None:
+        return ""
+    if f <= 0:
+        return "; load path starting (estimate after its first step)"
+    left = (time.perf_counter() - t0) * (1 - f) / f
+    return f"; {f:.0%} of the load reached, about {duration(left)} left"
 
 
 def end_lines() -> None:
@@ -146,3 +197,7 @@ def end_lines() -> None:
 # each must overwrite (and blank) what the last one wrote, and end the line once
 _OPEN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
+
+# the loading path under way (IterationLine.at): its start time ``t0`` and the share of the load
+# reached ``fraction``; empty when none runs
+_PATH: dict[str, float] = {}

@@ -140,3 +140,37 @@ def test_missing_file_and_bad_arguments(tmp_path, capsys):
     directory = tmp_path / "dir.toml"
     directory.mkdir()
     assert main(["solve", str(directory)]) == 2
+
+
+def test_every_command_has_help(capsys):
+    """``--help`` of the program and of every command prints its usage and exits 0 (``solve
+    --help`` once ended in argparse's "empty group" traceback: a mutually exclusive group was
+    made for every flag, leaving empty ones)."""
+    from knit_nlp.cli import _parser
+    commands = next(a for a in _parser()._actions if a.dest == "command").choices
+    assert {"solve", "list", "control", "fit", "overlay", "check"} <= set(commands)
+    for argv in (["--help"], *([c, "--help"] for c in commands)):
+        assert main(argv) == 0, argv
+        out = capsys.readouterr().out
+        assert out.startswith("usage: knit-nlp") and "Traceback" not in out, argv
+    assert main(["solve", "--help"]) == 0
+    assert "--reduced" in capsys.readouterr().out
+
+
+def test_list_shows_the_folders_and_each_name_it_shows_resolves(capsys):
+    """``list`` shows the problems in sub-folders (fit_example/, real_fabric/: once omitted)
+    under names that ``solve``/``fit``/``calibrate`` accept, with the command for specs, and
+    each folder's other files."""
+    from knit_nlp.problems import problems_dir, resolve
+    assert main(["list"]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()]
+    names = {row[0]: row[1] for row in rows}
+    assert names["fit_example/fit_course_pull"] == "weft"
+    assert names["real_fabric/acrylic_fit_x"] == "calibrate"
+    assert names["fit_example/"] == "folder" and "observations.csv," in \
+        next(r for r in rows if r[0] == "fit_example/")
+    shipped = {str(p.relative_to(problems_dir()).with_suffix(""))
+               for p in problems_dir().glob("**/*.toml")}
+    assert shipped == {n for n in names if not n.endswith("/")}
+    for name in shipped:
+        assert resolve(name) == problems_dir() / f"{name}.toml"

@@ -194,3 +194,30 @@ def test_control_cli_writes_the_contract_and_holds_an_active_opening(write_probl
     assert r["objective"] == pytest.approx(r["goals"][0]["misfit"] ** 2)
     assert r["equilibrium"]["success"] is True and r["forward_check"]["success"] is True
     assert (tmp_path / "cli.control.png").stat().st_size > 10_000
+
+
+def test_control_says_it_solves_the_full_model_when_given_a_reduction(write_problem, tmp_path,
+                                                                      capsys):
+    """The inverse problems' equilibrium is the full model's (equilibrium.py): a [reduction]
+    table is named as ignored on stderr (once control ignored it without a word), and the
+    answer is the one without it, to the solver's tolerance."""
+    text = FABRIC.format(bounds="", gx=4.5, gy=5.1)
+    reduction = "[reduction]\nrepresentative_courses = [1, 4]\nrepresentative_wales = [1, 4]\n"
+    targets = []
+    for name, extra in (("plain", ""), ("reduced", reduction)):
+        path = write_problem(text + extra, f"{name}.toml")
+        assert main(["control", str(path), "--out", str(tmp_path)]) == 0
+        err = capsys.readouterr().err
+        assert ("[reduction] ignored" in err and str(path) in err) == bool(extra), err
+        targets.append(json.loads((tmp_path / f"{name}.control.json").read_text())
+                       ["actuated"][0]["target"])
+    np.testing.assert_allclose(targets[0], targets[1], atol=1e-7)
+
+
+def test_a_control_answer_that_tears_the_fabric_says_so(write_problem, tmp_path, capsys):
+    """A goal 40 units off on a 4 x 4 fabric: the gripper drags the fabric apart, and the
+    summary names the springs stretched beyond a loop length (output/plausibility.py)."""
+    path = write_problem(FABRIC.format(bounds="", gx=40.0, gy=40.0), "far.toml")
+    main(["control", str(path), "--out", str(tmp_path)])
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if "IMPLAUSIBLE" in ln)
+    assert "crossing springs stretched beyond a loop length" in line

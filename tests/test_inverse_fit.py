@@ -161,3 +161,32 @@ def test_the_null_direction_of_a_short_jacobian_is_weak_whatever_the_condition_l
     lax = FitOptions(condition_limit=1e300)
     assert weak_values(np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]), lax) == {0, 1, 2}
     assert weak_values(np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]), lax) == set()
+
+
+@pytest.mark.parametrize("command", ["solve", "fit", "control"])
+def test_a_zero_bending_rigidity_is_refused_where_it_is_read(write_problem, tmp_path, capsys,
+                                                               command):
+    """R_f = 0 leaves a loop's shape between crossings free (eq. 11 is the only energy that
+    sets it): a loaded fabric is a mechanism. Once a fit with R_f = 0 ran 9 minutes to 'no
+    equilibrium' (the issue saw 'converged', RMS residual 11.9); now every command refuses the
+    file in one line before solving, and so does the Python API."""
+    from knit_nlp.weft import WeftParams
+    body = CASES["pull_x"]
+    if command == "control":                 # the second clamp moves H of loop (2, 2)
+        body = body.replace('displacement = [0.0, 0.0]\n', 'displacement = [0.0, 0.0]\n'
+                            'actuated = true\n') + ('[[goal]]\nloop = [2, 2]\npoint = "H"\n'
+                                                     'displacement = [0.1, 0.0]\n')
+    path = write_problem("name = \"pull_x\"\n[fabric]\ncourses = 4\nwales = 4\n"
+                         + GUESS.replace("R_f = 0.7", "R_f = 0.0") + body, "pull_x.toml")
+    args = {"solve": [str(path)], "control": [str(path)],
+            "fit": [str(path), "--observations", str(write_problem(
+                "case,course,wale,point,x,y\npull_x,2,2,H,4.0,4.0\n", "obs.csv")),
+                    "--params", "k_a"]}[command]
+    assert main([command, *args, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "[material] R_f" in err and "positive" in err, err
+    assert not (tmp_path / "out").exists()
+    good = load_problem(write_problem("[fabric]\ncourses = 4\nwales = 4\n" + GUESS
+                                      + CASES["pull_x"], "ok.toml"))
+    with pytest.raises(ValueError, match="R_f must be positive"):
+        WeftParams.of(good).with_(material={"R_f": 0.0})

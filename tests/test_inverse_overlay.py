@@ -3,8 +3,11 @@ misfit against observations."""
 import json
 
 import matplotlib.image as mpimg
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from knit_nlp.cli import main
 from knit_nlp.weft.inverse.overlay import fit_similarity
@@ -53,3 +56,59 @@ def test_transform_from_the_synthetic_photograph_is_exact(tmp_path, capsys):
     assert drawn.shape[1] == w and drawn.shape[0] > h
     np.testing.assert_allclose(drawn[:40, :40, :3], photo[:40, :40, :3], atol=1 / 255)
     assert "residual" in capsys.readouterr().out
+
+
+# -- matches that fix no similarity are refused in one line (issue 41 item 8) ----------------------
+@pytest.fixture(scope="module")
+def tiny_result(tmp_path_factory):
+    """A solved 2 x 3 result, loaded, and the point reader of its problem."""
+    from test_command_contract import tiny
+    from knit_nlp.weft.inverse.overlay import load_result, point_reader
+    folder = tmp_path_factory.mktemp("tiny")
+    problem = tiny(folder)
+    assert main(["solve", str(problem), "--out", str(folder)]) == 0
+    return load_result(folder / "obs.full.json"), point_reader(problem)[0], problem, folder
+
+
+POINTS = ["1,1,start", "2,3,H", "1,2,E", "2,1,3.5"]
+PIXEL = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**6, 10**6),
+                  st.sampled_from([120.0, 120.3, 1e308, -1e308]))
+NEAR = st.sampled_from([(120.0, 560.0), (120.3, 560.2), (80.0, 300.0)])   # pixels often close
+
+
+@given(st.lists(st.tuples(st.sampled_from(POINTS), st.one_of(st.tuples(PIXEL, PIXEL), NEAR)),
+                min_size=2, max_size=5))
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_any_matches_give_a_finite_scale_or_one_line_refusal(tiny_result, matches):
+    """Whatever the match strings, overlay either refuses them in one line naming --match or
+    returns a finite similarity that maps the matched material points at least a pixel apart
+    (scale x their spread >= 1 px) with finite residuals. Red before: NaN and infinite pixels
+    gave "scale nan px/unit"; two matches on one pixel a scale of 1e-15 px/unit."""
+    from knit_nlp.errors import ProblemError
+    from knit_nlp.weft.inverse.overlay import overlay, parse_match
+    shape, reader, _, _ = tiny_result
+    try:
+        parsed = [parse_match(f"{p}={x!r},{y!r}", reader) for p, (x, y) in matches]
+        ans = overlay(shape, parsed)
+    except ProblemError as err:
+        assert str(err).startswith("--match") and "\n" not in str(err), str(err)
+        return
+    t = ans.transform
+    assert np.isfinite([t.a, t.b]).all() and np.isfinite(ans.residuals_px).all()
+    spread = max(np.linalg.norm(p - q) for p in ans.model_points for q in ans.model_points)
+    assert t.scale * spread >= 1.0
+
+
+@pytest.mark.parametrize("second, needle", [("2,3,H=nan,560", "finite"), ("2,3,H=inf,3", "finite"),
+                                            ("2,3,H=120,560", "1 px")])
+def test_overlay_refuses_pixels_that_fix_no_scale(tiny_result, tmp_path, capsys, second, needle):
+    """The command: exit 2, one line naming the match, nothing written."""
+    _, _, problem, folder = tiny_result
+    plt.imsave(tmp_path / "img.png", np.zeros((20, 30, 3)))
+    out = tmp_path / "out"
+    assert main(["overlay", str(folder / "obs.full.json"), str(tmp_path / "img.png"), "--problem",
+                 str(problem), "--match", "1,1,start=120,560", "--match", second,
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("knit-nlp: --match") and err.count("\n") == 1 and needle in err, err
+    assert not out.exists()

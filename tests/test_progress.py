@@ -187,3 +187,34 @@ def test_a_contact_solve_names_each_step_on_its_progress_line(monkeypatch, capsy
                             err))
     assert "load 1" in stages and len(stages) >= 3
     assert err.endswith("\n")
+
+
+def test_the_line_tells_the_solves_elapsed_time_and_the_time_left_on_a_path(monkeypatch):
+    """Elapsed time counts from the solve's start (its max_time budget's), also on a line made
+    later (a contact solve's own IPOPT); on a loading path the share reached and the time left
+    at the pace so far: 25 % in 30 s leaves about 90 s. (Once only each solve's own seconds
+    were shown, and a 30 x 30 contact pull sat at "load 0.625" for minutes.)"""
+    clock = Clock()
+    monkeypatch.setattr(progress.time, "perf_counter", clock)
+    first = IterationLine(1, 1, io.StringIO(), quiet_for=0.0, budget=600.0)
+    first.deadline = 600.0                                  # the budget started at 0
+    clock.now = 50.0
+    later = IterationLine(1, 1, io.StringIO(), quiet_for=0.0, budget=600.0)
+    later.deadline = first.deadline
+    assert "elapsed 1 min 00 s" in _iterate(later, clock, 60.0)
+    clock.now = 70.0
+    later.at(0.0)
+    assert "load path starting" in _iterate(later, clock, 75.0)
+    clock.now = 80.0
+    later.at(0.25)
+    shown = _iterate(later, clock, 100.0)
+    assert "elapsed 1 min 40 s; 25% of the load reached, about 1 min 30 s left" in shown, shown
+    later.done()
+    assert "load" not in _iterate(first, clock, 101.0)      # the path has ended
+
+
+def test_a_continuation_tells_its_share_of_the_load(monkeypatch, capsys, tmp_path):
+    monkeypatch.setattr("knit_nlp.weft.solving.solve.QUIET_FOR", 0.0)
+    assert main(["solve", "wada_fig7", "--continuation", "4", "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "elapsed" in err and "75% of the load reached, about" in err

@@ -28,6 +28,7 @@ from ...outcome import Energy, Outcome, describe
 from ...progress import QUIET_FOR, Clock
 from ..model.centrelines import natural_centrelines
 from ..model.problem import WeftProblem
+from ..output.plausibility import summary_line as implausible
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport
 from .contact_equilibrium import equilibrium_for
@@ -184,6 +185,7 @@ def control_summary(ans: ControlResult, paths: list[Path]) -> str:
                  f"{r['min_reduced_hessian_eigenvalue']:.3g}); forward check: "
                  f"{r['forward_check']['success']} (max distance "
                  f"{r['forward_check']['max_distance']:.2e})")
+    lines += implausible(ans.equilibrium)       # springs beyond L, folds, loops inside out
     lines.append(f"  wrote {', '.join(map(str, paths))}")
     return "\n".join(lines)
 

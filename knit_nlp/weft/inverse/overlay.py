@@ -174,6 +174,9 @@ def point_reader(problem_path: Path) -> tuple[_PointReader, WeftProblem]:
     return _PointReader(pr.courses, pr.wales, pr.natural, pr.crossings), pr
 
 
+MAX_PIXEL = 1e7      # |pixel coordinate|: far beyond any photograph MAX_IMAGE_PIXELS admits
+
+
 def parse_match(text: str, reader: _PointReader) -> Match:
     """``C,W,POINT=PX,PY`` (course, wale, point label or s; pixel, origin top left, y down)."""
     try:
@@ -183,6 +186,9 @@ def parse_match(text: str, reader: _PointReader) -> Match:
         loop_raw = [int(c), int(w)]
     except ValueError:
         raise ProblemError("--match", "", text, "expected C,W,POINT=PX,PY, e.g. 5,5,H=412,300") from None
+    if not all(math.isfinite(v) and abs(v) <= MAX_PIXEL for v in (px, py)):
+        raise ProblemError("--match", "", text, f"the pixel must be two finite numbers within "
+                           f"±{MAX_PIXEL:.0e} px, got {px!r}, {py!r}")
     try:
         value: str | float = float(point)
     except ValueError:
@@ -210,9 +216,11 @@ def overlay(shape: SolvedShape, matches: list[Match], observed: list | None = No
         raise ProblemError("--match", "", "", f"two or more matches are needed, got {len(matches)}")
     model = np.array([shape.position(m.loop, m.s) for m in matches])
     pixels = np.array([m.pixel for m in matches])
-    if np.ptp(model, axis=0).max() <= 0:
-        raise ProblemError("--match", "", "", "the matched material points coincide")
+    if _spread(model) <= 1e-6 * shape.L:
+        raise ProblemError("--match", "", "", "the matched material points coincide: match "
+                           "points far apart on the fabric")
     sim = fit_similarity(model, pixels)
+    _check_scale(sim, model, pixels)
     res = np.linalg.norm(sim.to_pixels(model) - pixels, axis=1)
     rms, obs_px = None, None
     if observed:
@@ -221,3 +229,21 @@ def overlay(shape: SolvedShape, matches: list[Match], observed: list | None = No
         rms = float(np.sqrt(np.mean(np.sum((comp - xy) ** 2, axis=1))))
         obs_px = sim.to_pixels(xy)
     return OverlayAnswer(sim, res, matches, model, rms, sim.to_pixels(shape.lines), obs_px)
+
+
+def _spread(points: np.ndarray) -> float:
+    """The largest distance between two of the points (k × 2)."""
+    return float(np.max(np.linalg.norm(points[:, None] - points[None], axis=-1)))
+
+
+def _check_scale(sim: Similarity, model: np.ndarray, pixels: np.ndarray) -> None:
+    """A similarity the matches fix: the matched pixels, and the fitted images of the matched
+    material points, at least a pixel apart (below that the scale is the pixels' rounding)."""
+    if _spread(pixels) < 1.0:
+        raise ProblemError("--match", "", "", f"the matched pixels lie within 1 px of each other "
+                           f"(largest distance {_spread(pixels):.3g} px): they fix no scale; "
+                           "match points far apart on the photograph")
+    if not np.isfinite([sim.a, sim.b]).all() or sim.scale * _spread(model) < 1.0:
+        raise ProblemError("--match", "", "", f"the matches fix no scale (the least-squares "
+                           f"similarity maps them within 1 px of each other, scale "
+                           f"{sim.scale:.3g} px/unit): check which pixel belongs to which point")

@@ -22,7 +22,7 @@ from .fit import fit, fit_name
 from .observations import load_observations
 from .overlay import check_shape, load_result, overlay, parse_match, point_reader
 from .plot import plot_on_image
-from .spec import parse_control, strip_control_keys
+from .spec import note_ignored_reduction, parse_control, strip_control_keys
 
 MAX_IMAGE_BYTES = 64 * 2 ** 20     # a photograph for overlay (docs/limits.md)
 MAX_IMAGE_PIXELS = 25_000_000      # ... and its pixels, from its header (a 24 MP camera's)
@@ -34,6 +34,7 @@ def control_file(path: Path, doc: dict[str, Any], out: Path) -> int:
     stable, forward-checked answer."""
     cp = parse_control(path, doc)
     prepare_out(str(out), cp.problem.name, ("control",))
+    note_ignored_reduction(path, cp.problem, "control")
     ans = control(cp)
     paths = ans.save(out)
     end_lines()
@@ -62,6 +63,8 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     _check_fittable(paths[0], next(iter(problems.values())), params)
     name = fit_name(list(problems)) if name is None else name
     prepare_out(str(out), name, ("fit",))
+    for path, pr in zip(paths, problems.values()):      # after every refusal: one line on exit 2
+        note_ignored_reduction(path, pr, "fit")
     ans = fit(list(problems.values()), obs, params)
     ans.files = {case: str(path) for case, path in zip(problems, paths)}
     ans.name = name
@@ -120,8 +123,8 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
         obs = load_observations(observations, {pr.name: pr}, other_cases=True)
     picture = read_image(image)
     stem = overlay_name(result_path, image)
+    ans = overlay(shape, parsed, obs)               # refused matches: nothing written
     prepare_out(str(out), stem, ("overlay",))
-    ans = overlay(shape, parsed, obs)
     t = ans.transform
     caption = (f"{shape.result.get('problem', '')}: similarity scale {t.scale:.4g} px/unit, "
                f"rotation {np.degrees(t.rotation):.3f} deg; largest match residual "

@@ -8,6 +8,7 @@ problem is exactly the file's, with the actuated targets at their start values.
 from __future__ import annotations
 
 import copy
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -123,6 +124,14 @@ def parse_control(path: Path | str, doc: dict[str, Any]) -> ControlProblem:
     if not goals and not openings:
         raise top.error("goal", "a control problem needs at least one [[goal]] or [[opening]]")
     return ControlProblem(pr, tuple(actuated), goals, openings, travel)
+
+
+def note_ignored_reduction(path: Path | str, pr: WeftProblem, command: str) -> None:
+    """One stderr line when a file for ``control`` or ``fit`` has a [reduction] table: their
+    equilibrium (equilibrium.py) is the full model's, so the table changes nothing."""
+    if pr.reduction is not None:
+        print(f"knit-nlp: {path}: [reduction] ignored: {command} solves the full model "
+              "(docs/inverse.md)", file=sys.stderr)
 
 
 def _box(tab: Table, key: str, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -136,8 +136,9 @@ class WeftParams:
             if name not in MATERIAL:
                 raise ValueError(f"unknown material value {name!r}; use {', '.join(MATERIAL)}")
             value = float(_finite(v, (), name))
-            if value < 0:
-                raise ValueError(f"{name} must be >= 0; got {value!r}")
+            if value < 0 or (name == "R_f" and value == 0):   # R_f = 0: loops bend freely
+                raise ValueError(f"{name} must be {'positive' if name == 'R_f' else '>= 0'}; "
+                                 f"got {value!r}")
             mat[name] = value
         frc, mom, rig = self.forces.copy(), self.moments.copy(), self.rigid.copy()
         for k, v in (forces or {}).items():

@@ -187,7 +187,7 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
     mat = top.table("material")
     k_a = mat.number("k_a", 1.0, nonnegative=True)
     k_b = mat.number("k_b", 0.01, nonnegative=True)
-    R_f = mat.number("R_f", 1.0, nonnegative=True)
+    R_f = mat.number("R_f", 1.0, positive=True)     # R_f = 0: loops bend freely, no equilibrium
     mat.finish()
     points = _PointReader(m, n, natural, crossings)
     starts = natural_starts(natural, m, n)

@@ -5,7 +5,12 @@ loops of a course chain end to start), so two held material points of one course
 coordinates a and b along it, can never be more than |a − b| apart; a target that asks for more
 has no feasible configuration, and IPOPT would spend its whole time limit discovering it.
 Between courses only the interlocking springs act (eqs. 6-7), which stretch without bound, so no
-such limit exists there.
+such limit exists there; but a yarn path still bounds what a pull asks of them
+(:func:`yarn_distances`): the shortest path between two held points along the yarns and across
+the crossings (each spring at its natural length) is d, so targets D apart stretch the springs
+on every such path by at least D − d in all. In a model whose interlocks do not stretch,
+D > d has no configuration (:func:`out_of_reach_through_interlocks`); in the paper's model a
+stretch beyond a loop length is named before the solve (:func:`overstretch`).
 
 A load needs something to push against: a net force along a coordinate no clamp or rigid clamp
 holds has no equilibrium (the energy is unbounded below along that translation).
@@ -18,6 +23,7 @@ from typing import Any, NamedTuple, Protocol, Sequence
 import numpy as np
 
 SLACK = 1e-9        # relative: a target pair exactly taut (a straight yarn) is still reachable
+SOURCES = 48        # held points the yarn-path bound searches paths from (each a Dijkstra)
 
 
 class Grips(Protocol):
@@ -135,3 +141,114 @@ def unreachable(pr: Grips, targets: np.ndarray, rigid: np.ndarray, forces: np.nd
     """(table, key, message) of the first grip no configuration satisfies at these clamp
     targets, rigid motions and load forces (:func:`out_of_reach`, :func:`unheld_force`)."""
     return out_of_reach(pr, targets, rigid) or unheld_force(pr, forces)
+
+
+def yarn_distances(pr: Grips, points: Sequence[tuple[tuple[int, int], float]],
+                   sources: np.ndarray | None = None) -> np.ndarray:
+    """(sources, k) shortest path lengths from ``points[sources]`` (default all) to the k
+    material points ((course, wale), s) along the yarns
+    (each course one yarn, arc (wale − 1)·L + s) and across the crossing springs at their
+    natural length (B of loop (i + 1, j) to E of (i, j), R to H: |B0E0|, |R0H0|, eqs. 6-8);
+    inf between points no path joins (no crossings: one course, or none found)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+    m, n, L, c = pr.courses, pr.wales, pr.L, pr.crossings
+    course = [p[0][0] for p in points]
+    arc = [(p[0][1] - 1) * L + p[1] for p in points]
+    rows: list[np.ndarray] = []
+    if c is not None and m >= 2:
+        i, j = np.meshgrid(np.arange(1, m + 1), np.arange(1, n + 1), indexing="ij")
+        for label in "BERH":
+            course += list(i.ravel())
+            arc += list((j.ravel() - 1) * L + c.s[label])
+    course_a, arc_a = np.array(course), np.array(arc, dtype=float)
+    k, size = len(points), len(course)
+    order = np.lexsort((arc_a, course_a))                      # along each course in turn
+    same = course_a[order][1:] == course_a[order][:-1]
+    a, b = order[:-1][same], order[1:][same]
+    w = arc_a[b] - arc_a[a]
+    if size > k:
+        block = m * n                                          # node k + label·mn + (i−1)·n + j−1
+        upper = np.arange(n, m * n)                            # loops (i + 1, j), 0-based flat
+        lower = upper - n                                      # loops (i, j)
+        for up, low, rest in (("B", "E", c.rest_left), ("R", "H", c.rest_right)):
+            ia, ib = "BERH".index(up), "BERH".index(low)
+            a = np.r_[a, k + ia * block + upper]
+            b = np.r_[b, k + ib * block + lower]
+            w = np.r_[w, np.full(upper.size, float(np.linalg.norm(rest)))]
+    graph = coo_matrix((np.maximum(w, 1e-300), (a, b)), shape=(size, size)).tocsr()
+    return dijkstra(graph, directed=False,
+                    indices=np.arange(k) if sources is None else sources)[:, :k]
+
+
+def _worst_stretch(pr: Grips, targets: np.ndarray, rigid: np.ndarray
+                   ) -> tuple[float, float, float, Held, Held] | None:
+    """(D − d, D, d, p, q) of the pair of held points on different courses, held in a common
+    coordinate, with the largest D − d: D their targets' distance (in the common coordinates),
+    d the yarn path between them; None without such a pair. Paths are searched from at most
+    ``SOURCES`` held points: those in the pairs with the largest D − D₀ (D₀ their natural
+    distance, a lower bound of d: the natural fabric realises every path at its length)."""
+    held = held_points(pr, targets, rigid)
+    if len(held) < 2 or pr.crossings is None:
+        return None
+    T = np.array([h.target for h in held])
+    F = np.array([h.fix for h in held], dtype=bool)
+    X = np.array([pr.natural_position(h.loop, h.s) for h in held])
+    course = np.array([h.loop[0] for h in held])
+    both = F[:, None, :] & F[None, :, :]
+    apart = np.sqrt(np.sum(np.where(both, T[None] - T[:, None], 0.0) ** 2, axis=-1))
+    ok = both.any(-1) & (course[:, None] != course[None])
+    if not ok.any():
+        return None
+    bound = np.where(ok, apart - np.linalg.norm(X[None] - X[:, None], axis=-1), -np.inf)
+    sources = _sources(bound)
+    dist = yarn_distances(pr, [(h.loop, h.s) for h in held], sources)
+    need = np.where(ok[sources] & np.isfinite(dist), apart[sources] - dist, -np.inf)
+    a, b = np.unravel_index(int(np.argmax(need)), need.shape)
+    if not np.isfinite(need[a, b]):
+        return None
+    p, q = sorted((int(sources[a]), int(b)))                  # q: the later table, named
+    return float(need[a, b]), float(apart[p, q]), float(dist[a, b]), held[p], held[q]
+
+
+def _sources(bound: np.ndarray) -> np.ndarray:
+    """Held points to search paths from: all of them up to ``SOURCES``, else those first met
+    in the pairs of largest ``bound`` (an upper bound of D − d)."""
+    k = bound.shape[0]
+    if k <= SOURCES:
+        return np.arange(k)
+    order = np.argsort(-bound, axis=None)[: SOURCES * k]
+    rows = np.unravel_index(order, bound.shape)[0]
+    return np.array(list(dict.fromkeys(rows.tolist()))[:SOURCES])
+
+
+def overstretch(pr: Grips, targets: np.ndarray, rigid: np.ndarray) -> str | None:
+    """One line when the targets ask the crossing springs (paper's model) to stretch by more
+    than a loop length L in all along every yarn path between two held points, else None."""
+    found = _worst_stretch(pr, targets, rigid)
+    if found is None or found[0] <= pr.L:
+        return None
+    need, apart, path, p, q = found
+    unit = pr.units.length
+    return (f"{q.where} ({q.table}) and {p.where} ({p.table}) are to be {apart:.6g} {unit} "
+            f"apart, but the shortest path along the yarns and across the crossings is "
+            f"{path:.6g} {unit}: the crossing springs on it must stretch by {need:.6g} {unit} "
+            f"({need / pr.L:.3g} loop lengths) in all, which the paper's springs allow but no "
+            "knitted fabric does; expect a long solve and a fabric pulled apart")
+
+
+def out_of_reach_through_interlocks(pr: Grips, targets: np.ndarray, rigid: np.ndarray
+                                    ) -> tuple[str, str, str] | None:
+    """(table, key, message) of the held pair whose targets are farther apart than the
+    shortest yarn path between them, for a model whose interlocks do not stretch (D > d has
+    no configuration there), else None."""
+    found = _worst_stretch(pr, targets, rigid)
+    if found is None:
+        return None
+    _, apart, path, p, q = found
+    if apart <= path * (1 + SLACK) + SLACK * pr.L:
+        return None
+    unit = pr.units.length
+    return (q.table, q.key, f"is out of reach: {q.where} and {p.where} ({p.table}) are joined "
+            f"by at most {path:.6g} {unit} of yarn through the interlocks, but their targets "
+            f"are {apart:.6g} {unit} apart; move the targets closer")

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .comparison import Comparison
+from .plausibility import summary_line as implausible
 from .results import WeftResult
 
 
@@ -44,6 +45,7 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
                      f"[{u.force}], smallest gap " + (f"{gap:.6g} [{u.length}] = "
                      f"{contact['smallest_gap_over_2r']:.6g} x 2r" if gap is not None
                      else "none within reach") + f", {contact['new_crossings']} new crossings")
+    lines += implausible(r)                     # springs beyond L, folds, loops inside out
     if not r.success:
         lines.append("  NOT CONVERGED: " + "; ".join(r.report.attempts))
     lines.append("  wrote " + ", ".join(str(p) for p in paths))

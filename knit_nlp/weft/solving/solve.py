@@ -148,6 +148,7 @@ class WeftSolver:
                 total.status = OUT_OF_TIME
                 return total
             nxt = min(1.0, tau + dtau)
+            self.progress.at(tau)                     # the progress line's share and estimate
             rep = self.once(p_nat + nxt * (p - p_nat), x)
             total.add_effort(rep)
             if rep.success:

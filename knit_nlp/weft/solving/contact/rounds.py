@@ -29,6 +29,7 @@ from ...model.contact.zones import Zones
 from ...transcription.contact import ContactNLP, build_contact_nlp
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
+from ....progress import loading
 from ..solve import SolveReport, WeftSolver
 from .active import active_gaps
 from .matching import carry, contacts_moved, loop_pair_counts, lost_contacts, match, unrepeated
@@ -438,6 +439,7 @@ class ContactSolver:
                 report.success, report.status = False, OUT_OF_TIME
                 break
             nxt = min(1.0, tau + dtau)
+            loading(tau)                              # the progress line's share and estimate
             out = self.step(p_natural + nxt * (p_target - p_natural), x, pairs, warm,
                             nxt >= 1.0, report, rounds, f"load {nxt:.4g}")
             if out is None and report.status == OUT_OF_TIME:
