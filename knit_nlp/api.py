@@ -84,6 +84,10 @@ class Model:
     study: Study
     commands: tuple = ()              # (name, help, arguments, run): the model's own commands
     compare_check: Callable[..., list[int]] | None = None   # (problem, grids) -> checked k values
+    prepare: Callable[..., tuple[Path, dict, str] | None] | None = None
+    # (args, path, doc) -> (path, doc, flag): a document ``knit-nlp solve``'s flags rebuild
+    # (weft: ``--size``), written to that path in --out as the result's source; None: as read
+    warn: Callable[[Any], str | None] | None = None   # problem -> one warning line before a solve
 
 
 def _solve_weft(problem: WeftProblem, reduced: bool | Parametrisation | None = None,
@@ -110,7 +114,7 @@ MODELS: dict[str, Model] = {
         Study(weft_study.prepare_point, weft_study.solve_point, weft_study.study_row, True,
               lambda doc, problem: doc, weft_keys.check, weft_keys.changes,
               weft_study.key_unit),
-        weft_commands.COMMANDS, check_compare),
+        weft_commands.COMMANDS, check_compare, weft_commands.prepare, weft_commands.warn),
     "jacquard": Model(
         "jacquard", parse_jacquard, solve_jacquard, ("solver",), None, None,
         jacquard_commands.document, jacquard_commands.FLAGS, jacquard_commands.solve_options,

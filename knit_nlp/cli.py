@@ -25,7 +25,7 @@ from .provenance import check_overwrite
 from .studies import overview, sweep
 from .studies.executors import add_executor_arguments
 from .studies.runner import prepare_study, print_table, run_with_options
-from .tomlio import load_toml
+from .tomlio import load_toml, toml_text
 
 
 class _Parser(argparse.ArgumentParser):
@@ -46,10 +46,6 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument("--out", default="results", help="output folder (default: results)")
     solve.add_argument("--force", action="store_true",
                        help="overwrite results of another problem in --out")
-    solve.add_argument("--size", default=None, metavar="COURSESxWALES",
-                       help="weft: solve a shipped pull (diagonal_pull, wada_fig7, "
-                            "course_stretch) resized, its pull scaled with it; the resized "
-                            "problem file is written to --out (e.g. --size 30x30)")
     for model in MODELS.values():
         groups: dict[str, Any] = {}
         for names, options, group in model.flags:
@@ -131,12 +127,13 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     path = resolve(args.problem)
     doc = load_toml(path)
     model = model_of(doc, path)
-    if args.size is not None:
-        path, doc = _resized(args, path, doc)
-    problem = model.parse(model.document(doc, path), path)
-    if args.size is not None:                   # checked: now written, as the result's source
-        _write_problem(args, path, doc)
     wrong = _foreign_flags(args, model)
+    rebuilt = None if wrong or model.prepare is None else model.prepare(args, path, doc)
+    if rebuilt is not None:                     # a document the flags rebuilt (weft: --size)
+        path, doc, flag = rebuilt
+    problem = model.parse(model.document(doc, path), path)
+    if rebuilt is not None:                     # checked: now written, as the result's source
+        _write_problem(args, path, doc, flag)
     if wrong:
         flags = " ".join(f for f, _ in wrong)
         own = ", ".join(names[0] for names, _, _ in model.flags)
@@ -145,7 +142,9 @@ def _cmd_solve(args: argparse.Namespace) -> int:
                             f"{model.name} problem: drop {flags} ({model.name} flags: {own})")
     options = model.solve_options(args, problem, path)
     out = prepare_out(args.out, problem.name, model.outputs)
-    _warn_implausible(problem, path)
+    warning = None if model.warn is None else model.warn(problem)
+    if warning:
+        print(f"knit-nlp: {shown(path, 200)}: warning: {warning}", file=sys.stderr)
     check_overwrite(out.glob(f"{problem.name}.*.json"), path, args.force)
     result = model.solve(problem, **options)
     with np.errstate(invalid="ignore", over="ignore"):  # a diverged run: NaN figures (null)
@@ -154,38 +153,16 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     return 0 if result.success else 1
 
 
-def _warn_implausible(problem: Any, path: Path) -> None:
-    """One stderr line before a weft solve whose pull asks the crossing springs to stretch
-    beyond a loop length (weft/model/reach.py, ``overstretch``)."""
-    if problem.model != "weft":
-        return
-    from .weft.model.reach import overstretch
-    targets = np.array([c.target for c in problem.clamps]).reshape(-1, 2)
-    rigid = np.array([[*r.translation, r.rotation] for r in problem.rigid_clamps]).reshape(-1, 3)
-    found = overstretch(problem, targets, rigid)
-    if found:
-        print(f"knit-nlp: {shown(path, 200)}: warning: {found}", file=sys.stderr)
-
-
-def _resized(args: argparse.Namespace, path: Path, doc: dict[str, Any]) -> tuple[Path, dict]:
-    """``solve --size``: the shipped pull resized (weft/model/resize.py) and the file it is
-    to be written to, ``<out>/<name>.toml``."""
-    from .weft.model.resize import parse_size, resized
-    courses, wales = parse_size(args.size)
-    new = resized(doc, str(path), courses, wales)
-    return Path(args.out) / f"{new['name']}.toml", new
-
-
-def _write_problem(args: argparse.Namespace, target: Path, doc: dict[str, Any]) -> None:
-    """Write the resized problem (refused in one line over a file with other content unless
-    --force), the source its result records."""
-    from .weft.model.resize import toml_text
+def _write_problem(args: argparse.Namespace, target: Path, doc: dict[str, Any], flag: str,
+                   ) -> None:
+    """Write a problem the flags rebuilt (``flag``, e.g. ``--size 30x30``; refused in one line
+    over a file with other content unless --force), the source its result records."""
     from .atomic import write_text
     text = toml_text(doc)
     prepare_out(args.out, doc["name"], ())
     if target.exists() and (not target.is_file() or target.read_bytes() != text.encode()
                             and not args.force):
-        raise ArgumentError(f"--size {args.size}", f"{target} exists with other content: "
+        raise ArgumentError(flag, f"{target} exists with other content: "
                             "remove it, choose another --out, or pass --force")
     write_text(target, text)
     print(f"wrote {target}: {doc['description']}")

@@ -6,6 +6,7 @@ value's type, and rejects keys nobody asked for. Nothing in a problem file is ev
 from __future__ import annotations
 
 import difflib
+import json
 import math
 import os
 import re
@@ -280,3 +281,30 @@ def _kind(value: Any) -> str:
                                    and all(isinstance(v, dict) for v in value)):
         return "table"
     return "key"
+
+
+def toml_text(doc: dict[str, Any]) -> str:
+    """A problem document as TOML: top-level values, then tables, then arrays of tables
+    (values: strings, booleans, numbers and arrays of them, as problem files hold)."""
+    lines = [f"{k} = {_value(v)}" for k, v in doc.items() if not isinstance(v, (dict, list))
+             or (isinstance(v, list) and not all(isinstance(e, dict) for e in v))]
+    for key, value in doc.items():
+        if isinstance(value, dict):
+            lines += ["", f"[{key}]", *(f"{k} = {_value(v)}" for k, v in value.items())]
+    for key, value in doc.items():
+        if isinstance(value, list) and value and all(isinstance(e, dict) for e in value):
+            for table in value:
+                lines += ["", f"[[{key}]]", *(f"{k} = {_value(v)}" for k, v in table.items())]
+    return "\n".join(lines) + "\n"
+
+
+def _value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)             # Python's shortest round-trip form, valid TOML for finite
+    if isinstance(v, str):
+        return json.dumps(v)       # a JSON string is a TOML basic string
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(e) for e in v) + "]"
+    raise TypeError(f"no TOML form for {type(v).__name__}")

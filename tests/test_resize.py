@@ -13,7 +13,8 @@ from knit_nlp.cli import main
 from knit_nlp.tomlio import load_toml
 from knit_nlp.weft.model.cases import eq28_map
 from knit_nlp.weft.model.problem import load_problem, parse_problem
-from knit_nlp.weft.model.resize import SCALED, resized, toml_text
+from knit_nlp.tomlio import toml_text
+from knit_nlp.weft.model.resize import SCALED, resized
 
 from conftest import PROBLEMS
 
@@ -69,7 +70,7 @@ def test_solve_size_writes_and_solves_the_resized_problem(tmp_path, capsys):
     (["diagonal_pull", "--size", "3xx"], "expected COURSESxWALES"),
     (["diagonal_pull", "--size", "0x5"], "courses must be in"),
     (["place_stitch", "--size", "12"], "resizes only the shipped pulls"),
-    (["jacquard_diamond", "--size", "12"], "resizes only the shipped pulls")])
+    (["jacquard_diamond", "--size", "12"], "applies to weft problems only")])
 def test_a_size_that_cannot_be_made_is_one_line(tmp_path, capsys, argv, needle):
     assert main(["solve", *argv, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err

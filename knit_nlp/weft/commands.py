@@ -13,12 +13,16 @@ from argparse import ArgumentTypeError, Namespace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..errors import ArgumentError, ProblemError, quoted, shown
 from ..outdir import prepare_out
 from ..problems import resolve
 from ..tomlio import load_toml
 from .inverse.spec import has_control_keys, strip_control_keys
 from .model.problem import MAX_CONTINUATION, WeftProblem, parse_problem
+from .model.reach import overstretch
+from .model.resize import parse_size, resized
 from .output.check import SAMPLES, check, load_result_json, write_check
 from .output.export import COLOURINGS, EXPORTS
 
@@ -56,7 +60,30 @@ FLAGS = (
     (("--yarn",), {"action": "store_true",
                    "help": "draw the yarn with its thickness ([yarn] radius) and mark the "
                            "active contacts"}, None),
+    (("--size",), {"default": None, "metavar": "COURSESxWALES",
+                   "help": "solve a shipped pull (diagonal_pull, wada_fig7, course_stretch) "
+                           "resized, its pull scaled with it; the resized problem file is "
+                           "written to --out (e.g. --size 30x30)"}, None),
 )
+
+
+def prepare(args: Namespace, path: Path, doc: dict[str, Any],
+            ) -> tuple[Path, dict[str, Any], str] | None:
+    """``solve --size``: the shipped pull resized (model/resize.py), the file it is to be
+    written to (``<out>/<name>.toml``) and the flag; None without ``--size``."""
+    if args.size is None:
+        return None
+    courses, wales = parse_size(args.size)
+    new = resized(doc, str(path), courses, wales)
+    return Path(args.out) / f"{new['name']}.toml", new, f"--size {args.size}"
+
+
+def warn(problem: WeftProblem) -> str | None:
+    """One line before a solve whose pull asks the crossing springs to stretch beyond a loop
+    length (model/reach.py, ``overstretch``), else None."""
+    targets = np.array([c.target for c in problem.clamps]).reshape(-1, 2)
+    rigid = np.array([[*r.translation, r.rotation] for r in problem.rigid_clamps]).reshape(-1, 3)
+    return overstretch(problem, targets, rigid) or None
 
 
 def document(doc: dict[str, Any], path: Path) -> dict[str, Any]:

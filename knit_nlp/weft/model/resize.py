@@ -6,12 +6,11 @@ its fabric resized and its clamps replaced by the case's at the new size, every 
 the file kept. The pull scales as the case defines it: :func:`.cases.diagonal_pull` moves H of
 loop (1, n) by eq. 28's stretch and turn of its chord from the pinned corner, and
 :func:`.cases.course_pull` stretches the fabric by the same strain of its width. The resized
-document is written as a problem file of its own (:func:`toml_text`), so that the result's
+document is written as a problem file of its own (``knit_nlp.tomlio.toml_text``), so that the result's
 recorded source is the fabric that was solved (``check`` and ``overlay`` read it).
 """
 from __future__ import annotations
 
-import json
 import re
 from typing import Any, Callable
 
@@ -60,30 +59,3 @@ def resized(doc: dict[str, Any], source: str, courses: int, wales: int) -> dict[
     out["description"] = (f"{name} resized to {courses} x {wales}, its pull scaled with it "
                           f"(knit-nlp solve {name} --size {courses}x{wales})")
     return out
-
-
-def toml_text(doc: dict[str, Any]) -> str:
-    """A problem document as TOML: top-level values, then tables, then arrays of tables
-    (values: strings, booleans, numbers and arrays of them, as problem files hold)."""
-    lines = [f"{k} = {_value(v)}" for k, v in doc.items() if not isinstance(v, (dict, list))
-             or (isinstance(v, list) and not all(isinstance(e, dict) for e in v))]
-    for key, value in doc.items():
-        if isinstance(value, dict):
-            lines += ["", f"[{key}]", *(f"{k} = {_value(v)}" for k, v in value.items())]
-    for key, value in doc.items():
-        if isinstance(value, list) and value and all(isinstance(e, dict) for e in value):
-            for table in value:
-                lines += ["", f"[[{key}]]", *(f"{k} = {_value(v)}" for k, v in table.items())]
-    return "\n".join(lines) + "\n"
-
-
-def _value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v)             # Python's shortest round-trip form, valid TOML for finite
-    if isinstance(v, str):
-        return json.dumps(v)       # a JSON string is a TOML basic string
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(e) for e in v) + "]"
-    raise TypeError(f"no TOML form for {type(v).__name__}")
