@@ -152,6 +152,8 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
     (("calibrate", "fit", ["k_c"]), ("[calibrate] fit", "unknown entry 'k_c'")),
     (("calibrate", "speed", 3), ("[calibrate] speed", "unknown key")),
     (("calibrate", "forces", [5.0, 2.0]), ("[calibrate] forces", "increasing")),
+    (("calibrate", "targets", {"fit_axial": -0.03}), ("[calibrate.targets] fit_axial", "positive")),
+    (("calibrate", "targets", {"fit_shear": 0.03}), ("[calibrate.targets] fit_shear", "unknown")),
     (("calibrate", "length_scale", None), ("[calibrate] length_scale", "required")),
     (("test", "file", "../x.csv"), ("[test[1]] file", "outside the spec's folder")),
     (("test", "file", "/etc/passwd"), ("[test[1]] file", "relative path")),

@@ -183,7 +183,7 @@ class Calibration:
         reason = "" if c.complete else (f"{c.reason}: it reaches {top:.4g} N of the "
                                         f"{tm.measured.max_force:.4g} N measured")
         return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
-                           c.complete, reason)
+                           c.complete, dict(self.spec.targets.get(tm.test.use, {})), reason)
 
 
 def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:

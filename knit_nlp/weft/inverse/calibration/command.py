@@ -1,8 +1,9 @@
 """``knit-nlp calibrate SPEC.toml [--out DIR]``: the command-line door to :func:`calibrate`.
 
-Exit codes as every command: 0 the fit converged and every model curve reached its test's
-largest force; 1 otherwise (files still written, ``"success": false``); 2 a bad spec or test file
-(one line, nothing written).
+Exit codes as every command: 0 the fit converged and every test is within its targets
+(``spec.TARGETS``, or the spec's ``[calibrate.targets]``); 1 otherwise, as for a solve that did
+not converge (files still written, ``"success": false``); 2 a bad spec or test file (one line,
+nothing written). The summary ends with the verdict, one line per test.
 """
 from __future__ import annotations
 
@@ -44,10 +45,13 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
         lat = "" if m.rms_lateral is None else f", lateral {m.rms_lateral:.4f}"
         axial = "n/a" if m.rms_axial is None else f"{m.rms_axial:.4f}"
         sp = t.specimen.problem
-        state = "" if t.success else f"  [model curve incomplete: {t.reason}]"
+        state = "" if t.complete else f"  [model curve incomplete: {t.reason}]"
         lines.append(f"  {t.test.file} ({t.test.use}, {t.test.direction}, {sp.courses} x "
                      f"{sp.wales} loops): rms strain error axial {axial}{lat}{state}")
     for w in (result.fit.warnings if result.fit is not None else []):
         lines.append(f"  warning: {w}")
     lines.append(f"  wrote {', '.join(str(p) for p in paths)}")
+    lines.append("verdict:" if result.fit is None or result.fit.success
+                 else f"verdict (the fit did not converge: {result.fit.status}):")
+    lines += [f"  {t.verdict()}" for t in result.tests]
     return "\n".join(lines)

@@ -25,7 +25,8 @@ if TYPE_CHECKING:
     from .specimen import Specimen
 
 CURVE_COLUMNS = ("test", "use", "force_N", "axial_strain", "lateral_strain")
-TARGETS = {"fit": {"axial": 0.03}, "predict": {"axial": 0.05, "lateral": 0.05}}   # issue 20
+DIRECTION_AXIS = {"courses": "x", "wales": "y"}
+VERDICT = {"fit": ("fits", "does not fit"), "predict": ("predicted", "not predicted")}
 
 
 @dataclass(frozen=True)
@@ -51,13 +52,46 @@ class TestOutcome:
     model_se_axial: np.ndarray | None      # standard error of the model's strain at the metric
     model_se_lateral: np.ndarray | None    # forces, from the fit's covariance
     curve: ModelCurve
-    success: bool                  # the model curve reached the largest measured force
+    complete: bool                 # the model curve reached the largest measured force
+    targets: dict[str, float]      # by strain: the largest RMS strain error allowed (spec)
     reason: str = ""
+
+    def errors(self) -> dict[str, float | None]:
+        """RMS strain error by strain (None: the model did not reach every metric force)."""
+        out = {"axial": self.metric.rms_axial}
+        if self.metric.measured_lateral is not None:
+            out["lateral"] = self.metric.rms_lateral
+        return out
+
+    def within(self) -> dict[str, bool]:
+        """Per targeted strain: is its RMS error within the target? A strain the test did not
+        measure cannot meet its target, nor can a model that did not reach every force."""
+        errs = self.errors()
+        return {k: errs.get(k) is not None and errs[k] <= target
+                for k, target in self.targets.items()}
+
+    @property
+    def success(self) -> bool:
+        """The test is within its targets (and its model curve complete)."""
+        return self.complete and all(self.within().values())
+
+    def verdict(self) -> str:
+        """One line: ``fit on x: axial 0.0461 against 0.03: does not fit``."""
+        use, axis = self.test.use, DIRECTION_AXIS[self.test.direction]
+        errs = self.errors()
+        parts = [f"{k} {_fmt(errs.get(k))} against {target:g}" for k, target in self.targets.items()]
+        good, bad = VERDICT[use]
+        head = f"fit on {axis}" if use == "fit" else f"predicted {axis}"
+        tail = "" if self.complete else " (the model curve stops short of the largest force)"
+        return f"{head} ({self.test.file}): {', '.join(parts) or 'no target'}: " \
+               f"{good if self.success else bad}{tail}"
 
     def to_json(self) -> dict[str, Any]:
         t, sp = self.test, self.specimen
         out = {"file": t.file, "format": t.format, "direction": t.direction, "use": t.use,
-               "success": self.success, "rms_strain_error": {
+               "success": self.success, "complete": self.complete, "targets": self.targets,
+               "within_target": self.within(), "verdict": self.verdict(),
+               "rms_strain_error": {
                    "axial": self.metric.rms_axial, "lateral": self.metric.rms_lateral},
                "metric": self.metric.to_json(),
                "specimen": {"courses": sp.problem.courses, "wales": sp.problem.wales,
@@ -70,7 +104,7 @@ class TestOutcome:
         if self.model_se_axial is not None:
             out["metric"]["model_std_error"] = {"axial": self.model_se_axial,
                                                 "lateral": self.model_se_lateral}
-        if not self.success:
+        if not self.complete:
             out["reason"] = self.reason
         return out
 
@@ -91,22 +125,23 @@ class CalibrationResult:
 
     @property
     def success(self) -> bool:
+        """The fit converged and every test is within its targets (the verdict)."""
         return (self.fit is None or self.fit.success) and all(t.success for t in self.tests)
 
     @property
     def status(self) -> str:
         if self.fit is not None and not self.fit.success:
             return self.fit.status
-        failed = [t.test.file for t in self.tests if not t.success]
-        if failed:
+        if any(not t.complete for t in self.tests):
             return "Model_Curve_Incomplete"
-        return "Evaluated" if self.fit is None else self.fit.status
+        return "Within_Targets" if self.success else "Targets_Missed"
 
     @property
     def message(self) -> str:
-        failed = [f"{t.test.file}: {t.reason}" for t in self.tests if not t.success]
-        head = "nothing fitted" if self.fit is None else self.fit.message
-        return "; ".join([head, *failed])
+        """The fit's word, then every test's verdict and why a curve stopped."""
+        head = "nothing fitted" if self.fit is None else f"fit: {self.fit.message}"
+        stops = [f"{t.test.file}: {t.reason}" for t in self.tests if not t.complete]
+        return "; ".join([head, *(t.verdict() for t in self.tests), *stops])
 
     @property
     def energy(self) -> None:
@@ -159,7 +194,7 @@ class CalibrationResult:
                "fit_strains": list(self.spec.strains),
                "sensitivities": self.spec.sensitivities,
                "tests": [t.to_json() for t in self.tests],
-               "targets": TARGETS,
+               "targets": self.spec.targets,
                "warnings": self.fit.warnings if self.fit is not None else [],
                "timings": self.timings}
         source = source_record(str(self.spec.source))

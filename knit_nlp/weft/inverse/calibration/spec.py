@@ -35,6 +35,12 @@ DEFAULT_MIN_LOOPS = 6
 MAX_LOOPS_SPEC = 40
 MAX_TESTS = 16
 FIT_LEVELS = 20             # fit forces: evenly spaced up to the largest force every run reaches
+# The verdict's targets (issue 40): RMS strain error at the metric's forces a test must stay
+# within, by its use and strain. A spec may change them in [calibrate.targets] as
+# fit_axial, fit_lateral, predict_axial, predict_lateral (a strain without a target is reported,
+# not judged).
+TARGETS: dict[str, dict[str, float]] = {"fit": {"axial": 0.03},
+                                        "predict": {"axial": 0.05, "lateral": 0.05}}
 
 
 @dataclass(frozen=True)
@@ -78,6 +84,7 @@ class CalibrationSpec:
     strains: tuple[str, ...]
     min_loops: int
     sensitivities: str
+    targets: dict[str, dict[str, float]]   # by use, by strain: the largest RMS error allowed
 
     def test_name(self, k: int) -> str:
         return f"{self.name}_test{k + 1}"
@@ -132,6 +139,7 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
         raise cal.error("strains", "must list axial (and optionally lateral), each once")
     min_loops = cal.integer("min_loops", DEFAULT_MIN_LOOPS, minimum=2, maximum=MAX_LOOPS_SPEC)
     sens = cal.string("sensitivities", "implicit", choices=SENSITIVITIES)
+    targets = _targets(cal.table("targets"))
     cal.finish()
     tests = tuple(_read_test(t, source, base, fixed, min_loops, forces)
                   for t in top.tables("test"))
@@ -158,7 +166,19 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
                            "logarithm)")
     name = top.stem("name")
     return CalibrationSpec(name, top.string("description", ""), source, shared, base, tests,
-                           fit, values, forces, strains, min_loops, sens)
+                           fit, values, forces, strains, min_loops, sens, targets)
+
+
+def _targets(tab: Table) -> dict[str, dict[str, float]]:
+    """The verdict's targets: :data:`TARGETS` with the spec's ``[calibrate.targets]`` on top."""
+    out = {use: dict(by_strain) for use, by_strain in TARGETS.items()}
+    for use in USES:
+        for strain in STRAINS:
+            value = tab.number(f"{use}_{strain}", None, positive=True)
+            if value is not None:
+                out.setdefault(use, {})[strain] = value
+    tab.finish()
+    return out
 
 
 def _fabric(top: Table) -> tuple[int, int]:

@@ -1,0 +1,51 @@
+"""The calibration's verdict (issue 41 item 5): each test's ``success`` means "within its
+target", the summary ends with one line per test, the exit status and the JSON agree."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from calibration_files import SYNTH_TRUTH, synthetic_columns, synthetic_spec
+from knit_nlp.cli import main
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    """The model's own 2 x 3 course pull (noise 0.002) as a columns test, and its width."""
+    folder = tmp_path_factory.mktemp("verdict")
+    return folder, synthetic_columns(folder / "synthetic.csv", rows=400)
+
+
+@pytest.mark.parametrize("target, code, word", [(0.003, 0, "fits"), (0.0003, 1, "does not fit")])
+def test_exit_status_json_and_summary_follow_the_target(synthetic, capsys, target, code, word):
+    """At the true values (nothing fitted) the axial RMS error is the median of three noisy runs (about 0.0005):
+    within a target of 0.003 (exit 0), not within 0.0003 (exit 1, files still written)."""
+    folder, width = synthetic
+    spec = synthetic_spec(folder, width, "[]", SYNTH_TRUTH, tables="",
+                          extra=f"[calibrate.targets]\nfit_axial = {target}\n")
+    out = folder / f"out{code}"
+    assert main(["calibrate", str(spec), "--out", str(out)]) == code
+    printed = capsys.readouterr().out.strip().splitlines()
+    doc = json.loads((out / "synthetic.calibration.json").read_text())
+    test = doc["tests"][0]
+    rms = test["rms_strain_error"]["axial"]
+    assert 0.0003 < rms < 0.003
+    assert printed[-1].strip() == (f"fit on x (synthetic.csv): axial {rms:.4f} against "
+                                   f"{target:g}: {word}")
+    assert test["success"] is (code == 0) and test["within_target"] == {"axial": code == 0}
+    assert doc["success"] is (code == 0)
+    assert doc["status"] == ("Within_Targets" if code == 0 else "Targets_Missed")
+    assert test["verdict"] in doc["message"] and doc["targets"]["fit"] == {"axial": target}
+    assert (out / "synthetic.curves.csv").is_file() and (out / "synthetic.calibration.png").is_file()
+
+
+def test_a_strain_the_test_did_not_measure_cannot_meet_its_target(synthetic, capsys):
+    """A lateral target on a test without lateral strains is missed, not passed."""
+    folder, width = synthetic
+    (folder / "axial_only.csv").write_text("\n".join(
+        ",".join(row.split(",")[:2]) for row in (folder / "synthetic.csv").read_text().splitlines()))
+    spec = synthetic_spec(folder, width, "[]", SYNTH_TRUTH, file="axial_only.csv",
+                          extra="[calibrate.targets]\nfit_axial = 0.01\nfit_lateral = 0.01\n")
+    assert main(["calibrate", str(spec), "--out", str(folder / "outl")]) == 1
+    assert capsys.readouterr().out.strip().endswith("lateral n/a against 0.01: does not fit")
