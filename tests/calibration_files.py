@@ -71,7 +71,7 @@ SPEC_SBS = """\
     force = "N"
     [calibrate]
     fit = ["k_b"]
-    length_scale = 40.0
+    clamp_width_mm = 40.0
     min_loops = 2
     [[test]]
     file = "x.csv"

@@ -154,7 +154,12 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
     (("calibrate", "forces", [5.0, 2.0]), ("[calibrate] forces", "increasing")),
     (("calibrate", "targets", {"fit_axial": -0.03}), ("[calibrate.targets] fit_axial", "positive")),
     (("calibrate", "targets", {"fit_shear": 0.03}), ("[calibrate.targets] fit_shear", "unknown")),
-    (("calibrate", "length_scale", None), ("[calibrate] length_scale", "required")),
+    (("calibrate", "length_scale", 25.4), ("[calibrate] length_scale", "the specimen's size",
+                                          "clamp_width_mm = 35.5")),
+    (("calibrate", "fit", ["k_b", "length_scale"]), ("[calibrate] fit", "the source gives",
+                                                     "clamp_width_mm = 35.5")),
+    (("calibrate", "clamp_width_mm", 0.0), ("[calibrate] clamp_width_mm", "positive")),
+    (("units", "length", "cm"), ("[units] length", "mm")),
     (("test", "file", "../x.csv"), ("[test[1]] file", "outside the spec's folder")),
     (("test", "file", "/etc/passwd"), ("[test[1]] file", "relative path")),
     (("test", "direction", "bias"), ("[test[1]] direction", "must be one of")),
@@ -163,7 +168,7 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
     (("clamp", None, [{"edge": "left"}]), ("clamp", "rigid clamps")),
     (("load", None, [{"edge": "right", "force": [1.0, 0.0]}]), ("load", "pulled by its clamp")),
     (("reduction", None, {"adaptive": True}), ("reduction", "full model")),
-    (("calibrate", "fit", ["length_scale"]), ()),           # valid: parsed, not solved here
+    (("calibrate", "fit", ["R_f"]), ()),                    # valid: parsed, not solved here
 ])
 def test_bad_specs_are_refused_in_one_line(tmp_path, capsys, edit, needles):
     import tomllib
@@ -179,7 +184,7 @@ def test_bad_specs_are_refused_in_one_line(tmp_path, capsys, edit, needles):
     else:
         doc.setdefault(table, {})[key] = value
     if not needles:
-        assert parse_spec(doc, tmp_path / "spec.toml").fit == ("length_scale",)
+        assert parse_spec(doc, tmp_path / "spec.toml").fit == ("R_f",)
         return
     with pytest.raises(ProblemError) as err:
         parse_spec(doc, tmp_path / "spec.toml")
@@ -243,7 +248,7 @@ VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10 ** 12, 10 ** 12),
                    st.sampled_from(["k_a", "k_b", "R_f", "length_scale", "courses", "wales",
                                     "fit", "predict", "columns", "stitch_by_stitch", "x.csv",
                                     "implicit", "finite_differences"]))
-KEYS = st.sampled_from([("calibrate", k) for k in ("fit", "length_scale", "forces", "strains",
+KEYS = st.sampled_from([("calibrate", k) for k in ("fit", "clamp_width_mm", "forces", "strains",
                                                     "min_loops", "sensitivities", "extra")]
                        + [("test", k) for k in ("file", "format", "direction", "use", "width",
                                                 "aspect", "extra")]

@@ -114,31 +114,32 @@ def test_past_its_end_a_curve_continues_along_its_last_tangent_only_in_the_fit()
     assert ahead[0][0] > end[0][0] and ahead[1][0] < end[1][0]    # longer, narrower
 
 
-def test_length_scale_and_material_trade_exactly(tmp_path):
+def test_the_clamp_width_and_material_trade_exactly(tmp_path):
     """Forces scale with every stiffness together and with the width: k_a, k_b, R_f times λ with
-    length_scale over λ leaves every strain at every force unchanged."""
+    the clamp width over λ leaves every strain at every force unchanged."""
     ramp_runs(tmp_path / "x.csv")
     spec = load_spec(_write(tmp_path, SPEC_SBS))
     tm = Calibration(spec).models[0]
     forces = np.array([2.0, 10.0, 25.0])
-    v = {**spec.values, "length_scale": 4000.0}
-    lam = 3.0
-    scaled = {"k_a": v["k_a"] * lam, "k_b": v["k_b"] * lam, "R_f": v["R_f"] * lam,
-              "length_scale": v["length_scale"] / lam}
-    a, b = tm.strains(v, forces), tm.strains(scaled, forces)
+    v, lam = dict(spec.values), 3.0
+    tm.clamp_width = 4000.0
+    a = tm.strains(v, forces)
+    tm.clamp_width = 4000.0 / lam
+    b = tm.strains({k: v[k] * lam for k in ("k_a", "k_b", "R_f")}, forces)
     assert np.all(np.isfinite(a[0]))
     assert np.allclose(a, b, atol=1e-6)
 
 
 def test_the_fits_jacobian_is_the_residuals_derivative(tmp_path):
-    """d residual / d log value, for a material value and the length scale, against central
-    differences of the residual (5 %: the implicit derivative is the model's, the difference
-    the interpolated curve's)."""
+    """d residual / d log value, for two material values, against central differences of the
+    residual (5 %: the implicit derivative is the model's, the difference the interpolated
+    curve's)."""
     ramp_runs(tmp_path / "x.csv")
-    spec = load_spec(_write(tmp_path, SPEC_SBS.replace('fit = ["k_b"]',
-                                                       'fit = ["k_b", "length_scale"]')))
+    spec = load_spec(_write(tmp_path, SPEC_SBS.replace('fit = ["k_b"]', 'fit = ["k_b", "R_f"]')))
     cal = Calibration(spec)
-    v = np.array([0.02, 3000.0])
+    for tm in cal.models:
+        tm.clamp_width = 3000.0
+    v = np.array([0.02, 0.045])
     J = cal.jacobian(v)
     for q in range(2):
         step = np.exp(1e-3 * np.eye(2)[q])

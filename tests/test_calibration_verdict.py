@@ -49,3 +49,20 @@ def test_a_strain_the_test_did_not_measure_cannot_meet_its_target(synthetic, cap
                           extra="[calibrate.targets]\nfit_axial = 0.01\nfit_lateral = 0.01\n")
     assert main(["calibrate", str(spec), "--out", str(folder / "outl")]) == 1
     assert capsys.readouterr().out.strip().endswith("lateral n/a against 0.01: does not fit")
+
+
+def test_a_fitted_measured_value_is_reported_beside_its_measurement(synthetic, capsys):
+    """R_f, the yarn's bending modulus, is a measured value: fitted (from the spec's 0.06 N·mm²
+    to the synthetic truth 0.045), the summary and the JSON give the spec's value beside it as
+    the measurement; the crossing springs, which nothing measures, have none."""
+    folder, width = synthetic
+    spec = synthetic_spec(folder, width, '["R_f"]', {**SYNTH_TRUTH, "R_f": 0.06})
+    main(["calibrate", str(spec), "--out", str(folder / "outR")])
+    printed = capsys.readouterr().out
+    doc = json.loads((folder / "outR" / "synthetic.calibration.json").read_text())
+    row = doc["parameters"]["R_f"]
+    assert row["fitted"] and row["measured"] == 0.06 and row["value"] == pytest.approx(0.045, rel=0.05)
+    assert f"R_f = {row['value']:.6g} ± {row['std_error']:.3g} (fitted; measured 0.06)" in printed
+    assert "measured" not in doc["parameters"]["k_b"] and "k_b = 0.001 (held)" in printed
+    assert doc["given"]["clamp_width_mm"] == 35.5 and "clampSizeInPhysicalUnits" in doc["given"][
+        "clamp_width_source"]

@@ -8,6 +8,7 @@ nothing written). The summary ends with the verdict, one line per test.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from ....outdir import prepare_out
@@ -22,10 +23,15 @@ def run(args: argparse.Namespace) -> int:
     spec = load_spec(args.spec)
     out = prepare_out(args.out, spec.name, ("calibration", "curves"))
     check_overwrite(out.glob(f"{spec.name}.calibration.json"), spec.source, args.force)
-    result = calibrate(spec)
+    result = calibrate(spec, progress=_progress)
     paths = result.save(out)
     print(summary(result, paths))
     return 0 if result.success else 1
+
+
+def _progress(line: str) -> None:
+    """A progress line on stderr (the summary and verdict go to stdout)."""
+    print(f"calibrate: {line}", file=sys.stderr, flush=True)
 
 
 def summary(result: CalibrationResult, paths: list[Path]) -> str:
@@ -34,12 +40,17 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
              f"{result.timings['total_s']:.1f} s, {result.timings['forward_solves']} forward "
              f"solves)"]
     for name, row in result.parameters().items():
+        measured = f"; measured {row['measured']:.4g}" if "measured" in row else ""
         if row["fitted"]:
             se = row.get("std_error")
             err = "undetermined" if se is None else f"± {se:.3g}"
-            lines.append(f"  {name} = {row['value']:.6g} {err} (fitted; from {row['initial']:.4g})")
+            start = "" if measured else f"; from {row['initial']:.4g}"
+            lines.append(f"  {name} = {row['value']:.6g} {err} (fitted{start}{measured})")
         else:
-            lines.append(f"  {name} = {row['value']:.6g} (held)")
+            lines.append(f"  {name} = {row['value']:.6g} (held{', measured' if measured else ''})")
+    given = result.given()
+    lines.append(f"  clamp width {given['clamp_width_mm']:g} mm ({given['clamp_width_source']}); "
+                 f"loop length {given['loop_length_mm']:g} mm (held)")
     for t in result.tests:
         m = t.metric
         lat = "" if m.rms_lateral is None else f", lateral {m.rms_lateral:.4f}"

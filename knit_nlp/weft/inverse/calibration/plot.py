@@ -66,7 +66,8 @@ def plot_calibration(path: Path, result: Any) -> Path:
     vals = ", ".join(
         f"{k} = {v['value']:.4g}" + (" (fitted)" if v["fitted"] else "")
         for k, v in result.parameters().items())
-    fig.suptitle(f"{result.name}: {vals}\n(k_a, k_b in {units.force}/{units.length}, R_f in "
-                 f"{units.force}·{units.length}², length_scale in {units.length} per clamp width;"
-                 f" circles: measured medians at the metric forces)", fontsize=9)
+    fig.suptitle(f"{result.name}: {vals}; clamp width {result.spec.clamp_width:g} {units.length}"
+                 f"\n(k_a, k_b in {units.force}/{units.length}, R_f in "
+                 f"{units.force}·{units.length}²; circles: measured medians at the metric forces)",
+                 fontsize=9)
     return save_figure(fig, path, dpi=110)

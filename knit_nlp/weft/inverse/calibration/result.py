@@ -16,8 +16,10 @@ import numpy as np
 
 from ....jsonio import write_csv, write_json
 from ....provenance import source_record
+from ...model.params import MATERIAL
 from .metric import MetricPoints
 from .plot import plot_calibration
+from .spec import CLAMP_SOURCE, CLAMP_WIDTH_MM, MEASURED
 
 if TYPE_CHECKING:
     from .fit import FitOutcome
@@ -155,17 +157,27 @@ class CalibrationResult:
         return 0 if self.fit is None else self.fit.nit
 
     def parameters(self) -> dict[str, dict[str, Any]]:
+        """Per material value: the answer, whether fitted, its start, its standard error, and
+        for a measured value (``spec.MEASURED``) what the spec gives as its measurement."""
         fitted = list(self.spec.fit)
         out = {}
-        for name in ("k_a", "k_b", "R_f", "length_scale"):
-            if name == "length_scale" and all(t.test.width is not None for t in self.tests):
-                continue
+        for name in MATERIAL:
             row: dict[str, Any] = {"value": self.values[name], "fitted": name in fitted,
                                    "initial": self.spec.values[name]}
             if name in fitted and self.fit is not None:
                 row["std_error"] = self.fit.std_errors[fitted.index(name)]
+            if name in MEASURED:
+                row["measured"] = self.spec.values[name]
             out[name] = row
         return out
+
+    def given(self) -> dict[str, Any]:
+        """What the source gives and the calibration holds: the clamp width (mm, and where it
+        comes from) and the yarn's length per stitch (the loop length)."""
+        return {"clamp_width_mm": self.spec.clamp_width,
+                "clamp_width_source": CLAMP_SOURCE if self.spec.clamp_width == CLAMP_WIDTH_MM
+                else "the spec's [calibrate] clamp_width_mm",
+                "loop_length_mm": self.spec.base.L}
 
     def correlation(self) -> dict[str, Any]:
         names = list(self.spec.fit)
@@ -186,9 +198,9 @@ class CalibrationResult:
                "message": self.message, "nit": self.nit,
                "units": {**units.to_json(), "k_a": f"{units.force}/{units.length}",
                          "k_b": f"{units.force}/{units.length}",
-                         "R_f": f"{units.force}·{units.length}²",
-                         "length_scale": f"{units.length} per clamp width"},
+                         "R_f": f"{units.force}·{units.length}²"},
                "fit": list(self.spec.fit), "parameters": self.parameters(),
+               "given": self.given(),
                "correlation": self.correlation(),
                "metric_forces_N": list(self.spec.forces),
                "fit_strains": list(self.spec.strains),
