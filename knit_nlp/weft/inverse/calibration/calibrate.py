@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 
+from .checks import HALF, STIFFENING, outcome_checks
 from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives,
                     strains_at)
 from .fit import MAX_EVALUATIONS, PENALTY, FitOutcome, fit_log
@@ -30,6 +31,7 @@ GOAL_MARGIN = 1.02          # the model curve runs to 2 % past the largest measu
 STRAIN_LIMIT_FACTOR = 3.0   # ... or stops at 3 times the largest measured axial strain
 STRAIN_LIMIT_FLOOR = 0.5    #     (but not below 0.5, nor above curve.MAX_STRAIN)
 CURVE_SAMPLES = 121         # model curve points written and drawn
+CHECKS_STRAIN = STIFFENING[1] + HALF    # ... and to the largest strain the checks read
 
 
 class TestModel:
@@ -42,6 +44,7 @@ class TestModel:
                                        self.test.courses, self.test.wales, spec.test_name(k))
         self.model = SpecimenModel(self.specimen)
         self._cache: tuple[tuple[float, ...], Curve] | None = None
+        self.min_strain = 0.0          # the final evaluation's curve runs to CHECKS_STRAIN too
         measured = max(float(np.max(r.axial)) for r in self.measured.runs)
         self.strain_limit = min(MAX_STRAIN, max(STRAIN_LIMIT_FLOOR, STRAIN_LIMIT_FACTOR * measured))
         self.solves = 0
@@ -63,11 +66,11 @@ class TestModel:
         return self.width() / self.specimen.pitch_width
 
     def curve(self, values: dict[str, float]) -> Curve:
-        key = (*(values[k] for k in ("k_a", "k_b", "R_f")), self.strain_limit)
+        key = (*(values[k] for k in ("k_a", "k_b", "R_f")), self.strain_limit, self.min_strain)
         if self._cache is None or self._cache[0] != key:
             goal = GOAL_MARGIN * self.measured.max_force / self.scale(values)
             c = self.model.curve({k: values[k] for k in ("k_a", "k_b", "R_f")}, goal,
-                                 self.strain_limit)
+                                 self.strain_limit, self.min_strain)
             self.solves += c.solves
             self.iterations += c.iterations
             self._cache = (key, c)
@@ -165,9 +168,11 @@ class Calibration:
 
     def outcome(self, tm: TestModel, values: dict[str, float],
                 cov_log: np.ndarray | None) -> TestOutcome:
-        """A test at the final values: its metric, model curve and strain uncertainty. The
-        curve may run to ``curve.MAX_STRAIN`` here, to reach the largest measured force."""
-        tm.strain_limit = MAX_STRAIN
+        """A test at the final values: its metric, checks, model curve and strain uncertainty.
+        The curve may run to ``curve.MAX_STRAIN`` here, to reach the largest measured force,
+        and it runs at least to the strain the checks read (``CHECKS_STRAIN``), past that force
+        where the model is stiffer than the fabric."""
+        tm.strain_limit, tm.min_strain = MAX_STRAIN, CHECKS_STRAIN
         c = tm.curve(values)
         forces = np.array(self.spec.forces)
         ax, lat = tm.strains(values, forces)
@@ -186,8 +191,11 @@ class Calibration:
                            c.lateral / tm.specimen.lateral_width - 1.0, sample, s_ax, s_lat)
         reason = "" if c.complete else (f"{c.reason}: it reaches {top:.4g} N of the "
                                         f"{tm.measured.max_force:.4g} N measured")
+        checks = outcome_checks((curve.axial, curve.force),
+                                [(r.axial, r.force) for r in tm.measured.runs], tm.width())
         return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
-                           c.complete, dict(self.spec.targets.get(tm.test.use, {})), reason)
+                           c.complete, dict(self.spec.targets.get(tm.test.use, {})), reason,
+                           checks)
 
 
 def calibrate(spec_or_path: CalibrationSpec | str | Path,

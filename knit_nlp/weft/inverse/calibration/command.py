@@ -14,6 +14,7 @@ from pathlib import Path
 from ....outdir import prepare_out
 from ....provenance import check_overwrite
 from .calibrate import calibrate
+from .checks import describe
 from .result import CalibrationResult
 from .spec import load_spec
 
@@ -59,6 +60,12 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
         state = "" if t.complete else f"  [model curve incomplete: {t.reason}]"
         lines.append(f"  {t.test.file} ({t.test.use}, {t.test.direction}, {sp.courses} x "
                      f"{sp.wales} loops): rms strain error axial {axial}{lat}{state}")
+        lines.append(f"    checks: {describe(t.checks)}")
+    for key, ratio in result.checks().items():
+        if ratio is not None:
+            show = lambda v: "n/a" if v is None else f"{v:.3g}"     # noqa: E731
+            lines.append(f"  {key.replace('_', ' ')}: {show(ratio['model'])} (measured "
+                         f"{show(ratio['measured'])})")
     for w in (result.fit.warnings if result.fit is not None else []):
         lines.append(f"  warning: {w}")
     lines.append(f"  wrote {', '.join(str(p) for p in paths)}")

@@ -105,9 +105,9 @@ class SpecimenModel:
         return rep
 
     def curve(self, material: dict[str, float], goal: float,
-              strain_limit: float = MAX_STRAIN) -> Curve:
-        """Pull until the force passes ``goal`` (model force units), or the axial strain
-        ``strain_limit``."""
+              strain_limit: float = MAX_STRAIN, min_strain: float = 0.0) -> Curve:
+        """Pull until the force passes ``goal`` (model force units) and the axial strain
+        ``min_strain``, or until the axial strain ``strain_limit``."""
         L0 = self.specimen.gauge
         c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
         rep = self._solve(self.params(material, 0.0), None, c)
@@ -117,7 +117,7 @@ class SpecimenModel:
         us, fs, lats = [0.0], [0.0], [self.lateral(rep.x)[0]]
         c.xs, c.lams = [rep.x], [rep.lam_g]
         step = FIRST_STRAIN * L0
-        while fs[-1] < goal:
+        while fs[-1] < goal or us[-1] < min_strain * L0:
             remaining = strain_limit * L0 - us[-1]
             if remaining < MIN_STRAIN_STEP * L0 or len(us) > 10 * NODES:
                 c.complete, c.reason = False, (f"stopped at axial strain {us[-1] / L0:.3g} "

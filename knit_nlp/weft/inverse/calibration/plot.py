@@ -46,9 +46,18 @@ def _panel(ax, t: Any) -> None:
     sp = t.specimen.problem
     ax.set_title(f"{t.test.file}: pulled along the {t.test.direction} ({t.test.use})\n"
                  f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
-                 f"{axial}{lat}{state}", fontsize=9)
+                 f"{axial}{lat}{state}\n{_checks_line(t.checks)}\n{t.verdict()}", fontsize=8)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     ax.grid(alpha=0.3)
+
+
+def _checks_line(c: dict[str, Any]) -> str:
+    """Model (measured) force at 10 and 30 % strain and stiffening, for a panel's title."""
+    show = lambda v, f=".3g": "n/a" if v is None else format(v, f)     # noqa: E731
+    forces = ", ".join(f"F({float(e):.0%}) {show(c['model']['force_N'][e])} "
+                       f"({show(c['measured']['force_N'][e])}) N" for e in c["model"]["force_N"])
+    return (f"model (measured): {forces}; stiffening 5->45% {show(c['model']['stiffening'])} "
+            f"({show(c['measured']['stiffening'])})")
 
 
 def plot_calibration(path: Path, result: Any) -> Path:
@@ -66,8 +75,14 @@ def plot_calibration(path: Path, result: Any) -> Path:
     vals = ", ".join(
         f"{k} = {v['value']:.4g}" + (" (fitted)" if v["fitted"] else "")
         for k, v in result.parameters().items())
+    ratio = ""
+    for key, r in result.checks().items():
+        if r is not None:
+            show = lambda v: "n/a" if v is None else f"{v:.3g}"     # noqa: E731
+            ratio = (f"; wale / course stiffness per width at 10 % strain: model "
+                     f"{show(r['model'])}, measured {show(r['measured'])}")
     fig.suptitle(f"{result.name}: {vals}; clamp width {result.spec.clamp_width:g} {units.length}"
                  f"\n(k_a, k_b in {units.force}/{units.length}, R_f in "
-                 f"{units.force}·{units.length}²; circles: measured medians at the metric forces)",
-                 fontsize=9)
+                 f"{units.force}·{units.length}²; circles: measured medians at the metric forces)"
+                 f"{ratio}", fontsize=9)
     return save_figure(fig, path, dpi=110)

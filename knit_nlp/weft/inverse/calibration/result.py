@@ -17,6 +17,7 @@ import numpy as np
 from ....jsonio import write_csv, write_json
 from ....provenance import source_record
 from ...model.params import MATERIAL
+from .checks import RATIO_STRAIN, wale_over_course
 from .metric import MetricPoints
 from .plot import plot_calibration
 from .spec import CLAMP_SOURCE, CLAMP_WIDTH_MM, MEASURED
@@ -57,6 +58,7 @@ class TestOutcome:
     complete: bool                 # the model curve reached the largest measured force
     targets: dict[str, float]      # by strain: the largest RMS strain error allowed (spec)
     reason: str = ""
+    checks: dict[str, Any] = field(default_factory=dict)   # checks.outcome_checks
 
     def errors(self) -> dict[str, float | None]:
         """RMS strain error by strain (None: the model did not reach every metric force)."""
@@ -101,6 +103,7 @@ class TestOutcome:
                             "aspect_source": t.aspect_source, "aspect_model": sp.aspect,
                             "gauge": sp.gauge, "pitch_width": sp.pitch_width,
                             "width": self.width, "width_clamps": t.width_clamps},
+               "checks": self.checks,
                "runs": len(t.measured.runs), "max_force_measured": t.measured.max_force,
                "max_force_model": float(self.curve.force[-1]) if len(self.curve.force) else 0.0}
         if self.model_se_axial is not None:
@@ -171,6 +174,11 @@ class CalibrationResult:
             out[name] = row
         return out
 
+    def checks(self) -> dict[str, Any]:
+        """Across tests: the ratio of wale to course stiffness per width (``checks``)."""
+        ratio = wale_over_course([(t.test.direction, t.checks) for t in self.tests])
+        return {f"wale_over_course_stiffness_per_width_at_{RATIO_STRAIN:g}": ratio}
+
     def given(self) -> dict[str, Any]:
         """What the source gives and the calibration holds: the clamp width (mm, and where it
         comes from) and the yarn's length per stitch (the loop length)."""
@@ -206,6 +214,7 @@ class CalibrationResult:
                "fit_strains": list(self.spec.strains),
                "sensitivities": self.spec.sensitivities,
                "tests": [t.to_json() for t in self.tests],
+               "checks": self.checks(),
                "targets": self.spec.targets,
                "warnings": self.fit.warnings if self.fit is not None else [],
                "timings": self.timings}
