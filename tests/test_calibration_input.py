@@ -109,6 +109,7 @@ def _with_cell(lines: list[str], k: int, column: int, value: str) -> list[str]:
     ("not_a_number", ("x.csv", "line 5", "force_N", "expected a number")),
     ("never_reaches", ("x.csv", "run 1", "no frame reaches 25 N", "lower them")),
     ("never_rises", ("x.csv", "run 2", "never rises")),
+    ("falls_from_second_frame", ("x.csv", "run 2", "force_N", "at frame 2 of 11", "must grow")),
     ("huge_cell", ("x.csv", "characters")),
     ("long_cell", ("x.csv", "line 5", "a cell of 100 characters")),
     ("empty", ("x.csv", "no header and no rows")),
@@ -131,6 +132,10 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
     elif case == "never_rises":
         text = "\n".join(lines[:3] + [sbs_row(1, k, 30.0 * k / 10, 200, 100) for k in range(11)]
                          + [sbs_row(2, k, 1.0 - k / 10, 200, 100) for k in range(11)])
+    elif case == "falls_from_second_frame":       # issue 41: passed the old check (max > first)
+        text = "\n".join(lines[:3] + [sbs_row(1, k, 30.0 * k / 10, 200, 100) for k in range(11)]
+                         + [sbs_row(2, k, 0.0 if k == 0 else 30.0 - 3 * (k - 1), 200 + k, 100)
+                            for k in range(11)])
     elif case == "huge_cell":
         text = "\n".join(_with_cell(lines, 4, 2, "9" * 100_000))
     elif case == "long_cell":
@@ -296,3 +301,20 @@ def test_the_shipped_data_are_the_published_bytes_with_their_licence():
     for name, digest in recorded.items():
         assert hashlib.sha256((folder / name).read_bytes()).hexdigest() == digest, name
     assert "MIT License" in (folder / "LICENSE").read_text()
+
+
+def test_the_width_conversion_is_the_sources_formula_on_one_frame_by_hand():
+    """stitch-by-stitch template.nb: stress = force / (fabricSize · 35.5 / clampSize). The x
+    file's comment line gives clampSize 163.4307 px and fabricSize 306.4001 px, so the specimen
+    is 306.4001 × 35.5 / 163.4307 = 66.555 mm wide; its run 1 first reaches 10 N at frame 2129,
+    10.700 N: stress 10.700 / 66.555 = 0.16077 N/mm. The calibration compares that frame with
+    the model force 10.700 / scale on the model's pitch width: the same stress."""
+    from knit_nlp.weft.inverse.calibration.calibrate import Calibration
+    folder = Path(__file__).resolve().parent.parent / "problems" / "real_fabric"
+    x = Calibration(load_spec(folder / "acrylic_fit_x.toml")).models[0]
+    run = x.measured.runs[0]
+    k = int(np.argmax(run.force >= 10.0))
+    assert run.label == "1" and run.force[k] == 10.700
+    assert x.width() == pytest.approx(66.555, abs=5e-4)
+    model_force = run.force[k] / x.scale()
+    assert model_force / x.specimen.pitch_width == pytest.approx(0.16077, abs=5e-6)
