@@ -44,7 +44,8 @@ def test_a_strain_the_test_did_not_measure_cannot_meet_its_target(synthetic, cap
     """A lateral target on a test without lateral strains is missed, not passed."""
     folder, width = synthetic
     (folder / "axial_only.csv").write_text("\n".join(
-        ",".join(row.split(",")[:2]) for row in (folder / "synthetic.csv").read_text().splitlines()))
+        ",".join(row.split(",")[q] for q in (0, 1, 3))          # force, axial, run
+        for row in (folder / "synthetic.csv").read_text().splitlines()))
     spec = synthetic_spec(folder, width, "[]", SYNTH_TRUTH, file="axial_only.csv",
                           extra="[calibrate.targets]\nfit_axial = 0.01\nfit_lateral = 0.01\n")
     assert main(["calibrate", str(spec), "--out", str(folder / "outl")]) == 1
