@@ -111,6 +111,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", default=",".join(RUNS))
     parser.add_argument("--out", default=None)
+    parser.add_argument("--breaks", action="store_true",
+                        help="also: where the model breaks (each measured value moved alone)")
     args = parser.parse_args()
     print(f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')} "
           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')} "
@@ -141,46 +143,67 @@ def main() -> int:
     _shapes(results)
     if "b" in results:
         _sensitivity_timing(results["b"])
+        if args.breaks:
+            _breaks(results["b"])
     return 0
 
 
-def _tangent(force: np.ndarray, strain: np.ndarray, at: float, half: float = 0.03) -> float:
-    """dF/dε at strain ``at``: slope of the least-squares line through the points within
-    ``half`` of it."""
-    near = np.abs(strain - at) <= half
-    if near.sum() < 3 or strain.max() < at + half:
-        return float("nan")
-    return float(np.polyfit(strain[near], force[near], 1)[0])
+BREAK_FACTORS = np.geomspace(1 / 32, 32, 21)      # each measured value times these, one at a time
 
 
-def _measured_curve(test) -> tuple[np.ndarray, np.ndarray]:
-    from knit_nlp.weft.inverse.calibration.metric import levels
-    forces = np.linspace(0.05, test.measured.common_force, 400)
-    return forces, np.median(levels(test.measured, forces), axis=0)
+def _outcomes(spec, values: dict, clamp_factor: float = 1.0) -> list:
+    """Every test of ``spec`` at ``values`` (the clamp width times ``clamp_factor``)."""
+    cal = Calibration(spec)
+    for tm in cal.models:
+        tm.clamp_width *= clamp_factor
+    return [cal.outcome(tm, values, None) for tm in cal.models]
+
+
+def _breaks(res) -> None:
+    """Where the model breaks (issue 40 item 5): from run b's fitted answer, each measured value
+    alone times BREAK_FACTORS; per value the best x axial error and the factors at which each
+    test is within its targets."""
+    print("\nwhere the model breaks: from run b's answer (k_a, k_b held there), one measured "
+          f"value at a time times {BREAK_FACTORS[0]:.3g} .. {BREAK_FACTORS[-1]:.3g} "
+          f"({len(BREAK_FACTORS)} factors)")
+    print("value          best x axial (factor)   x within target at   y within target at")
+    doc = copy.deepcopy(load_toml(SPEC))
+    for name in ("R_f", "loop length", "clamp width"):
+        rows = []
+        for q in BREAK_FACTORS:
+            if name == "R_f":
+                outs = _outcomes(res.spec, {**res.values, "R_f": res.values["R_f"] * q})
+            elif name == "clamp width":
+                outs = _outcomes(res.spec, res.values, q)
+            else:
+                d = copy.deepcopy(doc)
+                d["loop"]["length"] *= q
+                outs = _outcomes(parse_spec(d, SPEC), res.values)
+            rows.append((q, outs))
+        xs = [(o[0].metric.rms_axial, q) for q, o in rows if o[0].metric.rms_axial is not None]
+        best = min(xs) if xs else (float("nan"), float("nan"))
+        within = [", ".join(f"{q:.3g}" for q, o in rows if o[k].success) or "none"
+                  for k in range(2)]
+        print(f"{name:<14} {best[0]:.3f} (x {best[1]:.3g}){'':<9} {within[0]:<20} {within[1]}",
+              flush=True)
 
 
 def _shapes(results: dict) -> None:
-    print("\ncurve shapes (no length scale enters): x stiffening = dF/dε at ε 0.45 over 0.05 "
-          "(course pull); y/x = stiffness per width at ε 0.05, wale pull over course pull")
-    rows = []
+    """What a researcher checks first (calibration/checks.py), per run, model (measured)."""
+    print("\nchecks (model, measured in brackets): force at 10 % and 30 % axial strain (N), "
+          "stiffening 5 -> 45 % (x), wale / course stiffness per width at 10 %")
+    show = lambda v: "  n/a" if v is None else f"{v:.3g}"     # noqa: E731
     for name, res in results.items():
         x, y = res.tests
-        row = []
-        for which in ("measured", "model"):
-            if which == "measured":
-                fx, ex = _measured_curve(x.test)
-                fy, ey = _measured_curve(y.test)
-            else:
-                fx, ex = x.curve.sample_force, x.curve.sample_axial
-                fy, ey = y.curve.sample_force, y.curve.sample_axial
-            stiffen = _tangent(fx, ex, 0.45) / _tangent(fx, ex, 0.05)
-            per_width = (_tangent(fy, ey, 0.05) / y.width) / (_tangent(fx, ex, 0.05) / x.width)
-            row.append((stiffen, per_width))
-        rows.append((name, row))
-    (ms, mw) = rows[0][1][0] if rows else (np.nan, np.nan)
-    print(f"  measured: x stiffening {ms:.2f}, y/x {mw:.2f}")
-    for name, row in rows:
-        print(f"  {name:<4} model: x stiffening {row[1][0]:.2f}, y/x {row[1][1]:.2f}")
+        cx, cy = x.checks, y.checks
+        ratio = next(iter(res.checks().values())) or {"model": None, "measured": None}
+        print(f"  {name:<4} x F10 {show(cx['model']['force_N']['0.1'])} "
+              f"({show(cx['measured']['force_N']['0.1'])}), F30 "
+              f"{show(cx['model']['force_N']['0.3'])} ({show(cx['measured']['force_N']['0.3'])}),"
+              f" stiffening {show(cx['model']['stiffening'])} "
+              f"({show(cx['measured']['stiffening'])}); y F10 "
+              f"{show(cy['model']['force_N']['0.1'])} ({show(cy['measured']['force_N']['0.1'])});"
+              f" y/x {show(ratio['model'])} ({show(ratio['measured'])})")
 
 
 def _sensitivity_timing(res) -> None:

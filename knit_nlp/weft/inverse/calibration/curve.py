@@ -5,7 +5,9 @@ One forward NLP is built per specimen (``contact_equilibrium.equilibrium_for``: 
 and re-solved at every step from the previous step's solution. Steps aim at even force
 increments (the secant stiffness of the last step sets the next), so the curve is resolved
 alike wherever its slope; a failed solve halves the step. The curve ends at the first node
-past the goal force, or where the model's force stops rising, or at ``MAX_STRAIN``.
+past the goal force (and past a smallest strain, if asked: beyond the goal force the steps aim
+at even strain increments up to it), or where the model's force stops rising, or at
+``MAX_STRAIN``.
 
 Strain at a force is read by monotone cubic (PCHIP) interpolation of the nodes. Sensitivities
 of those strains to the material values come either from the implicit-function theorem at each
@@ -147,8 +149,8 @@ class SpecimenModel:
             lats.append(self.lateral(rep.x)[0])
             c.xs.append(rep.x)
             c.lams.append(rep.lam_g)
-            step = float(np.clip(goal / NODES / stiffness, MIN_STRAIN_STEP * L0,
-                                 min(MAX_STRAIN_STEP * L0, 3 * step)))
+            aim = goal / NODES / stiffness if f < goal else min_strain * L0 / NODES
+            step = float(np.clip(aim, MIN_STRAIN_STEP * L0, min(MAX_STRAIN_STEP * L0, 3 * step)))
         c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
         return c
 
