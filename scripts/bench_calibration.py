@@ -148,7 +148,8 @@ def main() -> int:
     return 0
 
 
-BREAK_FACTORS = np.geomspace(1 / 32, 32, 21)      # each measured value times these, one at a time
+BREAK_FACTORS = {"R_f": np.geomspace(1 / 32, 32, 21), "clamp width": np.geomspace(1 / 32, 32, 21),
+                 "loop length": np.geomspace(0.5, 2, 9)}   # each measured value times these, alone
 
 
 def _outcomes(spec, values: dict, clamp_factor: float = 1.0) -> list:
@@ -164,13 +165,13 @@ def _breaks(res) -> None:
     alone times BREAK_FACTORS; per value the best x axial error and the factors at which each
     test is within its targets."""
     print("\nwhere the model breaks: from run b's answer (k_a, k_b held there), one measured "
-          f"value at a time times {BREAK_FACTORS[0]:.3g} .. {BREAK_FACTORS[-1]:.3g} "
-          f"({len(BREAK_FACTORS)} factors)")
-    print("value          best x axial (factor)   x within target at   y within target at")
+          "value at a time times each factor")
+    print("value (factors)              best x axial (factor)   x within target at   y within "
+          "target at")
     doc = copy.deepcopy(load_toml(SPEC))
-    for name in ("R_f", "loop length", "clamp width"):
+    for name, factors in BREAK_FACTORS.items():
         rows = []
-        for q in BREAK_FACTORS:
+        for q in factors:
             if name == "R_f":
                 outs = _outcomes(res.spec, {**res.values, "R_f": res.values["R_f"] * q})
             elif name == "clamp width":
@@ -184,7 +185,8 @@ def _breaks(res) -> None:
         best = min(xs) if xs else (float("nan"), float("nan"))
         within = [", ".join(f"{q:.3g}" for q, o in rows if o[k].success) or "none"
                   for k in range(2)]
-        print(f"{name:<14} {best[0]:.3f} (x {best[1]:.3g}){'':<9} {within[0]:<20} {within[1]}",
+        label = f"{name} ({factors[0]:.3g}..{factors[-1]:.3g}, {len(factors)})"
+        print(f"{label:<28} {best[0]:.3f} (x {best[1]:.3g}){'':<9} {within[0]:<20} {within[1]}",
               flush=True)
 
 

@@ -22,6 +22,7 @@ def _panel(ax, t: Any) -> None:
     forces = np.linspace(0.0, measured.common_force, BAND_POINTS)
     style = "-" if t.test.use == "fit" else "--"
     kinds = ("axial", "lateral") if measured.has_lateral else ("axial",)
+    right = max(measured.max_force, t.metric.forces[-1]) * 1.02
     for kind in kinds:
         runs = levels(measured, forces, lateral=kind == "lateral")
         colour = COLOURS[kind]
@@ -31,14 +32,15 @@ def _panel(ax, t: Any) -> None:
                 label=f"measured {kind}: median")
         model = t.curve.sample_axial if kind == "axial" else t.curve.sample_lateral
         what = "model on a fit test" if t.test.use == "fit" else "model, predicted (held out)"
-        ax.plot(t.curve.sample_force, model, color=colour, lw=2.0, ls=style,
+        shown = t.curve.sample_force <= right       # (the curve may run on past the data)
+        ax.plot(t.curve.sample_force[shown], model[shown], color=colour, lw=2.0, ls=style,
                 label=f"{what} ({kind})")
         points = t.metric.measured_axial if kind == "axial" else t.metric.measured_lateral
         ax.plot(t.metric.forces, points, "o", ms=4, mfc="white", color=colour)
     ax.axhline(0.0, color="0.6", lw=0.5)
     ax.set_xlabel("force (N)")
     ax.set_ylabel("strain (–)")
-    ax.set_xlim(0.0, max(measured.max_force, t.metric.forces[-1]) * 1.02)
+    ax.set_xlim(0.0, right)
     rms = t.metric
     lat = "" if rms.rms_lateral is None else f", lateral {rms.rms_lateral:.3f}"
     axial = "n/a" if rms.rms_axial is None else f"{rms.rms_axial:.3f}"
