@@ -38,6 +38,11 @@ def test_exit_status_json_and_summary_follow_the_target(synthetic, capsys, targe
     assert doc["status"] == ("Within_Targets" if code == 0 else "Targets_Missed")
     assert test["verdict"] in doc["message"] and doc["targets"]["fit"] == {"axial": target}
     assert (out / "synthetic.curves.csv").is_file() and (out / "synthetic.calibration.png").is_file()
+    # the data stop at strain 0.4: the model's curve runs on past their force to the strain
+    # the checks read (0.475), and is still complete
+    axial = [float(line.split(",")[3]) for line in
+             (out / "synthetic.curves.csv").read_text().splitlines()[1:]]
+    assert max(axial) >= 0.475 and test["complete"] and test["checks"]["model"]["stiffening"]
 
 
 def test_a_strain_the_test_did_not_measure_cannot_meet_its_target(synthetic, capsys):

@@ -151,6 +151,8 @@ class SpecimenModel:
             c.lams.append(rep.lam_g)
             aim = goal / NODES / stiffness if f < goal else min_strain * L0 / NODES
             step = float(np.clip(aim, MIN_STRAIN_STEP * L0, min(MAX_STRAIN_STEP * L0, 3 * step)))
+        if fs[-1] >= goal:          # stopped on the way to min_strain: the goal was reached
+            c.complete, c.reason = True, ""
         c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
         return c
 
