@@ -1,40 +1,30 @@
-"""The runs of issue 20 on the stitch-by-stitch acrylic stockinette, as one table.
+"""The runs of issues 20 and 40 on the stitch-by-stitch acrylic stockinette, as one table.
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python scripts/bench_calibration.py
     python scripts/bench_calibration.py --runs b,d        # a subset
     python scripts/bench_calibration.py --out DIR          # also each run's files (JSON, CSV, PNG)
 
 Every run is the shipped spec ``problems/real_fabric/acrylic_fit_x.toml`` (run b) with a few
-keys changed in memory, so the table says exactly what differs:
+keys changed in memory, so the table says exactly what differs. The specimen has its real
+width throughout (clamp width 35.5 mm, the source's; issue 40) and the yarn's measured values
+(loop length 11.28 mm, R_f 0.045 N·mm²) are held unless a run says otherwise:
 
 - a0  the paper's material (k_a L²/R_f = 100, k_b L²/R_f = 1 with the yarn's R_f and L),
-      nothing fitted, at an assumed clamp width of 25.4 mm (a one-inch grip face)
-- a   the paper's material; only the clamp width (length_scale, which the data lack) fitted on x
-- b   k_a, k_b and length_scale fitted on x (axial and lateral strains), y predicted  [shipped]
+      nothing fitted
+- b   k_a, k_b fitted on x (axial and lateral strains), y predicted  [shipped]
 - bx  as b, the fit matching the axial strain only
-- c   as b with yarn contact, ``[yarn] radius = 0.74`` mm (issue 19)
-- c4  as c on b4's smaller specimens (4 loops on the shorter sides): c's own 6-loop specimens
-      need hours with contact (docs/real_fabric.md, "Run c")
-- c4k as c4 with k_a held at 3.5e4 N/mm (where every fit without contact leaves it: at its bound,
-      undetermined) and k_b, length_scale fitted from b4's answer (0.00623 N/mm, 760 mm): c4
-      (from the paper's values) was still fitting after 55 minutes, and from b4's answer with
-      k_a fitted too the first step took k_a 10⁴ times its start, where the contact solves
-      crawled (docs/real_fabric.md, "Run c")
-- b4k as c4k without contact (the same start and fitted values: c4k's same-run reference)
-- ck  as c4k on c's own specimens (b's 6-loop ones), from b's answer (0.00912 N/mm, 577 mm):
-      run c on the specimens of run b, its reference; its fit takes about half an hour and its
-      y curve stalled at wale strain 0.75 (docs/real_fabric.md, "Run c"); with c and c4 it
-      makes the default (all runs) take hours
-- d   k_a, k_b and length_scale fitted on x and y together
+- bR  as b with the bending modulus R_f fitted too (a measured value: how far it must move)
+- d   k_a, k_b fitted on x and y together  [shipped as acrylic_fit_xy.toml]
+- c4k as b with yarn contact, ``[yarn] radius = 0.74`` mm (issue 19), on 4-loop specimens,
+      k_a held at 3.5e4 N/mm (where every fit leaves it: at its bound, undetermined) and k_b
+      fitted from b4's answer (docs/real_fabric.md, "Run c"; minutes, not in the default runs)
+- b4k as c4k without contact (its same-run reference)
 - b4, b8, b10   as b with 4, 8 and 10 loops on the specimens' shorter sides (b: 6)
-- bc  as b with the aspect ratios from the clamps (clamp separation over the specimen's width at
-      the clamp) instead of the pins
 - bfd as b with finite-difference sensitivities instead of the implicit-function ones
 
-Then, per run, the two numbers of the curves' shapes that no length scale changes: the course
-pull's stiffening (tangent stiffness dF/dε at axial strain 0.45 over that at 0.05) and the
-wale pull's stiffness per width over the course pull's at strain 0.05 (widths in clamp widths),
-measured (median run) and model. Last, one Jacobian of run b's fit at its answer by both
+Then, per run, what a researcher checks first (``metrics``): the course pull's tangent
+stiffening from 5 % to 45 % strain and the wale pull's stiffness per width over the course
+pull's at 10 %, model beside measured. Last, one Jacobian of run b's fit at its answer by both
 sensitivity methods, alternated three times in one process (same-run ratio). Times are
 wall-clock on a shared machine.
 """
@@ -60,9 +50,9 @@ from knit_nlp.weft.inverse.calibration.calibrate import Calibration  # noqa: E40
 
 SPEC = ROOT / "problems" / "real_fabric" / "acrylic_fit_x.toml"
 PAPER = {"k_a": 100.0, "k_b": 1.0}          # Wada et al.'s k L² / R_f (k_a = 1, k_b = 0.01, R_f = 1, L = 10)
-RUNS = ("a0", "a", "b", "bx", "c", "c4", "c4k", "b4k", "ck", "d", "b4", "b8", "b10", "bc", "bfd")
-B4 = {"k_a": 3.5e4, "k_b": 0.00623, "length_scale": 760.0}   # b4's answer (docs/real_fabric.md)
-B = {"k_a": 3.5e4, "k_b": 0.00912, "length_scale": 577.0}    # b's answer
+RUNS = ("a0", "b", "bx", "bR", "d", "b4", "b8", "b10", "bfd")
+B4 = {"k_a": 3.5e4, "k_b": 7.4}             # about b4's answer at the real width (c4k, b4k:
+                                            # with --runs only; contact takes minutes)
 
 
 def _paper(doc: dict) -> dict:
@@ -71,28 +61,10 @@ def _paper(doc: dict) -> dict:
     return doc
 
 
-def _clamp_aspects(doc: dict) -> dict:
-    """Per test: median over runs of the first frame's clamp separation over fabric_width_px."""
-    import csv
-    for test in doc["test"]:
-        path = SPEC.parent / test["file"]
-        lines = path.read_text().splitlines()
-        width = float(lines[1].split("fabric_width_px =")[1])
-        rows = list(csv.DictReader(ln for ln in lines if not ln.startswith("#")))
-        first: dict[str, dict] = {}
-        for row in rows:
-            if row["run"] not in first or float(row["frame"]) < float(first[row["run"]]["frame"]):
-                first[row["run"]] = row
-        seps = [np.hypot(float(r["top_clamp_x"]) - float(r["bottom_clamp_x"]),
-                         float(r["top_clamp_y"]) - float(r["bottom_clamp_y"])) for r in first.values()]
-        test["aspect"] = float(np.median(seps) / width)
-    return doc
-
-
 def _from(doc: dict, answer: dict) -> None:
-    """k_a held at an answer's value, k_b and length_scale fitted from that answer."""
+    """k_a held at an answer's value, k_b fitted from that answer."""
     doc["material"].update(k_a=answer["k_a"], k_b=answer["k_b"])
-    doc["calibrate"].update(fit=["k_b", "length_scale"], length_scale=answer["length_scale"])
+    doc["calibrate"].update(fit=["k_b"])
 
 
 def variant(name: str) -> dict:
@@ -101,20 +73,13 @@ def variant(name: str) -> dict:
     if name == "a0":
         _paper(doc)
         cal["fit"] = []
-    elif name == "a":
-        _paper(doc)
-        cal["fit"] = ["length_scale"]
     elif name == "bx":
         cal["strains"] = ["axial"]
-    elif name in ("c", "c4", "c4k", "ck"):
-        doc["yarn"] = {"radius": 0.74}
-        if name in ("c4", "c4k"):
-            cal["min_loops"] = 4
+    elif name == "bR":
+        cal["fit"] = ["k_a", "k_b", "R_f"]
+    elif name in ("c4k", "b4k"):
         if name == "c4k":
-            _from(doc, B4)
-        if name == "ck":
-            _from(doc, B)
-    elif name == "b4k":
+            doc["yarn"] = {"radius": 0.74}
         cal["min_loops"] = 4
         _from(doc, B4)
     elif name == "d":
@@ -122,8 +87,6 @@ def variant(name: str) -> dict:
             test["use"] = "fit"
     elif name in ("b4", "b8", "b10"):
         cal["min_loops"] = int(name[1:])
-    elif name == "bc":
-        _clamp_aspects(doc)
     elif name == "bfd":
         cal["sensitivities"] = "finite_differences"
     doc["name"] = f"acrylic_{name}"
@@ -148,11 +111,13 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", default=",".join(RUNS))
     parser.add_argument("--out", default=None)
+    parser.add_argument("--breaks", action="store_true",
+                        help="also: where the model breaks (each measured value moved alone)")
     args = parser.parse_args()
     print(f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')} "
           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')} "
           f"load average {os.getloadavg()[0]:.1f} (shared machine: absolute times are noisy)")
-    print("run  k_a (N/mm)        k_b (N/mm)        length_scale (mm)  x: axial lateral  "
+    print("run  k_a (N/mm)        k_b (N/mm)        R_f (N mm2)        x: axial lateral  "
           "y: axial lateral  ok  time (s)  solves  loops x / y")
     results = {}
     for name in args.runs.split(","):
@@ -170,7 +135,7 @@ def main() -> int:
         x, y = js["tests"]
         loops = " / ".join(f"{t['specimen']['courses']}x{t['specimen']['wales']}" for t in js["tests"])
         print(f"{name:<4} {_value(p['k_a']):<17} {_value(p['k_b']):<17} "
-              f"{_value(p['length_scale']):<18} {x['use'][:4]} {_rms(x)}  {y['use'][:4]} {_rms(y)}  "
+              f"{_value(p['R_f']):<18} {x['use'][:4]} {_rms(x)}  {y['use'][:4]} {_rms(y)}  "
               f"{'yes' if res.success else 'NO ':<3} {wall:8.1f}  {js['timings']['forward_solves']:6d}"
               f"  {loops}", flush=True)
         if args.out:
@@ -178,46 +143,69 @@ def main() -> int:
     _shapes(results)
     if "b" in results:
         _sensitivity_timing(results["b"])
+        if args.breaks:
+            _breaks(results["b"])
     return 0
 
 
-def _tangent(force: np.ndarray, strain: np.ndarray, at: float, half: float = 0.03) -> float:
-    """dF/dε at strain ``at``: slope of the least-squares line through the points within
-    ``half`` of it."""
-    near = np.abs(strain - at) <= half
-    if near.sum() < 3 or strain.max() < at + half:
-        return float("nan")
-    return float(np.polyfit(strain[near], force[near], 1)[0])
+BREAK_FACTORS = {"R_f": np.geomspace(1 / 32, 32, 21), "clamp width": np.geomspace(1 / 32, 32, 21),
+                 "loop length": np.geomspace(0.5, 2, 9)}   # each measured value times these, alone
 
 
-def _measured_curve(test) -> tuple[np.ndarray, np.ndarray]:
-    from knit_nlp.weft.inverse.calibration.metric import levels
-    forces = np.linspace(0.05, test.measured.common_force, 400)
-    return forces, np.median(levels(test.measured, forces), axis=0)
+def _outcomes(spec, values: dict, clamp_factor: float = 1.0) -> list:
+    """Every test of ``spec`` at ``values`` (the clamp width times ``clamp_factor``)."""
+    cal = Calibration(spec)
+    for tm in cal.models:
+        tm.clamp_width *= clamp_factor
+    return [cal.outcome(tm, values, None) for tm in cal.models]
+
+
+def _breaks(res) -> None:
+    """Where the model breaks (issue 40 item 5): from run b's fitted answer, each measured value
+    alone times BREAK_FACTORS; per value the best x axial error and the factors at which each
+    test is within its targets."""
+    print("\nwhere the model breaks: from run b's answer (k_a, k_b held there), one measured "
+          "value at a time times each factor")
+    print("value (factors)              best x axial (factor)   x within target at   y within "
+          "target at")
+    doc = copy.deepcopy(load_toml(SPEC))
+    for name, factors in BREAK_FACTORS.items():
+        rows = []
+        for q in factors:
+            if name == "R_f":
+                outs = _outcomes(res.spec, {**res.values, "R_f": res.values["R_f"] * q})
+            elif name == "clamp width":
+                outs = _outcomes(res.spec, res.values, q)
+            else:
+                d = copy.deepcopy(doc)
+                d["loop"]["length"] *= q
+                outs = _outcomes(parse_spec(d, SPEC), res.values)
+            rows.append((q, outs))
+        xs = [(o[0].metric.rms_axial, q) for q, o in rows if o[0].metric.rms_axial is not None]
+        best = min(xs) if xs else (float("nan"), float("nan"))
+        within = [", ".join(f"{q:.3g}" for q, o in rows if o[k].success) or "none"
+                  for k in range(2)]
+        label = f"{name} ({factors[0]:.3g}..{factors[-1]:.3g}, {len(factors)})"
+        print(f"{label:<28} {best[0]:.3f} (x {best[1]:.3g}){'':<9} {within[0]:<20} {within[1]}",
+              flush=True)
 
 
 def _shapes(results: dict) -> None:
-    print("\ncurve shapes (no length scale enters): x stiffening = dF/dε at ε 0.45 over 0.05 "
-          "(course pull); y/x = stiffness per width at ε 0.05, wale pull over course pull")
-    rows = []
+    """What a researcher checks first (calibration/checks.py), per run, model (measured)."""
+    print("\nchecks (model, measured in brackets): force at 10 % and 30 % axial strain (N), "
+          "stiffening 5 -> 45 % (x), wale / course stiffness per width at 10 %")
+    show = lambda v: "  n/a" if v is None else f"{v:.3g}"     # noqa: E731
     for name, res in results.items():
         x, y = res.tests
-        row = []
-        for which in ("measured", "model"):
-            if which == "measured":
-                fx, ex = _measured_curve(x.test)
-                fy, ey = _measured_curve(y.test)
-            else:
-                fx, ex = x.curve.sample_force, x.curve.sample_axial
-                fy, ey = y.curve.sample_force, y.curve.sample_axial
-            stiffen = _tangent(fx, ex, 0.45) / _tangent(fx, ex, 0.05)
-            per_width = (_tangent(fy, ey, 0.05) / y.width) / (_tangent(fx, ex, 0.05) / x.width)
-            row.append((stiffen, per_width))
-        rows.append((name, row))
-    (ms, mw) = rows[0][1][0] if rows else (np.nan, np.nan)
-    print(f"  measured: x stiffening {ms:.2f}, y/x {mw:.2f}")
-    for name, row in rows:
-        print(f"  {name:<4} model: x stiffening {row[1][0]:.2f}, y/x {row[1][1]:.2f}")
+        cx, cy = x.checks, y.checks
+        ratio = next(iter(res.checks().values())) or {"model": None, "measured": None}
+        print(f"  {name:<4} x F10 {show(cx['model']['force_N']['0.1'])} "
+              f"({show(cx['measured']['force_N']['0.1'])}), F30 "
+              f"{show(cx['model']['force_N']['0.3'])} ({show(cx['measured']['force_N']['0.3'])}),"
+              f" stiffening {show(cx['model']['stiffening'])} "
+              f"({show(cx['measured']['stiffening'])}); y F10 "
+              f"{show(cy['model']['force_N']['0.1'])} ({show(cy['measured']['force_N']['0.1'])});"
+              f" y/x {show(ratio['model'])} ({show(ratio['measured'])})")
 
 
 def _sensitivity_timing(res) -> None:

@@ -71,7 +71,7 @@ SPEC_SBS = """\
     force = "N"
     [calibrate]
     fit = ["k_b"]
-    length_scale = 40.0
+    clamp_width_mm = 40.0
     min_loops = 2
     [[test]]
     file = "x.csv"
@@ -87,15 +87,15 @@ SYNTH_TRUTH = {"k_a": 0.01, "k_b": 0.001, "R_f": 0.045}
 
 def synthetic_columns(path: Path, truth: dict[str, float] = SYNTH_TRUTH, courses: int = 2,
                       wales: int = 3, top: float = 10.0, noise: float = 0.002, runs: int = 3,
-                      rows: int = 2000, seed: int = 1) -> float:
+                      rows: int = 2000, seed: int = 1, strain: float = 0.4) -> float:
     """The model's own course-pull curve (``courses`` x ``wales``, ``truth``) written as a
     ``columns`` test of ``runs`` runs with Gaussian strain noise, forces up to ``top`` N; returns
-    the specimen width (mm) that makes the model's force at strain 0.4 equal ``top``."""
+    the specimen width (mm) that makes the model's force at axial ``strain`` equal ``top``."""
     from knit_nlp.weft.inverse.calibration.curve import SpecimenModel, strains_at
     from knit_nlp.weft.inverse.calibration.specimen import build_specimen
     sp = build_specimen({**SYNTH_DOC, "material": truth}, "<synthetic>", "courses", courses,
                         wales, "synthetic")
-    c = SpecimenModel(sp).curve(truth, goal=1e9, strain_limit=0.4)
+    c = SpecimenModel(sp).curve(truth, goal=1e9, strain_limit=strain)
     width = top / c.force[-1] * sp.pitch_width
     forces = np.linspace(0.0, 0.99 * c.force[-1], rows)
     axial, lateral = strains_at(c, sp, forces)

@@ -109,6 +109,7 @@ def _with_cell(lines: list[str], k: int, column: int, value: str) -> list[str]:
     ("not_a_number", ("x.csv", "line 5", "force_N", "expected a number")),
     ("never_reaches", ("x.csv", "run 1", "no frame reaches 25 N", "lower them")),
     ("never_rises", ("x.csv", "run 2", "never rises")),
+    ("falls_from_second_frame", ("x.csv", "run 2", "force_N", "at frame 2 of 11", "must grow")),
     ("huge_cell", ("x.csv", "characters")),
     ("long_cell", ("x.csv", "line 5", "a cell of 100 characters")),
     ("empty", ("x.csv", "no header and no rows")),
@@ -131,6 +132,10 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
     elif case == "never_rises":
         text = "\n".join(lines[:3] + [sbs_row(1, k, 30.0 * k / 10, 200, 100) for k in range(11)]
                          + [sbs_row(2, k, 1.0 - k / 10, 200, 100) for k in range(11)])
+    elif case == "falls_from_second_frame":       # issue 41: passed the old check (max > first)
+        text = "\n".join(lines[:3] + [sbs_row(1, k, 30.0 * k / 10, 200, 100) for k in range(11)]
+                         + [sbs_row(2, k, 0.0 if k == 0 else 30.0 - 3 * (k - 1), 200 + k, 100)
+                            for k in range(11)])
     elif case == "huge_cell":
         text = "\n".join(_with_cell(lines, 4, 2, "9" * 100_000))
     elif case == "long_cell":
@@ -152,7 +157,14 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
     (("calibrate", "fit", ["k_c"]), ("[calibrate] fit", "unknown entry 'k_c'")),
     (("calibrate", "speed", 3), ("[calibrate] speed", "unknown key")),
     (("calibrate", "forces", [5.0, 2.0]), ("[calibrate] forces", "increasing")),
-    (("calibrate", "length_scale", None), ("[calibrate] length_scale", "required")),
+    (("calibrate", "targets", {"fit_axial": -0.03}), ("[calibrate.targets] fit_axial", "positive")),
+    (("calibrate", "targets", {"fit_shear": 0.03}), ("[calibrate.targets] fit_shear", "unknown")),
+    (("calibrate", "length_scale", 25.4), ("[calibrate] length_scale", "the specimen's size",
+                                          "clamp_width_mm = 35.5")),
+    (("calibrate", "fit", ["k_b", "length_scale"]), ("[calibrate] fit", "the source gives",
+                                                     "clamp_width_mm = 35.5")),
+    (("calibrate", "clamp_width_mm", 0.0), ("[calibrate] clamp_width_mm", "positive")),
+    (("units", "length", "cm"), ("[units] length", "mm")),
     (("test", "file", "../x.csv"), ("[test[1]] file", "outside the spec's folder")),
     (("test", "file", "/etc/passwd"), ("[test[1]] file", "relative path")),
     (("test", "direction", "bias"), ("[test[1]] direction", "must be one of")),
@@ -161,7 +173,7 @@ def test_bad_csvs_are_refused_in_one_line(tmp_path, capsys, case, needles):
     (("clamp", None, [{"edge": "left"}]), ("clamp", "rigid clamps")),
     (("load", None, [{"edge": "right", "force": [1.0, 0.0]}]), ("load", "pulled by its clamp")),
     (("reduction", None, {"adaptive": True}), ("reduction", "full model")),
-    (("calibrate", "fit", ["length_scale"]), ()),           # valid: parsed, not solved here
+    (("calibrate", "fit", ["R_f"]), ()),                    # valid: parsed, not solved here
 ])
 def test_bad_specs_are_refused_in_one_line(tmp_path, capsys, edit, needles):
     import tomllib
@@ -177,7 +189,7 @@ def test_bad_specs_are_refused_in_one_line(tmp_path, capsys, edit, needles):
     else:
         doc.setdefault(table, {})[key] = value
     if not needles:
-        assert parse_spec(doc, tmp_path / "spec.toml").fit == ("length_scale",)
+        assert parse_spec(doc, tmp_path / "spec.toml").fit == ("R_f",)
         return
     with pytest.raises(ProblemError) as err:
         parse_spec(doc, tmp_path / "spec.toml")
@@ -241,7 +253,7 @@ VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10 ** 12, 10 ** 12),
                    st.sampled_from(["k_a", "k_b", "R_f", "length_scale", "courses", "wales",
                                     "fit", "predict", "columns", "stitch_by_stitch", "x.csv",
                                     "implicit", "finite_differences"]))
-KEYS = st.sampled_from([("calibrate", k) for k in ("fit", "length_scale", "forces", "strains",
+KEYS = st.sampled_from([("calibrate", k) for k in ("fit", "clamp_width_mm", "forces", "strains",
                                                     "min_loops", "sensitivities", "extra")]
                        + [("test", k) for k in ("file", "format", "direction", "use", "width",
                                                 "aspect", "extra")]
@@ -289,3 +301,20 @@ def test_the_shipped_data_are_the_published_bytes_with_their_licence():
     for name, digest in recorded.items():
         assert hashlib.sha256((folder / name).read_bytes()).hexdigest() == digest, name
     assert "MIT License" in (folder / "LICENSE").read_text()
+
+
+def test_the_width_conversion_is_the_sources_formula_on_one_frame_by_hand():
+    """stitch-by-stitch template.nb: stress = force / (fabricSize · 35.5 / clampSize). The x
+    file's comment line gives clampSize 163.4307 px and fabricSize 306.4001 px, so the specimen
+    is 306.4001 × 35.5 / 163.4307 = 66.555 mm wide; its run 1 first reaches 10 N at frame 2129,
+    10.700 N: stress 10.700 / 66.555 = 0.16077 N/mm. The calibration compares that frame with
+    the model force 10.700 / scale on the model's pitch width: the same stress."""
+    from knit_nlp.weft.inverse.calibration.calibrate import Calibration
+    folder = Path(__file__).resolve().parent.parent / "problems" / "real_fabric"
+    x = Calibration(load_spec(folder / "acrylic_fit_x.toml")).models[0]
+    run = x.measured.runs[0]
+    k = int(np.argmax(run.force >= 10.0))
+    assert run.label == "1" and run.force[k] == 10.700
+    assert x.width() == pytest.approx(66.555, abs=5e-4)
+    model_force = run.force[k] / x.scale()
+    assert model_force / x.specimen.pitch_width == pytest.approx(0.16077, abs=5e-6)

@@ -114,31 +114,32 @@ def test_past_its_end_a_curve_continues_along_its_last_tangent_only_in_the_fit()
     assert ahead[0][0] > end[0][0] and ahead[1][0] < end[1][0]    # longer, narrower
 
 
-def test_length_scale_and_material_trade_exactly(tmp_path):
+def test_the_clamp_width_and_material_trade_exactly(tmp_path):
     """Forces scale with every stiffness together and with the width: k_a, k_b, R_f times λ with
-    length_scale over λ leaves every strain at every force unchanged."""
+    the clamp width over λ leaves every strain at every force unchanged."""
     ramp_runs(tmp_path / "x.csv")
     spec = load_spec(_write(tmp_path, SPEC_SBS))
     tm = Calibration(spec).models[0]
     forces = np.array([2.0, 10.0, 25.0])
-    v = {**spec.values, "length_scale": 4000.0}
-    lam = 3.0
-    scaled = {"k_a": v["k_a"] * lam, "k_b": v["k_b"] * lam, "R_f": v["R_f"] * lam,
-              "length_scale": v["length_scale"] / lam}
-    a, b = tm.strains(v, forces), tm.strains(scaled, forces)
+    v, lam = dict(spec.values), 3.0
+    tm.clamp_width = 4000.0
+    a = tm.strains(v, forces)
+    tm.clamp_width = 4000.0 / lam
+    b = tm.strains({k: v[k] * lam for k in ("k_a", "k_b", "R_f")}, forces)
     assert np.all(np.isfinite(a[0]))
     assert np.allclose(a, b, atol=1e-6)
 
 
 def test_the_fits_jacobian_is_the_residuals_derivative(tmp_path):
-    """d residual / d log value, for a material value and the length scale, against central
-    differences of the residual (5 %: the implicit derivative is the model's, the difference
-    the interpolated curve's)."""
+    """d residual / d log value, for two material values, against central differences of the
+    residual (5 %: the implicit derivative is the model's, the difference the interpolated
+    curve's)."""
     ramp_runs(tmp_path / "x.csv")
-    spec = load_spec(_write(tmp_path, SPEC_SBS.replace('fit = ["k_b"]',
-                                                       'fit = ["k_b", "length_scale"]')))
+    spec = load_spec(_write(tmp_path, SPEC_SBS.replace('fit = ["k_b"]', 'fit = ["k_b", "R_f"]')))
     cal = Calibration(spec)
-    v = np.array([0.02, 3000.0])
+    for tm in cal.models:
+        tm.clamp_width = 3000.0
+    v = np.array([0.02, 0.045])
     J = cal.jacobian(v)
     for q in range(2):
         step = np.exp(1e-3 * np.eye(2)[q])
@@ -271,3 +272,55 @@ def test_the_fits_first_step_does_not_depend_on_the_units():
     first = [_first_trial(x0) for x0 in ([1.0, 1.0], [3.5e-4, 7.6e-3])]
     assert first[0] == pytest.approx(first[1], rel=1e-9)
     assert 1 < first[0] < np.exp(4)
+
+
+@pytest.mark.parametrize("direction, courses, wales", [("courses", 4, 3), ("wales", 3, 5)])
+def test_the_pitch_width_is_the_loops_across_the_pull_times_their_period(direction, courses,
+                                                                           wales):
+    """m courses (or n wales) of a large fabric occupy m periods across the pull, the period
+    read here from the specimen's own natural loops (issue 41: the course pull's m·c written
+    (m − 1)·c moved the acrylic y prediction from 0.235 to 0.308 and no test saw it)."""
+    sp = build_specimen({**SYNTH_DOC, "material": SYNTH_TRUTH}, "<t>", direction, courses,
+                        wales, "t")
+    pr = sp.problem
+    if direction == "courses":
+        ys = [pr.natural_position((i, 1), 0.0)[1] for i in range(1, courses + 1)]
+        period, count = (ys[-1] - ys[0]) / (courses - 1), courses
+    else:
+        xs = [pr.natural_position((1, j), 0.0)[0] for j in range(1, wales + 1)]
+        period, count = (xs[-1] - xs[0]) / (wales - 1), wales
+    assert period > 0 and sp.pitch_width == pytest.approx(count * period, rel=1e-9)
+
+
+def test_predicted_strains_standard_errors_are_the_values_covariance_propagated(tmp_path):
+    """The held-out test's standard errors of the model's strains are J Σ Jᵀ, Σ the fitted
+    values' covariance (their standard errors and correlation, as reported) and J the strains'
+    derivatives in the values, here by central differences of re-solved curves (issue 41: the
+    errors divided by a wrong factor passed every test)."""
+    width = synthetic_columns(tmp_path / "synthetic.csv", rows=400)
+    start = {**SYNTH_TRUTH, "k_a": 0.02, "k_b": 0.0015}
+    spec = synthetic_spec(tmp_path, width, '["k_a", "k_b"]', start, extra="""
+    [[test]]
+    file = "synthetic.csv"
+    format = "columns"
+    direction = "wales"
+    use = "predict"
+    width = %r
+    """ % width)
+    res = knit_nlp.calibrate(spec)
+    pred = res.tests[1]
+    names = ["k_a", "k_b"]
+    std = np.array([res.parameters()[n]["std_error"] for n in names])
+    cov = res.fit.correlation * np.outer(std, std)
+    tm = Calibration(load_spec(spec)).models[1]
+    tm.strain_limit = 3.0
+    forces = np.array(pred.metric.forces)
+    J = []
+    for n in names:
+        h = 1e-3 * res.values[n]
+        up, down = ({**res.values, n: res.values[n] + s * h} for s in (1.0, -1.0))
+        J.append((tm.strains(up, forces)[0] - tm.strains(down, forces)[0]) / (2 * h))
+    J = np.stack(J, axis=1)
+    expected = np.sqrt(np.einsum("fi,ij,fj->f", J, cov, J))
+    assert np.all(expected > 0)
+    assert pred.model_se_axial == pytest.approx(expected, rel=0.02)

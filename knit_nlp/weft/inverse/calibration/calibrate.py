@@ -1,8 +1,8 @@
-"""Calibration: fit material values (and the length scale) on measured tests, predict the rest.
+"""Calibration: fit material values on measured tests, predict the rest.
 
 Each test is a specimen model (``specimen``, ``curve``); its real force is the model force
-times the width ratio s = W / (pitch width), W the test's width in length units (given, or its
-width in clamp widths × ``length_scale``). The fit matches, on every ``use = "fit"`` test, the
+times the width ratio s = W / (pitch width), W the test's real width in mm (given, or its width
+in clamp widths × the clamp width, 35.5 mm by default: ``spec.CLAMP_WIDTH_MM``). The fit matches, on every ``use = "fit"`` test, the
 model's strains at 20 forces evenly spaced up to the largest force every run reaches against
 every run's strains at its first frame reaching them (axial, and lateral where measured and
 asked for). Tests with ``use = "predict"`` never enter the fit: they are evaluated once, at the
@@ -13,12 +13,14 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
-from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives, strain_slopes,
+from .checks import HALF, STIFFENING, outcome_checks
+from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives,
                     strains_at)
-from .fit import PENALTY, FitOutcome, fit_log
+from .fit import MAX_EVALUATIONS, PENALTY, FitOutcome, fit_log
 from .measured import MeasuredTest
 from .metric import levels, metric
 from .result import CalibrationResult, ModelCurve, TestOutcome
@@ -29,6 +31,7 @@ GOAL_MARGIN = 1.02          # the model curve runs to 2 % past the largest measu
 STRAIN_LIMIT_FACTOR = 3.0   # ... or stops at 3 times the largest measured axial strain
 STRAIN_LIMIT_FLOOR = 0.5    #     (but not below 0.5, nor above curve.MAX_STRAIN)
 CURVE_SAMPLES = 121         # model curve points written and drawn
+CHECKS_STRAIN = STIFFENING[1] + HALF    # ... and to the largest strain the checks read
 
 
 class TestModel:
@@ -36,10 +39,12 @@ class TestModel:
 
     def __init__(self, spec: CalibrationSpec, k: int) -> None:
         self.test: TestSpec = spec.tests[k]
+        self.clamp_width = spec.clamp_width
         self.specimen = build_specimen(spec.doc, str(spec.source), self.test.direction,
                                        self.test.courses, self.test.wales, spec.test_name(k))
         self.model = SpecimenModel(self.specimen)
         self._cache: tuple[tuple[float, ...], Curve] | None = None
+        self.min_strain = 0.0          # the final evaluation's curve runs to CHECKS_STRAIN too
         measured = max(float(np.max(r.axial)) for r in self.measured.runs)
         self.strain_limit = min(MAX_STRAIN, max(STRAIN_LIMIT_FLOOR, STRAIN_LIMIT_FACTOR * measured))
         self.solves = 0
@@ -49,22 +54,23 @@ class TestModel:
     def measured(self) -> MeasuredTest:
         return self.test.measured
 
-    def width(self, values: dict[str, float]) -> float:
-        """The specimen's width in length units."""
+    def width(self, values: dict[str, float] | None = None) -> float:
+        """The real specimen's width in mm: the test's own, or its width in clamp widths times
+        the clamp width (``values`` is not used: the width is given, never fitted)."""
         if self.test.width is not None:
             return self.test.width
-        return float(self.measured.width_clamps * values["length_scale"])
+        return float(self.measured.width_clamps * self.clamp_width)
 
-    def scale(self, values: dict[str, float]) -> float:
+    def scale(self, values: dict[str, float] | None = None) -> float:
         """Real force over model force: width over the model specimen's pitch width."""
-        return self.width(values) / self.specimen.pitch_width
+        return self.width() / self.specimen.pitch_width
 
     def curve(self, values: dict[str, float]) -> Curve:
-        key = (*(values[k] for k in ("k_a", "k_b", "R_f", "length_scale")), self.strain_limit)
+        key = (*(values[k] for k in ("k_a", "k_b", "R_f")), self.strain_limit, self.min_strain)
         if self._cache is None or self._cache[0] != key:
             goal = GOAL_MARGIN * self.measured.max_force / self.scale(values)
             c = self.model.curve({k: values[k] for k in ("k_a", "k_b", "R_f")}, goal,
-                                 self.strain_limit)
+                                 self.strain_limit, self.min_strain)
             self.solves += c.solves
             self.iterations += c.iterations
             self._cache = (key, c)
@@ -82,22 +88,14 @@ class TestModel:
         """d(axial, lateral strain at real forces)/d(log value) for ``names``."""
         c = self.curve(values)
         fm = np.asarray(forces) / self.scale(values)
-        material = [n for n in names if n != "length_scale"]
+        if not names:
+            return np.zeros((len(fm), 0)), np.zeros((len(fm), 0))
         finder = implicit_derivatives if method == "implicit" else fd_derivatives
-        dax_m, dlat_m = finder(self.model, c, material, fm) if material else (None, None)
+        dax, dlat = finder(self.model, c, names, fm)
         if method != "implicit":
-            self.solves += 2 * len(c.u) * len(material)
-        dax, dlat = np.zeros((len(fm), len(names))), np.zeros((len(fm), len(names)))
-        for q, name in enumerate(names):
-            if name == "length_scale":
-                if self.test.width is None:      # s ∝ length_scale: ε(F/s), d/dlog s = −F ε'(F)
-                    sax, slat = strain_slopes(c, self.specimen, fm)
-                    dax[:, q], dlat[:, q] = -fm * sax, -fm * slat
-            else:
-                k = material.index(name)
-                dax[:, q] = dax_m[:, k] * values[name]
-                dlat[:, q] = dlat_m[:, k] * values[name]
-        return dax, dlat
+            self.solves += 2 * len(c.u) * len(names)
+        scale = np.array([values[n] for n in names])
+        return dax * scale, dlat * scale
 
     def matched(self, strains: tuple[str, ...]) -> tuple[str, ...]:
         """The strains this test contributes to a fit."""
@@ -107,11 +105,15 @@ class TestModel:
 class Calibration:
     """The spec's test models and the least-squares problem over the fitted values."""
 
-    def __init__(self, spec: CalibrationSpec) -> None:
+    def __init__(self, spec: CalibrationSpec,
+                 progress: Callable[[str], None] | None = None) -> None:
         t0 = time.perf_counter()
         self.spec = spec
+        self.progress = progress or (lambda line: None)
+        self.evaluations = 0
         self.models = [TestModel(spec, k) for k in range(len(spec.tests))]
         self.build_s = time.perf_counter() - t0
+        self.t0 = t0
         self.names = list(spec.fit)
         self._fit_data = {}
         for tm in self.models:
@@ -137,7 +139,12 @@ class Calibration:
             for kind in tm.matched(self.spec.strains):
                 model, data = (model_ax, ax) if kind == "axial" else (model_lat, lat)
                 parts.append(np.nan_to_num(model[None, :] - data, nan=PENALTY).ravel())
-        return np.concatenate(parts)
+        r = np.concatenate(parts)
+        self.evaluations += 1
+        self.progress(f"fit: evaluation {self.evaluations} (at most {MAX_EVALUATIONS}), rms "
+                      f"strain residual {np.sqrt(np.mean(r ** 2)):.4g}, "
+                      f"{time.perf_counter() - self.t0:.0f} s")
+        return r
 
     def jacobian(self, fitted: np.ndarray) -> np.ndarray:
         """d residual / d log(fitted values)."""
@@ -161,9 +168,11 @@ class Calibration:
 
     def outcome(self, tm: TestModel, values: dict[str, float],
                 cov_log: np.ndarray | None) -> TestOutcome:
-        """A test at the final values: its metric, model curve and strain uncertainty. The
-        curve may run to ``curve.MAX_STRAIN`` here, to reach the largest measured force."""
-        tm.strain_limit = MAX_STRAIN
+        """A test at the final values: its metric, checks, model curve and strain uncertainty.
+        The curve may run to ``curve.MAX_STRAIN`` here, to reach the largest measured force,
+        and it runs at least to the strain the checks read (``CHECKS_STRAIN``), past that force
+        where the model is stiffer than the fabric."""
+        tm.strain_limit, tm.min_strain = MAX_STRAIN, CHECKS_STRAIN
         c = tm.curve(values)
         forces = np.array(self.spec.forces)
         ax, lat = tm.strains(values, forces)
@@ -182,16 +191,22 @@ class Calibration:
                            c.lateral / tm.specimen.lateral_width - 1.0, sample, s_ax, s_lat)
         reason = "" if c.complete else (f"{c.reason}: it reaches {top:.4g} N of the "
                                         f"{tm.measured.max_force:.4g} N measured")
+        checks = outcome_checks((curve.axial, curve.force),
+                                [(r.axial, r.force) for r in tm.measured.runs], tm.width())
         return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
-                           c.complete, reason)
+                           c.complete, dict(self.spec.targets.get(tm.test.use, {})), reason,
+                           checks)
 
 
-def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:
+def calibrate(spec_or_path: CalibrationSpec | str | Path,
+              progress: Callable[[str], None] | None = None) -> CalibrationResult:
     """Fit a spec's ``[calibrate] fit`` values on its fit tests and evaluate every test
-    (the Python entry point behind ``knit-nlp calibrate``). Bad input raises ProblemError."""
+    (the Python entry point behind ``knit-nlp calibrate``). Bad input raises ProblemError.
+    ``progress`` receives a line after every residual evaluation and before every test's
+    final evaluation (the command prints them on stderr)."""
     spec = spec_or_path if isinstance(spec_or_path, CalibrationSpec) else load_spec(spec_or_path)
     t0 = time.perf_counter()
-    cal = Calibration(spec)
+    cal = Calibration(spec, progress)
     t1 = time.perf_counter()
     ans = cal.fit()
     t2 = time.perf_counter()
@@ -200,7 +215,11 @@ def calibrate(spec_or_path: CalibrationSpec | str | Path) -> CalibrationResult:
     if ans is not None and all(s is not None for s in ans.std_errors):
         se = np.array(ans.std_errors) / ans.values
         cov_log = ans.correlation * np.outer(se, se)
-    outcomes = [cal.outcome(tm, values, cov_log) for tm in cal.models]
+    outcomes = []
+    for tm in cal.models:
+        cal.progress(f"evaluating {tm.test.file} ({tm.test.use}, pulled along the "
+                     f"{tm.test.direction}), {time.perf_counter() - t0:.0f} s")
+        outcomes.append(cal.outcome(tm, values, cov_log))
     t3 = time.perf_counter()
     timings = {"build_s": cal.build_s, "fit_s": t2 - t1, "evaluate_s": t3 - t2,
                "total_s": t3 - t0, "forward_solves": sum(tm.solves for tm in cal.models),

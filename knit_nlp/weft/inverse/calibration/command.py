@@ -1,17 +1,20 @@
 """``knit-nlp calibrate SPEC.toml [--out DIR]``: the command-line door to :func:`calibrate`.
 
-Exit codes as every command: 0 the fit converged and every model curve reached its test's
-largest force; 1 otherwise (files still written, ``"success": false``); 2 a bad spec or test file
-(one line, nothing written).
+Exit codes as every command: 0 the fit converged and every test is within its targets
+(``spec.TARGETS``, or the spec's ``[calibrate.targets]``); 1 otherwise, as for a solve that did
+not converge (files still written, ``"success": false``); 2 a bad spec or test file (one line,
+nothing written). The summary ends with the verdict, one line per test.
 """
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from ....outdir import prepare_out
 from ....provenance import check_overwrite
 from .calibrate import calibrate
+from .checks import describe
 from .result import CalibrationResult
 from .spec import load_spec
 
@@ -21,10 +24,15 @@ def run(args: argparse.Namespace) -> int:
     spec = load_spec(args.spec)
     out = prepare_out(args.out, spec.name, ("calibration", "curves"))
     check_overwrite(out.glob(f"{spec.name}.calibration.json"), spec.source, args.force)
-    result = calibrate(spec)
+    result = calibrate(spec, progress=_progress)
     paths = result.save(out)
     print(summary(result, paths))
     return 0 if result.success else 1
+
+
+def _progress(line: str) -> None:
+    """A progress line on stderr (the summary and verdict go to stdout)."""
+    print(f"calibrate: {line}", file=sys.stderr, flush=True)
 
 
 def summary(result: CalibrationResult, paths: list[Path]) -> str:
@@ -33,21 +41,35 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
              f"{result.timings['total_s']:.1f} s, {result.timings['forward_solves']} forward "
              f"solves)"]
     for name, row in result.parameters().items():
+        measured = f"; measured {row['measured']:.4g}" if "measured" in row else ""
         if row["fitted"]:
             se = row.get("std_error")
             err = "undetermined" if se is None else f"± {se:.3g}"
-            lines.append(f"  {name} = {row['value']:.6g} {err} (fitted; from {row['initial']:.4g})")
+            start = "" if measured else f"; from {row['initial']:.4g}"
+            lines.append(f"  {name} = {row['value']:.6g} {err} (fitted{start}{measured})")
         else:
-            lines.append(f"  {name} = {row['value']:.6g} (held)")
+            lines.append(f"  {name} = {row['value']:.6g} (held{', measured' if measured else ''})")
+    given = result.given()
+    lines.append(f"  clamp width {given['clamp_width_mm']:g} mm ({given['clamp_width_source']}); "
+                 f"loop length {given['loop_length_mm']:g} mm (held)")
     for t in result.tests:
         m = t.metric
         lat = "" if m.rms_lateral is None else f", lateral {m.rms_lateral:.4f}"
         axial = "n/a" if m.rms_axial is None else f"{m.rms_axial:.4f}"
         sp = t.specimen.problem
-        state = "" if t.success else f"  [model curve incomplete: {t.reason}]"
+        state = "" if t.complete else f"  [model curve incomplete: {t.reason}]"
         lines.append(f"  {t.test.file} ({t.test.use}, {t.test.direction}, {sp.courses} x "
                      f"{sp.wales} loops): rms strain error axial {axial}{lat}{state}")
+        lines.append(f"    checks: {describe(t.checks)}")
+    for key, ratio in result.checks().items():
+        if ratio is not None:
+            show = lambda v: "n/a" if v is None else f"{v:.3g}"     # noqa: E731
+            lines.append(f"  {key.replace('_', ' ')}: {show(ratio['model'])} (measured "
+                         f"{show(ratio['measured'])})")
     for w in (result.fit.warnings if result.fit is not None else []):
         lines.append(f"  warning: {w}")
     lines.append(f"  wrote {', '.join(str(p) for p in paths)}")
+    lines.append("verdict:" if result.fit is None or result.fit.success
+                 else f"verdict (the fit did not converge: {result.fit.status}):")
+    lines += [f"  {t.verdict()}" for t in result.tests]
     return "\n".join(lines)

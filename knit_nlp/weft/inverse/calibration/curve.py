@@ -5,7 +5,9 @@ One forward NLP is built per specimen (``contact_equilibrium.equilibrium_for``: 
 and re-solved at every step from the previous step's solution. Steps aim at even force
 increments (the secant stiffness of the last step sets the next), so the curve is resolved
 alike wherever its slope; a failed solve halves the step. The curve ends at the first node
-past the goal force, or where the model's force stops rising, or at ``MAX_STRAIN``.
+past the goal force (and past a smallest strain, if asked: beyond the goal force the steps aim
+at even strain increments up to it), or where the model's force stops rising, or at
+``MAX_STRAIN``.
 
 Strain at a force is read by monotone cubic (PCHIP) interpolation of the nodes. Sensitivities
 of those strains to the material values come either from the implicit-function theorem at each
@@ -105,9 +107,9 @@ class SpecimenModel:
         return rep
 
     def curve(self, material: dict[str, float], goal: float,
-              strain_limit: float = MAX_STRAIN) -> Curve:
-        """Pull until the force passes ``goal`` (model force units), or the axial strain
-        ``strain_limit``."""
+              strain_limit: float = MAX_STRAIN, min_strain: float = 0.0) -> Curve:
+        """Pull until the force passes ``goal`` (model force units) and the axial strain
+        ``min_strain``, or until the axial strain ``strain_limit``."""
         L0 = self.specimen.gauge
         c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
         rep = self._solve(self.params(material, 0.0), None, c)
@@ -117,7 +119,7 @@ class SpecimenModel:
         us, fs, lats = [0.0], [0.0], [self.lateral(rep.x)[0]]
         c.xs, c.lams = [rep.x], [rep.lam_g]
         step = FIRST_STRAIN * L0
-        while fs[-1] < goal:
+        while fs[-1] < goal or us[-1] < min_strain * L0:
             remaining = strain_limit * L0 - us[-1]
             if remaining < MIN_STRAIN_STEP * L0 or len(us) > 10 * NODES:
                 c.complete, c.reason = False, (f"stopped at axial strain {us[-1] / L0:.3g} "
@@ -147,8 +149,10 @@ class SpecimenModel:
             lats.append(self.lateral(rep.x)[0])
             c.xs.append(rep.x)
             c.lams.append(rep.lam_g)
-            step = float(np.clip(goal / NODES / stiffness, MIN_STRAIN_STEP * L0,
-                                 min(MAX_STRAIN_STEP * L0, 3 * step)))
+            aim = goal / NODES / stiffness if f < goal else min_strain * L0 / NODES
+            step = float(np.clip(aim, MIN_STRAIN_STEP * L0, min(MAX_STRAIN_STEP * L0, 3 * step)))
+        if fs[-1] >= goal:          # stopped on the way to min_strain: the goal was reached
+            c.complete, c.reason = True, ""
         c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
         return c
 

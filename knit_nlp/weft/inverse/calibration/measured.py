@@ -198,6 +198,12 @@ def _checked_force(path: Path, label: str, force: np.ndarray) -> None:
         raise _fail(path, f"run {label}", "force_N", f"the force never rises above the first "
                     f"frame's {force[0]:g} N; a tensile test's force must grow (check the column "
                     "or the run's frames)")
+    top = int(np.argmax(force))
+    if len(force) - 1 - top > top:
+        raise _fail(path, f"run {label}", "force_N", f"the force reaches its largest value "
+                    f"{force[top]:g} N at frame {top + 1} of {len(force)} and falls after it for "
+                    "most of the run; a tensile test's force must grow (check the column or the "
+                    "frames' order; cut the frames after a break)")
 
 
 def read_stitch_by_stitch(path: Path, file: str) -> MeasuredTest:

@@ -22,6 +22,7 @@ def _panel(ax, t: Any) -> None:
     forces = np.linspace(0.0, measured.common_force, BAND_POINTS)
     style = "-" if t.test.use == "fit" else "--"
     kinds = ("axial", "lateral") if measured.has_lateral else ("axial",)
+    right = max(measured.max_force, t.metric.forces[-1]) * 1.02
     for kind in kinds:
         runs = levels(measured, forces, lateral=kind == "lateral")
         colour = COLOURS[kind]
@@ -31,24 +32,34 @@ def _panel(ax, t: Any) -> None:
                 label=f"measured {kind}: median")
         model = t.curve.sample_axial if kind == "axial" else t.curve.sample_lateral
         what = "model on a fit test" if t.test.use == "fit" else "model, predicted (held out)"
-        ax.plot(t.curve.sample_force, model, color=colour, lw=2.0, ls=style,
+        shown = t.curve.sample_force <= right       # (the curve may run on past the data)
+        ax.plot(t.curve.sample_force[shown], model[shown], color=colour, lw=2.0, ls=style,
                 label=f"{what} ({kind})")
         points = t.metric.measured_axial if kind == "axial" else t.metric.measured_lateral
         ax.plot(t.metric.forces, points, "o", ms=4, mfc="white", color=colour)
     ax.axhline(0.0, color="0.6", lw=0.5)
     ax.set_xlabel("force (N)")
     ax.set_ylabel("strain (–)")
-    ax.set_xlim(0.0, max(measured.max_force, t.metric.forces[-1]) * 1.02)
+    ax.set_xlim(0.0, right)
     rms = t.metric
     lat = "" if rms.rms_lateral is None else f", lateral {rms.rms_lateral:.3f}"
     axial = "n/a" if rms.rms_axial is None else f"{rms.rms_axial:.3f}"
-    state = "" if t.success else f"\nmodel curve stops: {t.reason[:70]}"
+    state = "" if t.complete else f"\nmodel curve stops: {t.reason[:70]}"
     sp = t.specimen.problem
     ax.set_title(f"{t.test.file}: pulled along the {t.test.direction} ({t.test.use})\n"
                  f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
-                 f"{axial}{lat}{state}", fontsize=9)
+                 f"{axial}{lat}{state}\n{_checks_line(t.checks)}\n{t.verdict()}", fontsize=8)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     ax.grid(alpha=0.3)
+
+
+def _checks_line(c: dict[str, Any]) -> str:
+    """Model (measured) force at 10 and 30 % strain and stiffening, for a panel's title."""
+    show = lambda v, f=".3g": "n/a" if v is None else format(v, f)     # noqa: E731
+    forces = ", ".join(f"F({float(e):.0%}) {show(c['model']['force_N'][e])} "
+                       f"({show(c['measured']['force_N'][e])}) N" for e in c["model"]["force_N"])
+    return (f"model (measured): {forces}; stiffening 5->45% {show(c['model']['stiffening'])} "
+            f"({show(c['measured']['stiffening'])})")
 
 
 def plot_calibration(path: Path, result: Any) -> Path:
@@ -66,7 +77,14 @@ def plot_calibration(path: Path, result: Any) -> Path:
     vals = ", ".join(
         f"{k} = {v['value']:.4g}" + (" (fitted)" if v["fitted"] else "")
         for k, v in result.parameters().items())
-    fig.suptitle(f"{result.name}: {vals}\n(k_a, k_b in {units.force}/{units.length}, R_f in "
-                 f"{units.force}·{units.length}², length_scale in {units.length} per clamp width;"
-                 f" circles: measured medians at the metric forces)", fontsize=9)
+    ratio = ""
+    for key, r in result.checks().items():
+        if r is not None:
+            show = lambda v: "n/a" if v is None else f"{v:.3g}"     # noqa: E731
+            ratio = (f"; wale / course stiffness per width at 10 % strain: model "
+                     f"{show(r['model'])}, measured {show(r['measured'])}")
+    fig.suptitle(f"{result.name}: {vals}; clamp width {result.spec.clamp_width:g} {units.length}"
+                 f"\n(k_a, k_b in {units.force}/{units.length}, R_f in "
+                 f"{units.force}·{units.length}²; circles: measured medians at the metric forces)"
+                 f"{ratio}", fontsize=9)
     return save_figure(fig, path, dpi=110)

@@ -16,8 +16,11 @@ import numpy as np
 
 from ....jsonio import write_csv, write_json
 from ....provenance import source_record
+from ...model.params import MATERIAL
+from .checks import RATIO_STRAIN, wale_over_course
 from .metric import MetricPoints
 from .plot import plot_calibration
+from .spec import CLAMP_SOURCE, CLAMP_WIDTH_MM, MEASURED
 
 if TYPE_CHECKING:
     from .fit import FitOutcome
@@ -25,7 +28,8 @@ if TYPE_CHECKING:
     from .specimen import Specimen
 
 CURVE_COLUMNS = ("test", "use", "force_N", "axial_strain", "lateral_strain")
-TARGETS = {"fit": {"axial": 0.03}, "predict": {"axial": 0.05, "lateral": 0.05}}   # issue 20
+DIRECTION_AXIS = {"courses": "x", "wales": "y"}
+VERDICT = {"fit": ("fits", "does not fit"), "predict": ("predicted", "not predicted")}
 
 
 @dataclass(frozen=True)
@@ -51,13 +55,47 @@ class TestOutcome:
     model_se_axial: np.ndarray | None      # standard error of the model's strain at the metric
     model_se_lateral: np.ndarray | None    # forces, from the fit's covariance
     curve: ModelCurve
-    success: bool                  # the model curve reached the largest measured force
+    complete: bool                 # the model curve reached the largest measured force
+    targets: dict[str, float]      # by strain: the largest RMS strain error allowed (spec)
     reason: str = ""
+    checks: dict[str, Any] = field(default_factory=dict)   # checks.outcome_checks
+
+    def errors(self) -> dict[str, float | None]:
+        """RMS strain error by strain (None: the model did not reach every metric force)."""
+        out = {"axial": self.metric.rms_axial}
+        if self.metric.measured_lateral is not None:
+            out["lateral"] = self.metric.rms_lateral
+        return out
+
+    def within(self) -> dict[str, bool]:
+        """Per targeted strain: is its RMS error within the target? A strain the test did not
+        measure cannot meet its target, nor can a model that did not reach every force."""
+        errs = self.errors()
+        return {k: errs.get(k) is not None and errs[k] <= target
+                for k, target in self.targets.items()}
+
+    @property
+    def success(self) -> bool:
+        """The test is within its targets (and its model curve complete)."""
+        return self.complete and all(self.within().values())
+
+    def verdict(self) -> str:
+        """One line: ``fit on x: axial 0.0461 against 0.03: does not fit``."""
+        use, axis = self.test.use, DIRECTION_AXIS[self.test.direction]
+        errs = self.errors()
+        parts = [f"{k} {_fmt(errs.get(k))} against {target:g}" for k, target in self.targets.items()]
+        good, bad = VERDICT[use]
+        head = f"fit on {axis}" if use == "fit" else f"predicted {axis}"
+        tail = "" if self.complete else " (the model curve stops short of the largest force)"
+        return f"{head} ({self.test.file}): {', '.join(parts) or 'no target'}: " \
+               f"{good if self.success else bad}{tail}"
 
     def to_json(self) -> dict[str, Any]:
         t, sp = self.test, self.specimen
         out = {"file": t.file, "format": t.format, "direction": t.direction, "use": t.use,
-               "success": self.success, "rms_strain_error": {
+               "success": self.success, "complete": self.complete, "targets": self.targets,
+               "within_target": self.within(), "verdict": self.verdict(),
+               "rms_strain_error": {
                    "axial": self.metric.rms_axial, "lateral": self.metric.rms_lateral},
                "metric": self.metric.to_json(),
                "specimen": {"courses": sp.problem.courses, "wales": sp.problem.wales,
@@ -65,12 +103,13 @@ class TestOutcome:
                             "aspect_source": t.aspect_source, "aspect_model": sp.aspect,
                             "gauge": sp.gauge, "pitch_width": sp.pitch_width,
                             "width": self.width, "width_clamps": t.width_clamps},
+               "checks": self.checks,
                "runs": len(t.measured.runs), "max_force_measured": t.measured.max_force,
                "max_force_model": float(self.curve.force[-1]) if len(self.curve.force) else 0.0}
         if self.model_se_axial is not None:
             out["metric"]["model_std_error"] = {"axial": self.model_se_axial,
                                                 "lateral": self.model_se_lateral}
-        if not self.success:
+        if not self.complete:
             out["reason"] = self.reason
         return out
 
@@ -91,22 +130,23 @@ class CalibrationResult:
 
     @property
     def success(self) -> bool:
+        """The fit converged and every test is within its targets (the verdict)."""
         return (self.fit is None or self.fit.success) and all(t.success for t in self.tests)
 
     @property
     def status(self) -> str:
         if self.fit is not None and not self.fit.success:
             return self.fit.status
-        failed = [t.test.file for t in self.tests if not t.success]
-        if failed:
+        if any(not t.complete for t in self.tests):
             return "Model_Curve_Incomplete"
-        return "Evaluated" if self.fit is None else self.fit.status
+        return "Within_Targets" if self.success else "Targets_Missed"
 
     @property
     def message(self) -> str:
-        failed = [f"{t.test.file}: {t.reason}" for t in self.tests if not t.success]
-        head = "nothing fitted" if self.fit is None else self.fit.message
-        return "; ".join([head, *failed])
+        """The fit's word, then every test's verdict and why a curve stopped."""
+        head = "nothing fitted" if self.fit is None else f"fit: {self.fit.message}"
+        stops = [f"{t.test.file}: {t.reason}" for t in self.tests if not t.complete]
+        return "; ".join([head, *(t.verdict() for t in self.tests), *stops])
 
     @property
     def energy(self) -> None:
@@ -120,17 +160,32 @@ class CalibrationResult:
         return 0 if self.fit is None else self.fit.nit
 
     def parameters(self) -> dict[str, dict[str, Any]]:
+        """Per material value: the answer, whether fitted, its start, its standard error, and
+        for a measured value (``spec.MEASURED``) what the spec gives as its measurement."""
         fitted = list(self.spec.fit)
         out = {}
-        for name in ("k_a", "k_b", "R_f", "length_scale"):
-            if name == "length_scale" and all(t.test.width is not None for t in self.tests):
-                continue
+        for name in MATERIAL:
             row: dict[str, Any] = {"value": self.values[name], "fitted": name in fitted,
                                    "initial": self.spec.values[name]}
             if name in fitted and self.fit is not None:
                 row["std_error"] = self.fit.std_errors[fitted.index(name)]
+            if name in MEASURED:
+                row["measured"] = self.spec.values[name]
             out[name] = row
         return out
+
+    def checks(self) -> dict[str, Any]:
+        """Across tests: the ratio of wale to course stiffness per width (``checks``)."""
+        ratio = wale_over_course([(t.test.direction, t.checks) for t in self.tests])
+        return {f"wale_over_course_stiffness_per_width_at_{RATIO_STRAIN:g}": ratio}
+
+    def given(self) -> dict[str, Any]:
+        """What the source gives and the calibration holds: the clamp width (mm, and where it
+        comes from) and the yarn's length per stitch (the loop length)."""
+        return {"clamp_width_mm": self.spec.clamp_width,
+                "clamp_width_source": CLAMP_SOURCE if self.spec.clamp_width == CLAMP_WIDTH_MM
+                else "the spec's [calibrate] clamp_width_mm",
+                "loop_length_mm": self.spec.base.L}
 
     def correlation(self) -> dict[str, Any]:
         names = list(self.spec.fit)
@@ -151,15 +206,16 @@ class CalibrationResult:
                "message": self.message, "nit": self.nit,
                "units": {**units.to_json(), "k_a": f"{units.force}/{units.length}",
                          "k_b": f"{units.force}/{units.length}",
-                         "R_f": f"{units.force}·{units.length}²",
-                         "length_scale": f"{units.length} per clamp width"},
+                         "R_f": f"{units.force}·{units.length}²"},
                "fit": list(self.spec.fit), "parameters": self.parameters(),
+               "given": self.given(),
                "correlation": self.correlation(),
                "metric_forces_N": list(self.spec.forces),
                "fit_strains": list(self.spec.strains),
                "sensitivities": self.spec.sensitivities,
                "tests": [t.to_json() for t in self.tests],
-               "targets": TARGETS,
+               "checks": self.checks(),
+               "targets": self.spec.targets,
                "warnings": self.fit.warnings if self.fit is not None else [],
                "timings": self.timings}
         source = source_record(str(self.spec.source))

@@ -23,7 +23,22 @@ from .measured import FORMATS, MeasuredTest, read_test
 from .metric import METRIC_FORCES, check_reaches
 from .specimen import DIRECTIONS, loop_counts
 
-FITTABLE = MATERIAL + ("length_scale",)
+FITTABLE = MATERIAL
+# Values the yarn's own tests measure (stitch-by-stitch, Singal et al. 2024: the acrylic's
+# bending modulus from cantilever tests, data/Yarn_bending/): held unless the spec fits them,
+# and a fitted one is reported beside the value the spec gives for it. k_a and k_b, the planar
+# model's crossing springs, have no measurement: their spec values are only starting values.
+MEASURED = {"R_f": "the yarn's bending modulus"}
+# The testing machine's clamp, mm: stitch-by-stitch data/uniaxial_experiments/template.nb sets
+# clampSizeInPhysicalUnits = 35.5 and computes stress as force / (fabricSize · 35.5 / clampSize);
+# a tracking file's clamp_size_px / fabric_width_px give the width in clamp widths.
+CLAMP_WIDTH_MM = 35.5
+CLAMP_SOURCE = ("stitch-by-stitch data/uniaxial_experiments/template.nb: "
+                "clampSizeInPhysicalUnits = 35.5")
+LENGTH_SCALE_GONE = ("length_scale (mm per clamp width) is not fitted any more: it is the "
+                     "specimen's size, which the source gives (" + CLAMP_SOURCE + " mm), not a "
+                     "material value; remove it and write clamp_width_mm = 35.5 (the default) "
+                     "under [calibrate]")
 USES = ("fit", "predict")
 STRAINS = ("axial", "lateral")
 OWN_TABLES = ("test", "calibrate")
@@ -35,6 +50,12 @@ DEFAULT_MIN_LOOPS = 6
 MAX_LOOPS_SPEC = 40
 MAX_TESTS = 16
 FIT_LEVELS = 20             # fit forces: evenly spaced up to the largest force every run reaches
+# The verdict's targets (issue 40): RMS strain error at the metric's forces a test must stay
+# within, by its use and strain. A spec may change them in [calibrate.targets] as
+# fit_axial, fit_lateral, predict_axial, predict_lateral (a strain without a target is reported,
+# not judged).
+TARGETS: dict[str, dict[str, float]] = {"fit": {"axial": 0.03},
+                                        "predict": {"axial": 0.05, "lateral": 0.05}}
 
 
 @dataclass(frozen=True)
@@ -73,11 +94,13 @@ class CalibrationSpec:
     base: WeftProblem                      # that problem on a placeholder 2 x 2 fabric
     tests: tuple[TestSpec, ...]
     fit: tuple[str, ...]
-    values: dict[str, float]               # k_a, k_b, R_f and length_scale (initial / known)
+    values: dict[str, float]               # k_a, k_b, R_f (starting values, or held)
+    clamp_width: float                     # mm: one clamp width (a test's width unit)
     forces: tuple[float, ...]
     strains: tuple[str, ...]
     min_loops: int
     sensitivities: str
+    targets: dict[str, dict[str, float]]   # by use, by strain: the largest RMS error allowed
 
     def test_name(self, k: int) -> str:
         return f"{self.name}_test{k + 1}"
@@ -118,12 +141,19 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
     if base.units.force != "N":
         raise ProblemError(source, "units", "force", f"the tests' forces are in newtons "
                            f"(force_N); set force = \"N\" (got {quoted(base.units.force)})")
+    if base.units.length != "mm":
+        raise ProblemError(source, "units", "length", f"the clamp width and the yarn's measured "
+                           f"values are in mm; set length = \"mm\" (got "
+                           f"{quoted(base.units.length)})")
     fixed = _fabric(top) if fabric is not None else None
     cal = top.table("calibrate", required=True)
+    if cal.has("length_scale") or (isinstance(cal.data.get("fit"), list)
+                                   and "length_scale" in cal.data["fit"]):
+        raise cal.error("length_scale" if cal.has("length_scale") else "fit", LENGTH_SCALE_GONE)
     fit = tuple(cal.strings("fit", choices=FITTABLE))
     if len(set(fit)) != len(fit):
         raise cal.error("fit", "lists a value twice")
-    length_scale = cal.number("length_scale", None, positive=True)
+    clamp_width = cal.number("clamp_width_mm", CLAMP_WIDTH_MM, positive=True)
     forces = tuple(cal.numbers("forces", list(METRIC_FORCES)))
     if not forces or any(f <= 0 for f in forces) or list(forces) != sorted(set(forces)):
         raise cal.error("forces", "must be positive forces in N, increasing, each once")
@@ -132,6 +162,7 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
         raise cal.error("strains", "must list axial (and optionally lateral), each once")
     min_loops = cal.integer("min_loops", DEFAULT_MIN_LOOPS, minimum=2, maximum=MAX_LOOPS_SPEC)
     sens = cal.string("sensitivities", "implicit", choices=SENSITIVITIES)
+    targets = _targets(cal.table("targets"))
     cal.finish()
     tests = tuple(_read_test(t, source, base, fixed, min_loops, forces)
                   for t in top.tables("test"))
@@ -141,16 +172,7 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
         raise top.error("test", f"{len(tests)} tests; at most {MAX_TESTS}")
     if fit and not any(t.use == "fit" for t in tests):
         raise top.error("test", "fitting needs at least one test with use = \"fit\"")
-    in_clamps = [t for t in tests if t.width is None]
-    if in_clamps and length_scale is None:
-        raise cal.error("length_scale", f"required: test {quoted(in_clamps[0].file)} gives its "
-                        "width in clamp widths only; give length_scale (length units per clamp "
-                        "width; the starting value when it is fitted)")
-    if "length_scale" in fit and not any(t.width is None and t.use == "fit" for t in tests):
-        raise cal.error("fit", "length_scale can be fitted only from a fit test whose width is "
-                        "in clamp widths (a stitch_by_stitch file without width = ...)")
-    values = {"k_a": base.k_a, "k_b": base.k_b, "R_f": base.R_f,
-              "length_scale": length_scale if length_scale is not None else 1.0}
+    values = {"k_a": base.k_a, "k_b": base.k_b, "R_f": base.R_f}
     zero = [n for n in fit if values[n] <= 0]
     if zero:
         raise ProblemError(source, "material", zero[0], "a fitted value starts from its "
@@ -158,7 +180,19 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
                            "logarithm)")
     name = top.stem("name")
     return CalibrationSpec(name, top.string("description", ""), source, shared, base, tests,
-                           fit, values, forces, strains, min_loops, sens)
+                           fit, values, clamp_width, forces, strains, min_loops, sens, targets)
+
+
+def _targets(tab: Table) -> dict[str, dict[str, float]]:
+    """The verdict's targets: :data:`TARGETS` with the spec's ``[calibrate.targets]`` on top."""
+    out = {use: dict(by_strain) for use, by_strain in TARGETS.items()}
+    for use in USES:
+        for strain in STRAINS:
+            value = tab.number(f"{use}_{strain}", None, positive=True)
+            if value is not None:
+                out.setdefault(use, {})[strain] = value
+    tab.finish()
+    return out
 
 
 def _fabric(top: Table) -> tuple[int, int]:
