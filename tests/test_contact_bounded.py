@@ -80,3 +80,15 @@ def test_check_refuses_in_one_line_a_gap_search_it_could_not_finish(monkeypatch)
                        ) as err:
         checker.check(result, pr, where="r.json")
     assert "\n" not in str(err.value) and str(err.value).startswith("r.json")
+
+
+def test_the_solver_s_coarse_grid_and_check_count_the_same_crossings():
+    """A designed crossing is one thing to the solver and to check: the count is made on 200
+    segments per loop whatever the grid (the solver's is about one sample per radius, 16 per
+    loop at r = 0.656, where a crossed 6 x 6 stretch was judged clean). On uneven loops the
+    count from a 16-sample grid is the 200-sample count and the converged one (2000)."""
+    from knit_nlp.weft.model.contact.crossings import find_crossings
+    curves, L = _perturbed(4, 4, 3)
+    coarse, fine = (find_crossings(curves, Grid(4, 4, L, p)) for p in (16, 2000))
+    assert coarse.counts() == find_crossings(curves, Grid(4, 4, L, 200)).counts()
+    assert coarse.counts() == fine.counts() and len(fine) == 32

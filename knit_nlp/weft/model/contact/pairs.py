@@ -46,6 +46,7 @@ SAMPLES = 200             # samples per loop of the crossing count, solver's and
 MAX_SAMPLES = 5000        # ... at most (check --samples)
 FEWEST = 16               # the pair search samples each loop at least this often, ...
 PER_RADIUS = 1            # ... about this many times per radius in the solver ...
+MOST_PAIR_SAMPLES = 1000  # ... and never more often than this, whatever the grid
 CHECK_PER_RADIUS = 2      # ... and in check (a finer look than the solver's)
 
 
@@ -84,6 +85,11 @@ class Grid:
     def S(self) -> np.ndarray:
         """Sample positions along a course, 0..n·L."""
         return np.linspace(0.0, self.wales * self.L, self.wales * self.per_loop + 1)
+
+    def sampled_at(self, per_loop: int) -> "Grid":
+        """The same fabric sampled ``per_loop`` times per loop."""
+        return self if per_loop == self.per_loop else Grid(self.courses, self.wales, self.L,
+                                                           per_loop)
 
     def loop_of(self, course: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Loop index k and material s of course arc S (the end of a loop is the next loop's
@@ -340,7 +346,9 @@ def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float,
     time (:func:`strand_feet`): the same pairs, in the same order, as from all at once (to
     rounding: numpy may round differently on shorter arrays). A search estimated to look at
     more than ``limit`` sample pairs (near.estimate) raises :class:`TooLarge` before it
-    starts."""
+    starts. The search samples no finer than ``MOST_PAIR_SAMPLES`` per loop, whatever the
+    grid (it only proposes candidates; :func:`pair_samples`)."""
+    grid = grid.sampled_at(min(grid.per_loop, MOST_PAIR_SAMPLES))
     pts = course_samples(curves, grid)                        # (m, K, 2)
     within = 2 * fab.radius + reach + grid.h
     S = grid.S
