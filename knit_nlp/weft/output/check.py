@@ -2,8 +2,11 @@
 (with a yarn radius) are non-crossing pieces closer than 2r?
 
 Works on any weft result JSON (with or without contact): the loops are rebuilt from the
-result's course starts and coefficients (eq. 1) on the problem's loop length, sampled
-``samples`` times per loop. Crossings are counted per pair of loops against the natural fabric
+result's course starts and coefficients (eq. 1) on the problem's loop length. Crossings are
+counted on polylines of ``samples`` segments per loop (at least 200, the solver's count:
+crossings.crossing_samples), the gaps searched at ``samples`` per loop but no finer than two
+samples per radius (pairs.check_samples; a search estimated above limits.CHECK_ROWS sample pairs
+is refused in one line). Crossings are counted per pair of loops against the natural fabric
 (crossings.judge: new crossings are yarns that passed through each other; designed crossings
 that vanished are reported as lost). Gaps: every local minimum of the distance between two
 pieces of yarn that are not one piece (pairs.find_pairs, polished on the continuous
@@ -27,7 +30,8 @@ from ...limits import CHECK_ROWS, too_large
 from ...jsonio import write_json
 from ...tomlio import read_regular_file
 from ..model.basis import n_coeffs
-from ..model.contact.crossings import Crossings, Verdict, designed_zones, find_crossings, judge
+from ..model.contact.crossings import (Crossings, Verdict, crossing_samples, designed_zones,
+                                       find_crossings, judge)
 from ..model.contact.curves import Curves
 from ..model.contact.natural import NaturalFabric
 from ..model.contact.near import TooLarge
@@ -57,7 +61,8 @@ class CheckReport:
     smallest_gap: float | None                    # between pieces that must keep 2r
     thick_below_2r: int = 0                       # naturally closer than 2r, not closer now
     interlock_below_2r: int = 0                   # in designed interlocks (crossing is theirs)
-    samples: int = SAMPLES
+    samples: int = SAMPLES                        # segments per loop of the crossing count
+    gap_samples: int | None = None                # samples per loop of the gap search
     notes: list[str] = field(default_factory=list)
     n_short: int = 0                              # gaps below their requirement, all of them
 
@@ -71,9 +76,8 @@ class CheckReport:
 
     def line(self) -> str:
         """The one-line summary."""
-        n_new = sum(c["count"] for c in self.new_crossings)
-        text = (f"{self.problem}: {'clean' if self.ok else 'VIOLATIONS'}: {n_new} new crossings"
-                f" between {len(self.new_crossings)} pairs of loops")
+        text = (f"{self.problem}: {'clean' if self.ok else 'VIOLATIONS'}: {self.n_new} new "
+                f"crossings between {len(self.new_crossings)} pairs of loops")
         if self.radius is not None:
             text += f"; {self.n_short} gaps below their requirement"
             text += (f", smallest gap {self.smallest_gap / (2 * self.radius):.6g} x 2r "
@@ -98,9 +102,49 @@ class CheckReport:
                  f"{inside} of them inside the fabric")
         return f" (between {len(self.lost)} pairs of loops, {where})"
 
+    @property
+    def n_new(self) -> int:
+        return sum(c["count"] for c in self.new_crossings)
+
+    def verdict(self) -> str:
+        """What the check says about the answer, in words (the summary's, the picture's and
+        the result JSON's ``check.verdict``)."""
+        n = self.n_new
+        if self.radius is None:
+            return (f"{n} new crossings between {len(self.new_crossings)} pairs of loops: the "
+                    "paper's model has no yarn contact (add [yarn] radius)" if n else
+                    "clean: no yarn passes through another")
+        if self.ok:
+            text = "clean: no new crossing, no gap below its requirement"
+        else:
+            text = (f"{n} new crossings, {self.n_short} gaps below their requirement: the "
+                    "answer lets yarns overlap")
+        if self.smallest_gap is not None:
+            text += f" (smallest gap {self.smallest_gap / (2 * self.radius):.4g} x 2r)"
+        if self.thick_below_2r:
+            text += (f"; {self.thick_below_2r} thick-yarn pairs closer than 2r (naturally "
+                     "closer, kept at their natural gap: the yarn is thick for this loop)")
+        return text
+
+    def block(self) -> dict[str, Any]:
+        """The result JSON's ``check`` block: the counts, without the lists."""
+        gap = self.smallest_gap
+        return {"ok": self.ok, "verdict": self.verdict(), "radius": self.radius,
+                "new_crossings": self.n_new,
+                "new_crossing_pairs": len(self.new_crossings),
+                "lost_designed_crossings": self.lost_crossings,
+                "short_gaps_count": self.n_short,
+                "smallest_gap_over_2r": (None if gap is None or self.radius is None
+                                         else gap / (2 * self.radius)),
+                "thick_pairs": self.thick_below_2r,
+                "interlock_pairs_below_2r": self.interlock_below_2r,
+                "samples_per_loop": self.samples, "gap_samples_per_loop": self.gap_samples,
+                "command": "knit-nlp check RESULT.json lists them"}
+
     def to_json(self) -> dict[str, Any]:
         return {"problem": self.problem, "ok": self.ok, "radius": self.radius,
-                "samples_per_loop": self.samples, "gap_tolerance": GAP_TOL,
+                "samples_per_loop": self.samples, "gap_samples_per_loop": self.gap_samples,
+                "gap_tolerance": GAP_TOL,
                 "new_crossings": self.new_crossings, "lost_designed_crossings": self.lost_crossings,
                 "lost_crossings": self.lost,
                 "short_gaps_count": self.n_short, "short_gaps": self.short_gaps,
@@ -149,7 +193,12 @@ def _array(value: Any, shape: tuple[int, ...], where: str, key: str) -> np.ndarr
 def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
           where: str = "result") -> CheckReport:
     """Check a result (a parsed result JSON) of a problem."""
-    coeffs, starts = loops_of(result, problem, where)
+    return check_state(problem, *loops_of(result, problem, where), samples, where)
+
+
+def check_state(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray,
+                samples: int = SAMPLES, where: str = "result") -> CheckReport:
+    """Check a state of a problem: loop coefficients (m, n, 2t+2) and starts (m, n, 2)."""
     curves = Curves.of(coeffs, starts, problem.L)
     grid = Grid(problem.courses, problem.wales, problem.L, samples)
     radius = problem.yarn.radius if problem.yarn is not None else None
@@ -159,12 +208,13 @@ def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
     n = problem.wales
     report = CheckReport(problem.name, radius, _new(verdict, found, n),
                          _lost(verdict.lost_pairs, found.counts(), fab, problem), [], 0, None,
-                         samples=samples)
+                         samples=crossing_samples(samples))
     if radius is None:
         return report
     zones = designed_zones(fab, curves, grid, found, verdict.new)
     grid = Grid(problem.courses, problem.wales, problem.L,
                 check_samples(problem.L, radius, samples))
+    report.gap_samples = grid.per_loop
     try:
         pairs = find_pairs(fab, curves, grid, reach=REACH * radius, zones=zones,
                            limit=CHECK_ROWS)
@@ -237,6 +287,20 @@ def _lost(lost: dict[tuple[int, int], int], counts: dict[tuple[int, int], int],
 
 def _loop(k: int, n: int) -> list[int]:
     return [int(k // n) + 1, int(k % n) + 1]
+
+
+def own_check(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray
+              ) -> tuple[CheckReport | None, dict[str, Any]]:
+    """The check every weft result carries (``WeftResult.checked``): the report and its JSON
+    block, or None and a block saying why it was not made (a gap search too large to finish,
+    or loops that are not finite), never an exception."""
+    if not (np.all(np.isfinite(coeffs)) and np.all(np.isfinite(starts))):
+        return None, {"ok": None, "verdict": "not checked: the loops are not finite"}
+    try:
+        report = check_state(problem, np.asarray(coeffs), np.asarray(starts))
+    except ProblemError as err:
+        return None, {"ok": None, "verdict": f"not checked: {err.message}"}
+    return report, report.block()
 
 
 def load_result_json(path: Path) -> Any:
