@@ -263,6 +263,8 @@ COMMANDS = (
       (("--problem",), {"default": None, "help": "the result's problem file (default: its "
                                                  "recorded source, or found by its name)"}),
       (("--samples",), {"type": _samples, "default": SAMPLES, "metavar": "N",
-                        "help": f"polyline samples per loop (default {SAMPLES})"}), OUT),
+                        "help": f"polyline samples per loop (default {SAMPLES}): the "
+                                "crossing count's (at least 200, the solver's), and the gap "
+                                "search's up to 4 per radius"}), OUT),
      run_check),
 )

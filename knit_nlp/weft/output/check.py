@@ -4,7 +4,7 @@
 Works on any weft result JSON (with or without contact): the loops are rebuilt from the
 result's course starts and coefficients (eq. 1) on the problem's loop length. Crossings are
 counted on polylines of ``samples`` segments per loop (at least 200, the solver's count:
-crossings.crossing_samples), the gaps searched at ``samples`` per loop but no finer than two
+crossings.crossing_samples), the gaps searched at ``samples`` per loop but no finer than four
 samples per radius (pairs.check_samples; a search estimated above limits.CHECK_ROWS sample pairs
 is refused in one line). Crossings are counted per pair of loops against the natural fabric
 (crossings.judge: new crossings are yarns that passed through each other; designed crossings
@@ -197,8 +197,10 @@ def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
 
 
 def check_state(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray,
-                samples: int = SAMPLES, where: str = "result") -> CheckReport:
-    """Check a state of a problem: loop coefficients (m, n, 2t+2) and starts (m, n, 2)."""
+                samples: int = SAMPLES, where: str = "result", places: bool = True
+                ) -> CheckReport:
+    """Check a state of a problem: loop coefficients (m, n, 2t+2) and starts (m, n, 2);
+    ``places``: list where each new crossing is (the result's own check counts only)."""
     curves = Curves.of(coeffs, starts, problem.L)
     grid = Grid(problem.courses, problem.wales, problem.L, samples)
     radius = problem.yarn.radius if problem.yarn is not None else None
@@ -206,7 +208,7 @@ def check_state(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray,
     found = find_crossings(curves, grid)
     verdict = judge(fab, found, problem.courses, problem.wales)
     n = problem.wales
-    report = CheckReport(problem.name, radius, _new(verdict, found, n),
+    report = CheckReport(problem.name, radius, _new(verdict, found, n, places),
                          _lost(verdict.lost_pairs, found.counts(), fab, problem), [], 0, None,
                          samples=crossing_samples(samples))
     if radius is None:
@@ -237,24 +239,24 @@ def check_state(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray,
     return report
 
 
-def _new(verdict: Verdict, found: Crossings, n: int) -> list[dict[str, Any]]:
+def _new(verdict: Verdict, found: Crossings, n: int, places: bool = True
+         ) -> list[dict[str, Any]]:
     """Each pair of loops with new crossings: its loops, its crossings now and in the natural
-    fabric, and where they are (the crossings grouped once by their loop keys: a scan of all
-    crossings per pair took 12 s on the 100 x 100 pull's 32,667 pairs)."""
+    fabric, and (``places``) where they are. The crossings are grouped once by their loop
+    keys: a scan of all crossings per pair took 12 s on the 100 x 100 pull's 32,667 pairs."""
     if not verdict.new:
         return []
     big = int(found.kB.max()) + 1
     key = found.kA.astype(np.int64) * big + found.kB
     order = np.argsort(key, kind="stable")
     keys, first, count = np.unique(key[order], return_index=True, return_counts=True)
-    xy = np.round(found.xy[order], 6).tolist()
-    out = []
-    for (a, b), extra in sorted(verdict.new.items()):
-        g = int(np.searchsorted(keys, a * big + b))
-        lo, c = int(first[g]), int(count[g])
-        out.append({"loops": [_loop(a, n), _loop(b, n)], "count": c, "natural": c - extra,
-                    "where": xy[lo:lo + c]})
-    return out
+    xy = np.round(found.xy[order], 6).tolist() if places else []
+    pairs = sorted(verdict.new.items())
+    group = np.searchsorted(keys, [a * big + b for (a, b), _ in pairs])
+    return [{"loops": [_loop(a, n), _loop(b, n)], "count": int(count[g]),
+             "natural": int(count[g]) - extra,
+             "where": xy[first[g]:first[g] + count[g]] if places else []}
+            for ((a, b), extra), g in zip(pairs, group.tolist())]
 
 
 def _shortest(short: Pairs, curves: Curves, n: int) -> list[dict[str, Any]]:
@@ -297,7 +299,7 @@ def own_check(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray
     if not (np.all(np.isfinite(coeffs)) and np.all(np.isfinite(starts))):
         return None, {"ok": None, "verdict": "not checked: the loops are not finite"}
     try:
-        report = check_state(problem, np.asarray(coeffs), np.asarray(starts))
+        report = check_state(problem, np.asarray(coeffs), np.asarray(starts), places=False)
     except ProblemError as err:
         return None, {"ok": None, "verdict": f"not checked: {err.message}"}
     return report, report.block()

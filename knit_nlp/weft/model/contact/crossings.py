@@ -12,7 +12,7 @@ fabric (``NaturalFabric.crossings`` of their offset: 4 for vertically neighbouri
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -32,12 +32,19 @@ class Crossings:
     kB: np.ndarray
     sB: np.ndarray
     xy: np.ndarray
+    _counts: dict[tuple[int, int], int] | None = field(default=None, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.kA)
 
     def counts(self) -> dict[tuple[int, int], int]:
-        """Crossings per pair of loops."""
+        """Crossings per pair of loops (counted once: the judge and the check's report both
+        ask, 0.12 s each for the 90,000 crossings of the paper's 100 x 100 pull)."""
+        if self._counts is None:
+            self._counts = self._count()
+        return self._counts
+
+    def _count(self) -> dict[tuple[int, int], int]:
         keys, n = np.unique(np.stack([self.kA, self.kB], 1).reshape(-1, 2), axis=0,
                             return_counts=True)
         return {(int(a), int(b)): int(c) for (a, b), c in zip(keys, n)}

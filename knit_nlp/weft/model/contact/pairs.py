@@ -47,7 +47,7 @@ MAX_SAMPLES = 5000        # ... at most (check --samples)
 FEWEST = 16               # the pair search samples each loop at least this often, ...
 PER_RADIUS = 1            # ... about this many times per radius in the solver ...
 MOST_PAIR_SAMPLES = 1000  # ... and never more often than this, whatever the grid
-CHECK_PER_RADIUS = 2      # ... and in check (a finer look than the solver's)
+CHECK_PER_RADIUS = 4      # ... and in check (a finer look than the solver's)
 
 
 def pair_samples(L: float, radius: float, per_radius: float = PER_RADIUS,
@@ -64,7 +64,9 @@ def pair_samples(L: float, radius: float, per_radius: float = PER_RADIUS,
 def check_samples(L: float, radius: float, samples: int = SAMPLES) -> int:
     """Samples per loop of check's gap search at ``samples`` per loop asked: no finer than
     ``CHECK_PER_RADIUS`` per radius (at r = 1.0 the 10 x 10 check at 200 per loop took 150 s:
-    80 samples per strand across 4r, each a row of the search)."""
+    80 samples per strand across 4r, each a row of the search). Not coarser: at 2 per radius
+    (134 per loop at r = 0.15) the check of a 20 x 20 contact pull missed gaps of 0.75 x 2r
+    that 200 per loop finds (the solver's 67 per loop misses them too)."""
     return pair_samples(L, radius, CHECK_PER_RADIUS, samples)
 
 
