@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from knit_nlp.errors import ProblemError
 from knit_nlp.weft.model.cases import diagonal_pull
 from knit_nlp.weft.model.contact import rule
-from knit_nlp.weft.model.contact.pairs import pair_samples
+from knit_nlp.weft.model.contact.pairs import check_samples, pair_samples
 from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.output.check import check
 
@@ -78,6 +78,9 @@ def test_a_tiny_radius_samples_the_pair_search_no_finer_than_a_usual_one():
     298 GiB; the pair search samples about once per radius, between 16 and 200 per loop."""
     assert pair_samples(10.0, 0.15) == 67 and pair_samples(10.0, 2.0) == 16
     assert pair_samples(10.0, 1e-3) == pair_samples(10.0, 1e-9) == 200
+    # check looks no coarser than 200 per loop at r = 0.15: at 134 it missed the 20 x 20 contact
+    # pull's 5 gaps of 0.75 x 2r; a thick yarn's check is coarser (r = 0.85: 48 per loop)
+    assert check_samples(10.0, 0.15) == 200 and check_samples(10.0, 0.85) == 48
     pr = parse_problem(_pull(1e-3), "pull.toml")
     assert check(_natural(pr), pr).ok
 
