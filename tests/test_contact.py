@@ -287,13 +287,28 @@ def test_a_contact_solve_keeps_to_its_time_budget():
     assert not res.success and res.status == "Maximum_WallTime_Exceeded"
 
 
-def test_without_a_radius_nothing_changes():
-    """The paper's model: no contact block, the same solution as the same problem read with a
-    radius but solved without one (the contact study only starts where [yarn] is)."""
+def test_without_a_radius_nothing_changes(monkeypatch):
+    """The paper's model: no contact code runs (every ContactSolver made is counted) and the
+    result has no contact block. The same problem with a radius that never binds (r = 0.05:
+    the squeezed neck stays 1.15 x 2r open in the paper's answer) runs the contact code and
+    gives the paper's answer bit for bit; one that binds (r = 0.15) moves the loop, so the
+    comparison can see a difference."""
+    made = []
+    real = ContactSolver.__init__
+
+    def counted(self, *args, **kwargs):
+        made.append(1)
+        real(self, *args, **kwargs)
+    monkeypatch.setattr(ContactSolver, "__init__", counted)
     free = solve(squeezed(0.5, None))
-    assert "contact" not in free.to_json() and free.success
-    again = solve(dataclasses.replace(squeezed(0.5), yarn=None))
-    np.testing.assert_array_equal(free.x, again.x)
+    assert not made and "contact" not in free.to_json() and free.success
+    loose = solve(squeezed(0.5, 0.05))
+    assert made and loose.success
+    assert loose.extra["contact"]["route"] == "paper's model: no contact needed"
+    np.testing.assert_array_equal(loose.coefficients, free.coefficients)
+    np.testing.assert_array_equal(loose.starts, free.starts)
+    tight = solve(squeezed(0.5, 0.15))
+    assert np.abs(tight.coefficients - free.coefficients).max() > 0.05
 
 
 def test_a_failed_step_after_a_widened_search_reports_the_solved_pairs(monkeypatch):

@@ -154,13 +154,26 @@ def test_check_refuses_a_file_that_is_not_json(tmp_path, capsys):
 
 def test_check_of_a_natural_fabric_is_clean_with_and_without_a_radius(solved, tmp_path):
     """Natural loops (every coefficient the natural one) have exactly their designed crossings
-    and no gap short of its requirement."""
+    and no gap short of its requirement, judged with the radius and without one (the paper's
+    model: crossings only); the same loops with course 2 moved down onto course 1 are not
+    clean either way, so both judgements can fail."""
     path, out, result = solved
-    pr = parse_problem(_doc(0.15), "f.toml")
+    with_r = parse_problem(_doc(0.15), "f.toml")
+    doc = _doc(0.15)
+    del doc["yarn"]
+    without = parse_problem(doc, "f.toml")
     nat = json.loads(json.dumps(result))
-    nat["loops"]["coefficients"] = np.broadcast_to(pr.natural.coeffs, (2, 3, 8)).tolist()
-    nat["loops"]["course_starts"] = pr.natural_starts()[:, 0].tolist()
-    assert check(nat, pr).ok
+    nat["loops"]["coefficients"] = np.broadcast_to(with_r.natural.coeffs, (2, 3, 8)).tolist()
+    nat["loops"]["course_starts"] = with_r.natural_starts()[:, 0].tolist()
+    moved = json.loads(json.dumps(nat))
+    moved["loops"]["course_starts"][1][0] += 1.1
+    moved["loops"]["course_starts"][1][1] -= 3.0
+    for pr, radius in ((with_r, 0.15), (without, None)):
+        clean, bad = check(nat, pr), check(moved, pr)
+        assert clean.radius == bad.radius == radius
+        assert clean.ok and clean.n_new == 0 and clean.lost_crossings == 0
+        assert not bad.ok and bad.n_new > 0
+        assert (clean.gap_samples is None) == (radius is None)       # gaps looked at with r
 
 
 def test_check_counts_every_short_gap_and_lists_the_shortest_first(monkeypatch):

@@ -8,6 +8,7 @@ command line (``knit_nlp.cli``) reads it from there. A new weft command is one `
 """
 from __future__ import annotations
 
+import json
 import sys
 from argparse import ArgumentTypeError, Namespace
 from pathlib import Path
@@ -17,6 +18,7 @@ import numpy as np
 
 from ..errors import ArgumentError, ProblemError, quoted, shown
 from ..outdir import prepare_out
+from ..provenance import source_record
 from ..problems import resolve
 from ..tomlio import load_toml
 from .inverse.spec import has_control_keys, strip_control_keys
@@ -163,12 +165,63 @@ def run_check(args: Namespace) -> int:
     0 clean, 1 violations (bad input: ProblemError, exit 2)."""
     result_path = Path(args.result)
     result = load_result_json(result_path)
+    _is_result(result, result_path)
     given = resolve(args.problem) if args.problem else None
     problem = _problem_of(result, result_path, given)
+    if given is not None:
+        _same_source(result, result_path, given, problem)
     report = check(result, problem, args.samples, str(result_path))
     write_check(report, result_path, prepare_out(args.out, problem.name, ()))
     print(report.line())
     return 0 if report.ok else 1
+
+
+def _is_result(result: Any, path: Path) -> None:
+    """A weft result is a JSON object with ``loops`` (a solve's) or ``equilibrium`` (a
+    control's); anything else is refused by what it is (``null`` was "not a regular file":
+    its empty name led to the problems' folder)."""
+    if isinstance(result, dict) and ("loops" in result or "equilibrium" in result):
+        return
+    what = ("an object without 'loops'" if isinstance(result, dict) else
+            f"{json.dumps(result)[:40]}" if not isinstance(result, (list, dict)) else
+            "a list")
+    raise ProblemError(path, "", "", f"is not a weft result: it holds {what}, and a result is "
+                       "an object with 'loops' (knit-nlp solve's) or 'equilibrium' (control's)")
+
+
+def _natural_of(pr: WeftProblem) -> tuple:
+    """What a check judges a result against, besides the radius: the fabric's size and its
+    natural loop."""
+    nat = pr.natural
+    return (pr.courses, pr.wales, nat.length, nat.harmonics,
+            tuple(np.round(np.ravel(nat.coeffs), 12).tolist()), round(nat.wale_spacing, 12),
+            round(nat.rise, 12), round(nat.course_spacing, 12))
+
+
+def _same_source(result: dict, result_path: Path, given: Path, problem: WeftProblem) -> None:
+    """Refuse (exit 2) a ``--problem`` that is not the result's: the result records its
+    source file's sha256. Another file is accepted when the recorded file is still there,
+    unchanged, with the same fabric and natural loop as the given one (it may add or change
+    [yarn] radius: a paper's result judged with a radius)."""
+    record = result.get("source")
+    if not isinstance(record, dict) or not isinstance(record.get("sha256"), str):
+        return                                   # nothing recorded to compare with
+    mine = source_record(given)
+    if mine is None or mine["sha256"] == record["sha256"]:
+        return
+    recorded = Path(str(record.get("file", "")))
+    there = source_record(recorded) if recorded.is_file() else None
+    why = f"its recorded source {quoted(str(recorded))} is gone or changed"
+    if there is not None and there["sha256"] == record["sha256"]:
+        theirs = parse_problem(strip_control_keys(load_toml(recorded)), recorded)
+        if _natural_of(theirs) == _natural_of(problem):
+            return
+        why = (f"its fabric or natural loop differs from that of {quoted(str(recorded))} "
+               f"(loop length {problem.L:g} against {theirs.L:g}, {problem.courses} x "
+               f"{problem.wales} loops against {theirs.courses} x {theirs.wales})")
+    raise ProblemError(given, "", "", f"is not the problem {shown(result_path, 200)} was solved "
+                       f"from (another sha256), and {why}: pass the problem it was solved "
+                       "from")
 
 
 def _problem_of(result: Any, result_path: Path, given: Path | None) -> WeftProblem:
@@ -179,6 +232,9 @@ def _problem_of(result: Any, result_path: Path, given: Path | None) -> WeftProbl
         source = result.get("source") if isinstance(result, dict) else None
         recorded = Path(source["file"]) if isinstance(source, dict) and isinstance(
             source.get("file"), str) else None
+        if not name.strip() and recorded is None:
+            raise ProblemError(result_path, "", "problem", "names no problem and records no "
+                               "source file; pass --problem FILE")
         for candidate in (recorded, result_path.parent / f"{name}.toml"):
             if candidate is not None and candidate.is_file():
                 given = candidate
@@ -232,6 +288,8 @@ COMMANDS = (
       (("--problem",), {"default": None, "help": "the result's problem file (default: its "
                                                  "recorded source, or found by its name)"}),
       (("--samples",), {"type": _samples, "default": SAMPLES, "metavar": "N",
-                        "help": f"polyline samples per loop (default {SAMPLES})"}), OUT),
+                        "help": f"polyline samples per loop (default {SAMPLES}): the "
+                                "crossing count's (at least 200, the solver's), and the gap "
+                                "search's up to 4 per radius"}), OUT),
      run_check),
 )

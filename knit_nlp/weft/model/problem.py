@@ -223,6 +223,9 @@ def _read_yarn(tab: Table, natural: NaturalLoop) -> Yarn:
     if radius >= natural.length / 4:
         raise tab.error("radius", f"{radius:g} is not below a quarter of the loop length "
                         f"{natural.length:g}; a yarn that thick has no room in its own loop")
+    from .contact.rule import refusal           # the radii the contact rule can judge
+    if (why := refusal(natural, radius)) is not None:
+        raise tab.error("radius", why)
     tab.finish()
     return Yarn(radius)
 

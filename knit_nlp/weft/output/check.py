@@ -2,8 +2,11 @@
 (with a yarn radius) are non-crossing pieces closer than 2r?
 
 Works on any weft result JSON (with or without contact): the loops are rebuilt from the
-result's course starts and coefficients (eq. 1) on the problem's loop length, sampled
-``samples`` times per loop. Crossings are counted per pair of loops against the natural fabric
+result's course starts and coefficients (eq. 1) on the problem's loop length. Crossings are
+counted on polylines of ``samples`` segments per loop (at least 200, the solver's count:
+crossings.crossing_samples), the gaps searched at ``samples`` per loop but no finer than four
+samples per radius (pairs.check_samples; a search estimated above limits.CHECK_ROWS sample pairs
+is refused in one line). Crossings are counted per pair of loops against the natural fabric
 (crossings.judge: new crossings are yarns that passed through each other; designed crossings
 that vanished are reported as lost). Gaps: every local minimum of the distance between two
 pieces of yarn that are not one piece (pairs.find_pairs, polished on the continuous
@@ -23,18 +26,21 @@ from typing import Any
 import numpy as np
 
 from ...errors import ProblemError, shown
+from ...limits import CHECK_ROWS, too_large
 from ...jsonio import write_json
 from ...tomlio import read_regular_file
 from ..model.basis import n_coeffs
-from ..model.contact.crossings import designed_zones, find_crossings, judge
+from ..model.contact.crossings import (Crossings, Verdict, crossing_samples, designed_zones,
+                                       find_crossings, judge)
 from ..model.contact.curves import Curves
 from ..model.contact.natural import NaturalFabric
-from ..model.contact.pairs import Grid, Pairs, find_pairs
+from ..model.contact.near import TooLarge
+from ..model.contact.pairs import SAMPLES, Grid, Pairs, check_samples, find_pairs
 from ..model.problem import WeftProblem
 from ..model.quadrature import positions
 
 GAP_TOL = 1e-3             # the issue's target: no gap below 2r·(1 − 1e-3)
-SAMPLES = 200              # polyline samples per loop
+REACH = 0.5                # pairs within this many r of their required gap are looked at
 # the report lists at most this many short gaps, the shortest (relative to their requirement)
 # first, and counts them all: the paper's 100 x 100 pull judged at r = 0.15 has 2.3 million
 LISTED = 1000
@@ -55,7 +61,8 @@ class CheckReport:
     smallest_gap: float | None                    # between pieces that must keep 2r
     thick_below_2r: int = 0                       # naturally closer than 2r, not closer now
     interlock_below_2r: int = 0                   # in designed interlocks (crossing is theirs)
-    samples: int = SAMPLES
+    samples: int = SAMPLES                        # segments per loop of the crossing count
+    gap_samples: int | None = None                # samples per loop of the gap search
     notes: list[str] = field(default_factory=list)
     n_short: int = 0                              # gaps below their requirement, all of them
 
@@ -69,9 +76,8 @@ class CheckReport:
 
     def line(self) -> str:
         """The one-line summary."""
-        n_new = sum(c["count"] for c in self.new_crossings)
-        text = (f"{self.problem}: {'clean' if self.ok else 'VIOLATIONS'}: {n_new} new crossings"
-                f" between {len(self.new_crossings)} pairs of loops")
+        text = (f"{self.problem}: {'clean' if self.ok else 'VIOLATIONS'}: {self.n_new} new "
+                f"crossings between {len(self.new_crossings)} pairs of loops")
         if self.radius is not None:
             text += f"; {self.n_short} gaps below their requirement"
             text += (f", smallest gap {self.smallest_gap / (2 * self.radius):.6g} x 2r "
@@ -96,9 +102,49 @@ class CheckReport:
                  f"{inside} of them inside the fabric")
         return f" (between {len(self.lost)} pairs of loops, {where})"
 
+    @property
+    def n_new(self) -> int:
+        return sum(c["count"] for c in self.new_crossings)
+
+    def verdict(self) -> str:
+        """What the check says about the answer, in words (the summary's, the picture's and
+        the result JSON's ``check.verdict``)."""
+        n = self.n_new
+        if self.radius is None:
+            return (f"{n} new crossings between {len(self.new_crossings)} pairs of loops: the "
+                    "paper's model has no yarn contact (add [yarn] radius)" if n else
+                    "clean: no yarn passes through another")
+        if self.ok:
+            text = "clean: no new crossing, no gap below its requirement"
+        else:
+            text = (f"{n} new crossings, {self.n_short} gaps below their requirement: the "
+                    "answer lets yarns overlap")
+        if self.smallest_gap is not None:
+            text += f" (smallest gap {self.smallest_gap / (2 * self.radius):.4g} x 2r)"
+        if self.thick_below_2r:
+            text += (f"; {self.thick_below_2r} thick-yarn pairs closer than 2r (naturally "
+                     "closer, kept at their natural gap: the yarn is thick for this loop)")
+        return text
+
+    def block(self) -> dict[str, Any]:
+        """The result JSON's ``check`` block: the counts, without the lists."""
+        gap = self.smallest_gap
+        return {"ok": self.ok, "verdict": self.verdict(), "radius": self.radius,
+                "new_crossings": self.n_new,
+                "new_crossing_pairs": len(self.new_crossings),
+                "lost_designed_crossings": self.lost_crossings,
+                "short_gaps_count": self.n_short,
+                "smallest_gap_over_2r": (None if gap is None or self.radius is None
+                                         else gap / (2 * self.radius)),
+                "thick_pairs": self.thick_below_2r,
+                "interlock_pairs_below_2r": self.interlock_below_2r,
+                "samples_per_loop": self.samples, "gap_samples_per_loop": self.gap_samples,
+                "command": "knit-nlp check RESULT.json lists them"}
+
     def to_json(self) -> dict[str, Any]:
         return {"problem": self.problem, "ok": self.ok, "radius": self.radius,
-                "samples_per_loop": self.samples, "gap_tolerance": GAP_TOL,
+                "samples_per_loop": self.samples, "gap_samples_per_loop": self.gap_samples,
+                "gap_tolerance": GAP_TOL,
                 "new_crossings": self.new_crossings, "lost_designed_crossings": self.lost_crossings,
                 "lost_crossings": self.lost,
                 "short_gaps_count": self.n_short, "short_gaps": self.short_gaps,
@@ -147,7 +193,14 @@ def _array(value: Any, shape: tuple[int, ...], where: str, key: str) -> np.ndarr
 def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
           where: str = "result") -> CheckReport:
     """Check a result (a parsed result JSON) of a problem."""
-    coeffs, starts = loops_of(result, problem, where)
+    return check_state(problem, *loops_of(result, problem, where), samples, where)
+
+
+def check_state(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray,
+                samples: int = SAMPLES, where: str = "result", places: bool = True
+                ) -> CheckReport:
+    """Check a state of a problem: loop coefficients (m, n, 2t+2) and starts (m, n, 2);
+    ``places``: list where each new crossing is (the result's own check counts only)."""
     curves = Curves.of(coeffs, starts, problem.L)
     grid = Grid(problem.courses, problem.wales, problem.L, samples)
     radius = problem.yarn.radius if problem.yarn is not None else None
@@ -155,19 +208,21 @@ def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
     found = find_crossings(curves, grid)
     verdict = judge(fab, found, problem.courses, problem.wales)
     n = problem.wales
-    new = []
-    for (a, b), extra in sorted(verdict.new.items()):
-        here = (found.kA == a) & (found.kB == b)
-        new.append({"loops": [_loop(a, n), _loop(b, n)], "count": int(here.sum()),
-                    "natural": int(here.sum()) - extra,
-                    "where": np.round(found.xy[here], 6).tolist()})
-    report = CheckReport(problem.name, radius, new,
+    report = CheckReport(problem.name, radius, _new(verdict, found, n, places),
                          _lost(verdict.lost_pairs, found.counts(), fab, problem), [], 0, None,
-                         samples=samples)
+                         samples=crossing_samples(samples))
     if radius is None:
         return report
-    pairs = find_pairs(fab, curves, grid, reach=2 * radius,
-                       zones=designed_zones(fab, curves, grid, found, verdict.new))
+    zones = designed_zones(fab, curves, grid, found, verdict.new)
+    grid = Grid(problem.courses, problem.wales, problem.L,
+                check_samples(problem.L, radius, samples))
+    report.gap_samples = grid.per_loop
+    try:
+        pairs = find_pairs(fab, curves, grid, reach=REACH * radius, zones=zones,
+                           limit=CHECK_ROWS)
+    except TooLarge as err:
+        raise ProblemError(where, "yarn", "radius", too_large(err.rows, radius, grid.per_loop)
+                           ) from None
     if not len(pairs):
         return report
     limit = 2 * radius * (1 - GAP_TOL)
@@ -182,6 +237,26 @@ def check(result: Any, problem: WeftProblem, samples: int = SAMPLES,
     report.interlock_below_2r = int(np.sum(below & interlock))
     report.smallest_gap = float(pairs.gap[free].min()) if free.any() else None
     return report
+
+
+def _new(verdict: Verdict, found: Crossings, n: int, places: bool = True
+         ) -> list[dict[str, Any]]:
+    """Each pair of loops with new crossings: its loops, its crossings now and in the natural
+    fabric, and (``places``) where they are. The crossings are grouped once by their loop
+    keys: a scan of all crossings per pair took 12 s on the 100 x 100 pull's 32,667 pairs."""
+    if not verdict.new:
+        return []
+    big = int(found.kB.max()) + 1
+    key = found.kA.astype(np.int64) * big + found.kB
+    order = np.argsort(key, kind="stable")
+    keys, first, count = np.unique(key[order], return_index=True, return_counts=True)
+    xy = np.round(found.xy[order], 6).tolist() if places else []
+    pairs = sorted(verdict.new.items())
+    group = np.searchsorted(keys, [a * big + b for (a, b), _ in pairs])
+    return [{"loops": [_loop(a, n), _loop(b, n)], "count": int(count[g]),
+             "natural": int(count[g]) - extra,
+             "where": xy[first[g]:first[g] + count[g]] if places else []}
+            for ((a, b), extra), g in zip(pairs, group.tolist())]
 
 
 def _shortest(short: Pairs, curves: Curves, n: int) -> list[dict[str, Any]]:
@@ -214,6 +289,20 @@ def _lost(lost: dict[tuple[int, int], int], counts: dict[tuple[int, int], int],
 
 def _loop(k: int, n: int) -> list[int]:
     return [int(k // n) + 1, int(k % n) + 1]
+
+
+def own_check(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray
+              ) -> tuple[CheckReport | None, dict[str, Any]]:
+    """The check every weft result carries (``WeftResult.checked``): the report and its JSON
+    block, or None and a block saying why it was not made (a gap search too large to finish,
+    or loops that are not finite), never an exception."""
+    if not (np.all(np.isfinite(coeffs)) and np.all(np.isfinite(starts))):
+        return None, {"ok": None, "verdict": "not checked: the loops are not finite"}
+    try:
+        report = check_state(problem, np.asarray(coeffs), np.asarray(starts), places=False)
+    except ProblemError as err:
+        return None, {"ok": None, "verdict": f"not checked: {err.message}"}
+    return report, report.block()
 
 
 def load_result_json(path: Path) -> Any:

@@ -157,9 +157,12 @@ def solution_figure(result: SolvedFabric, natural: np.ndarray, deformed: np.ndar
     mapped, forces = draw_solution(ax, result, natural, deformed, colour, yarn=yarn)
     colour_key(fig, ax, mapped, colour, len(deformed), units)
     reference_arrow(ax, forces, units)
+    told = getattr(result, "checked", None) or {}      # the answer's own check, its words
     ax.set_title(f"{result.problem.name} ({result.model}): stored energy "
                  f"{result.energy.total:.4g} {units.energy}, "
-                 f"{'converged' if result.success else 'NOT CONVERGED'}", fontsize=10)
+                 f"{'converged' if result.success else 'NOT CONVERGED'}"
+                 + (f"\ncheck: {told['verdict']}" if told else ""), fontsize=10,
+                 color="tab:red" if told.get("ok") is False else "black", wrap=True)
     legend_below(fig, reserve=KEY_WIDTH if forces else 0.0)
     settle_layout(fig)
     return fig, ax

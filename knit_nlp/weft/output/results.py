@@ -160,6 +160,14 @@ class WeftResult(Outcome):
         """Sampled natural centrelines (m, n, samples, 2)."""
         return natural_centrelines(self.problem, samples)
 
+    @cached_property
+    def checked(self) -> dict[str, Any]:
+        """The answer's own check (``output.check``: new crossings against the natural fabric,
+        with a radius gaps below their requirement), made once: the result JSON's ``check``
+        block, which the summary and the picture's title also state."""
+        from .check import own_check        # the contact package, only when a result is told
+        return own_check(self.problem, self.coefficients, self.starts)[1]
+
     def _repr_fields(self) -> dict[str, object]:
         return {"model": self.model, "n_parameters": self.nlp.n_parameters,
                 "reactions": [c.reaction.round(6).tolist() for c in self.clamps]}
@@ -187,6 +195,7 @@ class WeftResult(Outcome):
             "rigid_clamps": [r.to_json() for r in self.rigid_clamps],
             "loops": {"course_starts": self.starts[:, 0].tolist(),
                       "coefficients": self.coefficients.tolist()},
+            "check": self.checked,
         }
         reps = self.representatives()
         if reps is not None:

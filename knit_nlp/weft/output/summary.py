@@ -45,6 +45,7 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
                      f"[{u.force}], smallest gap " + (f"{gap:.6g} [{u.length}] = "
                      f"{contact['smallest_gap_over_2r']:.6g} x 2r" if gap is not None
                      else "none within reach") + f", {contact['new_crossings']} new crossings")
+    lines.append("  check: " + r.checked["verdict"])
     lines += implausible(r)                     # springs beyond L, folds, loops inside out
     if not r.success:
         lines.append("  NOT CONVERGED: " + "; ".join(r.report.attempts))

@@ -21,11 +21,13 @@ designed box: a natural one, or one around a designed crossing that slid (zones.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .curves import Curves
+from .curves import Curves, basis_at
+from .near import TooLarge, estimate, neighbours, tree_of
 from .natural import NaturalFabric
 from .ranges import expand
 from .zones import Zones
@@ -33,7 +35,39 @@ from .zones import Zones
 NEWTON_STEPS = 25
 CROSSING = 1e-9           # relative to L: a polished minimum this close is a crossing
 EDGE_STEPS = 40           # bisection steps to a designed box's edge (2^-40 of a sample)
-CHUNK = 1 << 15           # samples whose neighbours strand_feet gathers at once
+CHUNK = 1 << 15           # samples whose neighbours strand_feet gathers at once, at most ...
+ROWS = 1 << 19            # ... and the rows (sample pairs, nodes) a step holds at once
+POLISHED = 1 << 16        # points polish moves at once
+INTERVAL_NODES = 3        # Gauss nodes per sample interval of course_samples, ...
+LOOP_NODES = 128          # ... and at least this many per loop
+
+
+SAMPLES = 200             # samples per loop of the crossing count, solver's and check's
+MAX_SAMPLES = 5000        # ... at most (check --samples)
+FEWEST = 16               # the pair search samples each loop at least this often, ...
+PER_RADIUS = 1            # ... about this many times per radius in the solver ...
+MOST_PAIR_SAMPLES = 1000  # ... and never more often than this, whatever the grid
+CHECK_PER_RADIUS = 4      # ... and in check (a finer look than the solver's)
+
+
+def pair_samples(L: float, radius: float, per_radius: float = PER_RADIUS,
+                 most: int = SAMPLES) -> int:
+    """Samples per loop of the pair search: ``per_radius`` per radius (the discrete minima
+    then lie within a fraction of r of the true ones, which polish finds), at least
+    ``FEWEST`` and at most ``most``: the search only proposes candidates, and below L / 200
+    a finer grid finds nothing more but costs its square (r = 1e-3 asked for 10,000 samples
+    per loop, 4.3 GB on a 4 x 4 fabric; r = 1e-9 for 298 GiB). The solver's grid
+    (``solving/contact/rounds.py``) and check's (:func:`check_samples`) both come from here."""
+    return int(min(most, max(FEWEST, math.ceil(per_radius * L / radius))))
+
+
+def check_samples(L: float, radius: float, samples: int = SAMPLES) -> int:
+    """Samples per loop of check's gap search at ``samples`` per loop asked: no finer than
+    ``CHECK_PER_RADIUS`` per radius (at r = 1.0 the 10 x 10 check at 200 per loop took 150 s:
+    80 samples per strand across 4r, each a row of the search). Not coarser: at 2 per radius
+    (134 per loop at r = 0.15) the check of a 20 x 20 contact pull missed gaps of 0.75 x 2r
+    that 200 per loop finds (the solver's 67 per loop misses them too)."""
+    return pair_samples(L, radius, CHECK_PER_RADIUS, samples)
 
 
 @dataclass(frozen=True)
@@ -53,6 +87,11 @@ class Grid:
     def S(self) -> np.ndarray:
         """Sample positions along a course, 0..n·L."""
         return np.linspace(0.0, self.wales * self.L, self.wales * self.per_loop + 1)
+
+    def sampled_at(self, per_loop: int) -> "Grid":
+        """The same fabric sampled ``per_loop`` times per loop."""
+        return self if per_loop == self.per_loop else Grid(self.courses, self.wales, self.L,
+                                                           per_loop)
 
     def loop_of(self, course: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Loop index k and material s of course arc S (the end of a loop is the next loop's
@@ -98,11 +137,44 @@ class Pairs:
 
 
 def course_samples(curves: Curves, grid: Grid) -> np.ndarray:
-    """Positions (m, samples per course, 2) at ``grid.S``."""
-    S = grid.S
-    c = np.repeat(np.arange(grid.courses), S.size).reshape(grid.courses, S.size)
-    k, s = grid.loop_of(c, np.broadcast_to(S, c.shape))
-    return curves.points(k, s)
+    """Positions (m, samples per course, 2) at ``grid.S``: eq. (1) integrated from each loop's
+    start over the sample intervals by Gauss-Legendre, ``INTERVAL_NODES`` nodes per interval
+    and at least ``LOOP_NODES`` per loop. Every loop is sampled at the same material points, so
+    the tangent angles at all nodes of all loops are one matrix product (coefficients times the
+    basis at the shared nodes), in blocks of at most ``ROWS`` nodes: the cell rule of
+    :meth:`Curves.points` point by point took 16 s and 1 GB at 100 x 100 with 200 samples per
+    loop. The polyline only proposes candidates (pairs are polished on :meth:`Curves.points`,
+    crossings are located on it); it differs from the cell rule by about that rule's own error
+    (measured 7e-12 at 200 and 16 samples per loop, 4e-10 at 67, L = 10; tested). The last
+    state's samples are kept: the pair search and the crossing count ask for the same ones."""
+    key = (id(curves), grid)
+    if _SAMPLED.get("key") == key and _SAMPLED.get("curves") is curves:
+        return _SAMPLED["pts"]
+    m, n, p = grid.courses, grid.wales, grid.per_loop
+    G = max(INTERVAL_NODES, -(-LOOP_NODES // p))
+    x, w = np.polynomial.legendre.leggauss(G)
+    s = np.linspace(0.0, grid.L, p + 1)
+    h = s[1:] - s[:-1]
+    nodes = s[:-1, None] + h[:, None] * (x + 1.0) / 2.0                 # (p, G)
+    basis = basis_at(nodes, grid.L, curves.t).reshape(-1, curves.coeffs.shape[1])
+    pts = np.empty((m, n * p + 1, 2))
+    rows = max(1, ROWS // (p * G))       # loops per block: bounded temporaries
+    loops = m * n
+    for lo in range(0, loops, rows):
+        theta = (curves.coeffs[lo:lo + rows] @ basis.T).reshape(-1, p, G)
+        inc = (h / 2.0)[:, None] * np.stack([np.cos(theta) @ w, np.sin(theta) @ w], axis=-1)
+        start = curves.starts[lo:lo + rows, None, :]
+        block = np.concatenate([start, start + np.cumsum(inc, axis=1)], axis=1)
+        k = np.arange(lo, min(loops, lo + rows))
+        c, j = np.divmod(k, n)
+        pts[c[:, None], j[:, None] * p + np.arange(p)] = block[:, :-1]
+        last = j == n - 1
+        pts[c[last], -1] = block[last, -1]
+    _SAMPLED.update(key=key, curves=curves, pts=pts)
+    return pts
+
+
+_SAMPLED: dict = {}          # the last course samples (course_samples)
 
 
 def frames_at(curves: Curves, grid: Grid, course: np.ndarray, S: np.ndarray):
@@ -115,8 +187,18 @@ def frames_at(curves: Curves, grid: Grid, course: np.ndarray, S: np.ndarray):
 def polish(curves: Curves, grid: Grid, ca: np.ndarray, Sa: np.ndarray, cb: np.ndarray,
            Sb: np.ndarray, move_a: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Newton on ½|P_A(S_A) − P_B(S_B)|² from (Sa, Sb) (both, or S_B only: the foot of a fixed
-    point), each S kept on its course and within a few samples of its start."""
+    point), each S kept on its course and within a few samples of its start. Points are
+    taken ``POLISHED`` at a time (each point's frames hold some 100 numbers)."""
     Sa, Sb = Sa.astype(float).copy(), Sb.astype(float).copy()
+    for lo in range(0, len(Sa), POLISHED):
+        part = slice(lo, lo + POLISHED)
+        Sa[part], Sb[part] = _polish(curves, grid, ca[part], Sa[part], cb[part], Sb[part],
+                                     move_a)
+    return Sa, Sb
+
+
+def _polish(curves, grid, ca, Sa, cb, Sb, move_a: bool) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`polish` of one slice of points (Sa, Sb: copies, changed in place)."""
     top, step = grid.wales * grid.L, grid.h
     active = np.arange(len(Sa))
     for _ in range(NEWTON_STEPS):
@@ -162,19 +244,14 @@ class Feet:
     dist: np.ndarray
 
 
-def strand_feet(pts: np.ndarray, grid: Grid, reach: float, exclusion: float):
+def strand_feet(pts: np.ndarray, grid: Grid, reach: float, exclusion: float, tree=None):
     """Valid feet of every sample on every strand within ``reach`` (see the module notes),
-    yielded for ``CHUNK`` samples at a time, in sample order: a sample's feet depend only on
-    its own neighbours, and the neighbours and feet of all samples at once (some 100
-    neighbours each with the checker's 200 samples per loop) took more than 9.9 GB on a
-    100 x 100 fabric."""
-    from scipy.spatial import cKDTree     # lazy: 0.4 s to import, only with contact
-    flat = pts.reshape(-1, 2)
-    tree = cKDTree(flat)
-    for lo in range(0, len(flat), CHUNK):
-        near = cKDTree(flat[lo:lo + CHUNK]).sparse_distance_matrix(tree, reach,
-                                                                   output_type="ndarray")
-        U, V = near["i"].astype(np.int64) + lo, near["j"].astype(np.int64)
+    yielded for slices of at most ``CHUNK`` samples and about ``ROWS`` neighbour rows
+    (near.neighbours), in sample order: a sample's feet depend only on its own neighbours, and
+    the neighbours and feet of all samples at once (some 100 neighbours each with the
+    checker's 200 samples per loop) took more than 9.9 GB on a 100 x 100 fabric."""
+    tree = tree_of(pts.reshape(-1, 2)) if tree is None else tree
+    for U, V in neighbours(tree, reach, ROWS, CHUNK):
         yield _feet_of(pts, grid, U[U != V], V[U != V], exclusion)
 
 
@@ -231,20 +308,26 @@ def _polyline_foot(pts, grid, cv, iv, P):
 
 
 def _not_blocked(pts, P, foot, fgroup, group, cv, iv, frun, run) -> np.ndarray:
-    """Whether the segment P–foot crosses no polyline segment of another run of its group."""
-    K = pts.shape[1]
+    """Whether the segment P–foot crosses no polyline segment of another run of its group
+    (feet taken so that each batch checks at most about ``ROWS`` segments: a group holding
+    many strands of one course, a thick yarn's wide reach, checks each foot against all)."""
     starts = np.searchsorted(group, fgroup, side="left")
     ends = np.searchsorted(group, fgroup, side="right")
-    owner, rows = expand(starts, ends)
-    other = run[rows] != frun[owner]
-    owner, rows = owner[other], rows[other]
     blocked = np.zeros(len(P), dtype=bool)
-    a = np.clip(iv[rows], 0, K - 2)
-    for lo in (a - 1, a):
-        lo = np.clip(lo, 0, K - 2)
-        q0, q1 = pts[cv[rows], lo], pts[cv[rows], lo + 1]
-        hit = _segments_cross(P[owner], foot[owner], q0, q1)
-        np.logical_or.at(blocked, owner[hit], True)
+    total = np.concatenate([[0], np.cumsum(ends - starts)])
+    lo = 0
+    while lo < len(P):
+        hi = max(lo + 1, int(np.searchsorted(total, total[lo] + ROWS, side="right")) - 1)
+        owner, rows = expand(starts[lo:hi], ends[lo:hi])
+        owner += lo
+        other = run[rows] != frun[owner]
+        owner, rows = owner[other], rows[other]
+        a = np.clip(iv[rows], 0, pts.shape[1] - 2)
+        for seg in (np.clip(a - 1, 0, pts.shape[1] - 2), a):
+            q0, q1 = pts[cv[rows], seg], pts[cv[rows], seg + 1]
+            hit = _segments_cross(P[owner], foot[owner], q0, q1)
+            blocked[owner[hit]] = True
+        lo = hi
     return ~blocked
 
 
@@ -258,17 +341,26 @@ def _segments_cross(p0, p1, q0, q1) -> np.ndarray:
 
 
 def find_pairs(fab: NaturalFabric, curves: Curves, grid: Grid, reach: float,
-               zones: Zones | None = None) -> Pairs:
+               zones: Zones | None = None, limit: float | None = None) -> Pairs:
     """Closest points (polished local minima of the distance) with gap below required +
     ``reach``, on an uncrossed state (``zones``: the designed zones that follow slid
     crossings, zones.py; required gap 0 in them). The samples' feet are taken a chunk at a
     time (:func:`strand_feet`): the same pairs, in the same order, as from all at once (to
-    rounding: numpy may round differently on shorter arrays)."""
+    rounding: numpy may round differently on shorter arrays). A search estimated to look at
+    more than ``limit`` sample pairs (near.estimate) raises :class:`TooLarge` before it
+    starts. The search samples no finer than ``MOST_PAIR_SAMPLES`` per loop, whatever the
+    grid (it only proposes candidates; :func:`pair_samples`)."""
+    grid = grid.sampled_at(min(grid.per_loop, MOST_PAIR_SAMPLES))
     pts = course_samples(curves, grid)                        # (m, K, 2)
     within = 2 * fab.radius + reach + grid.h
     S = grid.S
     minima, lines, edges = [], [], []
-    for feet in strand_feet(pts, grid, within, fab.exclusion):
+    tree = tree_of(pts.reshape(-1, 2))
+    if limit is not None:
+        rows = estimate(tree, within)
+        if rows > limit:
+            raise TooLarge(rows, limit)
+    for feet in strand_feet(pts, grid, within, fab.exclusion, tree):
         low = _discrete_minima(pts, feet.cu, feet.iu, feet.cv, feet.iv) & (feet.dist < within)
         minima.append((feet.cu[low], S[feet.iu[low]], feet.cv[low], feet.Sf[low]))
         line, edge = _vertices(fab, curves, grid, feet, reach, zones)
