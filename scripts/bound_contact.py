@@ -83,7 +83,7 @@ def bound(n: int, budget: float) -> None:
         print(f"{n}x{n}: the solve with contact did not converge ({res.status}): no answer, "
               f"no active set, no bound")
         return
-    pairs, _, _ = st.contact.last_pairs
+    pairs = st.contact.last.pairs
     contacts = pairs.select(st.contact.touching())
     print(f"{n}x{n}: without contact {plain:.2f} s; with contact {withc:.2f} s "
           f"({withc / plain:.1f} x), {len(pairs):,} pairs in its last solve, "

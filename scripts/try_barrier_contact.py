@@ -254,13 +254,14 @@ def setup(n: int, budget: float):
     search for it)."""
     from knit_nlp.weft.model.cases import diagonal_pull
     from knit_nlp.weft.solving.contact.rounds import ContactSolver
+    from knit_nlp.weft.solving.solve import WeftSolver
     from knit_nlp.weft.transcription.factory import transcribe
     from knit_nlp.weft.model.parametrisation import Full
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import bench_contact                 # the benchmark's problem: its radius, our budget
     pr = bench_contact._problem(diagonal_pull(n), RADIUS, budget)
     base = transcribe(pr, Full())
-    return pr, base, ContactSolver(base, RADIUS)
+    return pr, base, ContactSolver(WeftSolver(base), RADIUS)
 
 
 def check(n: int = 4, seed: int = 0) -> tuple[float, float]:

@@ -19,9 +19,9 @@ from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.model.problem import Clamp, Load, Yarn, parse_problem
 from knit_nlp.weft.output.check import check
 from knit_nlp.weft.output.results import WeftResult
-from knit_nlp.weft.solving.contact.rounds import ContactSolver
+from knit_nlp.weft.solving.contact.rounds import ContactSolver, Step
 from knit_nlp.weft.solving.contact.solve import ContactRefused
-from knit_nlp.weft.solving.solve import SolveReport
+from knit_nlp.weft.solving.solve import SolveReport, WeftSolver
 from knit_nlp.weft.transcription.contact import build_contact_nlp
 from knit_nlp.weft.transcription.full import build_nlp
 
@@ -92,11 +92,11 @@ def test_envelope_theorem_with_active_contacts():
     d, h = 0.5, 1e-4
     pr = squeezed(d)
     base = build_nlp(pr)
-    contact = ContactSolver(base, pr.yarn.radius)
+    contact = ContactSolver(WeftSolver(base), pr.yarn.radius)
     report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
     p_at = WeftParams.natural(pr).vector()
     run = contact.run(base.params.vector(), p_at, base.x0, 4, report)
-    used, lam = run.solved                          # the pairs of the last solve
+    used, lam = run.solved.pairs, run.solved.lam_gap    # the pairs of the last solve
     assert run.report.success and (lam < -1e-3).any()               # a contact pushes
 
     def energy(delta: float) -> float:
@@ -302,12 +302,12 @@ def test_a_failed_step_after_a_widened_search_reports_the_solved_pairs(monkeypat
     (they differed in length: an IndexError in the result's contact block at 10 x 10)."""
     pr = squeezed(0.5)
     base = build_nlp(pr)
-    contact = ContactSolver(base, pr.yarn.radius)
+    contact = ContactSolver(WeftSolver(base), pr.yarn.radius)
     report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
     real_step, real_pairs, solved = contact.step, contact.pairs, []
 
     def step(*args, **kwargs):              # the first step is solved, every later one fails
-        out = real_step(*args, **kwargs) if not solved else None
+        out = real_step(*args, **kwargs) if not solved else Step("Invalid_Number_Detected")
         solved.append(out)
         return out
 
@@ -319,8 +319,8 @@ def test_a_failed_step_after_a_widened_search_reports_the_solved_pairs(monkeypat
     monkeypatch.setattr(contact, "pairs", pairs)
     run = contact.run(base.params.vector(), WeftParams.natural(pr).vector(), base.x0, 2, report,
                       max_halvings=1)
-    assert solved[0] is not None and not run.report.success
-    assert len(run.pairs) == len(run.lam_gap) == len(solved[0][1])
+    assert solved[0].success and not run.report.success
+    assert len(run.pairs) == len(run.lam_gap) == len(solved[0].pairs)
 
 
 def test_the_pair_search_takes_the_samples_a_chunk_at_a_time_with_the_same_answer(monkeypatch):
@@ -330,13 +330,12 @@ def test_the_pair_search_takes_the_samples_a_chunk_at_a_time_with_the_same_answe
     points to 1e-14 L: numpy's vector operations may round differently on shorter arrays; at
     the default CHUNK the 10 x 10 and 30 x 30 pulls' pairs are the same bit for bit)."""
     from knit_nlp.weft.model.contact import pairs as P
-    from knit_nlp.weft.solving.solve import WeftSolver
     pr = parse_problem({**diagonal_pull(4), "yarn": {"radius": 0.15}}, "pull 4")
     base = build_nlp(pr)
     x = WeftSolver(base, verbose=None).once(base.params.vector(), base.x0).x
-    whole = ContactSolver(base, 0.15).pairs(x)
+    whole = ContactSolver(WeftSolver(base), 0.15).pairs(x)
     monkeypatch.setattr(P, "CHUNK", 7)
-    chunked = ContactSolver(base, 0.15).pairs(x)
+    chunked = ContactSolver(WeftSolver(base), 0.15).pairs(x)
     assert len(whole) > 100
     for f in dataclasses.fields(whole):
         np.testing.assert_allclose(getattr(chunked, f.name), getattr(whole, f.name), rtol=0,

@@ -66,9 +66,9 @@ def test_the_pairs_a_restart_was_for_stay_in_every_later_round_of_its_step():
         calls.append((note, pairs))
         return once(p, x, pairs, warm, report, rounds_, note, settle)
 
-    def spy_restart(start, deep):
+    def spy_restart(x0, pairs0, deep):
         calls.append(("restart", deep))
-        return restart(start, deep)
+        return restart(x0, pairs0, deep)
 
     st.contact.solve_once, st.contact._restart = spy, spy_restart
     assert st.run().success
@@ -340,7 +340,7 @@ def test_the_listed_active_contacts_alone_hold_the_answer():
     st = _study(6, 120.0)
     res = st.run()
     assert res.success
-    pairs, _, _ = st.contact.last_pairs
+    pairs = st.contact.last.pairs
     listed = pairs.select(st.contact.touching())
     assert len(listed) == res.extra["contact"]["active"] >= 10
     fresh = _study(6, 120.0)

@@ -84,7 +84,7 @@ class ContactStudy(WeftStudy):
 
     def __init__(self, problem: WeftProblem, *, verbose: bool | None = False) -> None:
         super().__init__(problem, Full(), verbose=verbose)
-        self.contact = ContactSolver(self.nlp, problem.yarn.radius, verbose=verbose)
+        self.contact = ContactSolver(self.solver, problem.yarn.radius)
         self.block: dict[str, Any] = {}
         self._p_start: np.ndarray | None = None
 

@@ -38,7 +38,7 @@ from scipy.sparse.linalg import splu
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
-from ..solving.contact.rounds import ContactRun, ContactSolver
+from ..solving.contact.rounds import ContactRun, ContactSolver, Warm
 from ..solving.contact.active import active_gaps
 from ..solving.contact.solve import contact_block, solve_with_contact
 from ..solving.solve import SolveReport
@@ -80,7 +80,7 @@ class ContactEquilibrium(Equilibrium):
 
     def __init__(self, problem: WeftProblem, keep: int = KEEP) -> None:
         super().__init__(problem)
-        self.contact = ContactSolver(self.wnlp, problem.yarn.radius)
+        self.contact = ContactSolver(self.solver, problem.yarn.radius)
         self.keep = keep
         self.states: OrderedDict[bytes, ContactState | None] = OrderedDict()
         self.blocks: dict[bytes, dict] = {}
@@ -98,7 +98,8 @@ class ContactEquilibrium(Equilibrium):
         else:
             block = self._block(rep, "one load step with contact from the last solved state")
         if rep.success and self.contact.last is not None and self._polish(p, rep):
-            run = ContactRun(rep, *self.contact.last_pairs[:2])
+            last = self.contact.last
+            run = ContactRun(rep, last.pairs, last.lam)
             block = contact_block(self.problem, self.contact, run, block["route"] + ", polished",
                                   self.problem.solver.tol)
         self._remember(rep, block)
@@ -111,13 +112,13 @@ class ContactEquilibrium(Equilibrium):
         outer iteration and its forward check (measured: tests/test_contact_control.py)."""
         c, polished = self.contact, False
         for _ in range(POLISH):
-            kept = c.last, c.last_pairs
-            pairs, lam, _ = c.last_pairs
+            kept = c.last
             found = c.pairs(rep.x)
-            out, _ = c.solve_once(p, rep.x, found, (rep.lam_g, pairs, lam), rep, [], "polish")
+            out, _ = c.solve_once(p, rep.x, found, Warm(rep.lam_g, kept.pairs, kept.lam), rep, [],
+                                  "polish")
             xn = out.x[:self.wnlp.n_variables]
             if not out.success or c.crossed(xn, found, c.pairs(xn)):
-                c.last, c.last_pairs = kept
+                c.last = kept
                 break
             rep.x, rep.lam_g, rep.objective = xn, out.lam_g[:self.wnlp.n_constraints], out.objective
             polished = True
@@ -128,10 +129,7 @@ class ContactEquilibrium(Equilibrium):
         x, p_from = origin
         if not self.contact.clean(x):
             return None
-        self.solver.start_clock()
-        self.contact.deadline = self.solver.deadline
-        if self.contact.solver is not None:
-            self.contact.solver.deadline = self.solver.deadline
+        self.solver.start_clock()           # the contact solves share its clock
         report = SolveReport(False, "", x, np.zeros(self.wnlp.n_constraints), np.nan, 0, 0.0)
         self._run = self.contact.run(p, p_from, x, 1, report)
         return self._run.report if self._run.report.success else None
@@ -145,10 +143,12 @@ class ContactEquilibrium(Equilibrium):
         key = np.asarray(rep.x).tobytes()
         state = None
         if rep.success and self.contact.solved_at(rep.x):
-            cnlp, pc, xc, lamc, used, sigma, required = self.contact.last
-            active = active_gaps(cnlp.gaps(xc, sigma), required, cnlp.gap_multipliers(lamc),
-                                 used, self.problem.solver.tol, 2 * self.contact.radius)
-            state = ContactState(cnlp, pc, xc, lamc, active, block)
+            last = self.contact.last
+            cnlp = last.cnlp
+            active = active_gaps(cnlp.gaps(last.x, last.sigma), last.required,
+                                 cnlp.gap_multipliers(last.lam_g), last.used,
+                                 self.problem.solver.tol, 2 * self.contact.radius)
+            state = ContactState(cnlp, last.params, last.x, last.lam_g, active, block)
         self.states[key] = state
         self.blocks[key] = block
         while len(self.states) > self.keep:

@@ -74,14 +74,23 @@ class SolveReport:
                       for k in set(self.stats) | set(other.stats)}
 
 
+@dataclass
+class Clock:
+    """The wall-clock deadline (``time.perf_counter`` seconds) that solvers sharing it stop at:
+    the paper's solves and the contact solves of one forward solve share one budget
+    ``[solver] max_time`` (:meth:`WeftSolver.sibling`)."""
+
+    deadline: float = np.inf
+
+
 class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
                  print_level: int = 0, verbose: bool | None = False,
-                 ipopt: dict | None = None) -> None:
+                 ipopt: dict | None = None, clock: Clock | None = None) -> None:
         opts = wnlp.problem.solver
-        self.wnlp = wnlp
+        self.wnlp, self.verbose = wnlp, verbose
         t0 = time.perf_counter()
         # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of IPOPT's own
         # time and the KKT systems here are well scaled without them
@@ -99,12 +108,30 @@ class WeftSolver:
         options["iteration_callback"] = self.progress
         self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, options)
         self.setup_s = time.perf_counter() - t0
-        self.start_clock()
+        self.clock = Clock() if clock is None else clock
+        if clock is None:
+            self.start_clock()
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
+
+    def sibling(self, wnlp: WeftNLP, ipopt: dict | None = None) -> "WeftSolver":
+        """An IPOPT instance for another NLP of the same problem (yarn contact's, with more
+        variables and rows) that shares this one's clock and progress setting: its solves stop
+        at the same deadline."""
+        return WeftSolver(wnlp, verbose=self.verbose, ipopt=ipopt, clock=self.clock)
+
+    @property
+    def deadline(self) -> float:
+        """When the solves stop (the shared :class:`Clock`)."""
+        return self.clock.deadline
+
+    @deadline.setter
+    def deadline(self, when: float) -> None:
+        self.clock.deadline = when
 
     def start_clock(self) -> None:
         """Start the wall-clock budget ``[solver] max_time`` shared by the solves that follow
-        (:meth:`once` ends a solve at this deadline through the iteration callback)."""
+        (:meth:`once` ends a solve at this deadline through the iteration callback), and by
+        every solver sharing this one's clock."""
         self.deadline = time.perf_counter() + self.wnlp.problem.solver.max_time
         self.progress.start()
 

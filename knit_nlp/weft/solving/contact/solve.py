@@ -52,10 +52,7 @@ def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver
     from there; unknown, the target's) if given: the report and the result JSON's ``contact``
     block. Load steps from a start that fail are tried again from the natural fabric."""
     problem = base.problem
-    solver.start_clock()
-    contact.deadline = solver.deadline
-    if contact.solver is not None:
-        contact.solver.deadline = solver.deadline
+    solver.start_clock()            # the contact solves share its clock (ContactSolver)
     p = params.vector()
     start = WeftParams.natural(problem).vector(), base.x0
     if x_start is not None and contact.clean(x_start):
@@ -196,8 +193,8 @@ def _active(contact: ContactSolver, run: ContactRun, tol: float
     Otherwise (no contact solve, or a failed run): the run's pairs with their carried
     multipliers and searched gaps, active where they push."""
     if contact.solved_at(run.report.x):
-        pairs, lam, gap = contact.last_pairs
-        return pairs, -lam, gap, contact.touching()
+        last = contact.last
+        return last.pairs, -last.lam, last.gap, contact.touching()
     # a failed run's state is no solve's: the rows' values are unknown, the force alone judges
     force = -run.lam_gap
     largest = float(force.max(initial=0.0))
