@@ -13,11 +13,19 @@
   fabrics first for the full model (``multilevel_start``), the corner grid first for a finer
   reduced grid (``corner_start``); these solve, so they live here with the solver.
 The NLP is built once; every solve reuses the same ``casadi.nlpsol`` object.
+
+:class:`Equilibrium` is a problem's forward equilibrium in a fixed transcription: the NLP and
+its :class:`WeftSolver` built once, ``solve(params, x0) -> Solution`` by the strategy above, the
+sensitivities (``sensitivity.KKT``) on first use. Its variants (yarn contact, adaptive
+representatives) and the one choice between them: ``forward.equilibrium``. Only this module
+and ``contact/solve.py`` build IPOPT instances (the contact NLP's are :meth:`WeftSolver.sibling`
+of the paper's).
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -25,10 +33,12 @@ import numpy as np
 from ...ipopt import ipopt_options, succeeded
 from ...outcome import OUT_OF_TIME
 from ...progress import QUIET_FOR, IterationLine
-from ..model.parametrisation import Full, Reduced
+from ..model.parametrisation import Full, Parametrisation, Reduced
 from ..model.params import WeftParams
+from ..model.problem import WeftProblem
 from ..transcription.factory import transcribe
 from ..transcription.protocol import WeftNLP
+from .sensitivity import KKT, ContactState, Stability
 from .starts import (STARTS, coarse_chain, needs_perturbation, perturbed_starts, prolong,
                      prolong_multipliers, rigid_start)
 
@@ -190,6 +200,141 @@ class WeftSolver:
             dtau /= 2
         total.success = True
         return total
+
+
+@dataclass
+class Solution(SolveReport):
+    """A forward solve of one problem (:meth:`Equilibrium.solve`): IPOPT's report on the NLP
+    ``nlp`` (x, multipliers, status, effort, attempts, loading path), the parameters solved
+    at, the largest violation of the rows' bounds at x, the time the equilibrium took to
+    build, and what its variant adds: ``contact`` (the contact solve behind x, None without
+    one) and the result JSON's blocks (``contact``, ``adaptive``) in ``blocks``."""
+
+    nlp: WeftNLP | None = None
+    params: WeftParams | None = None
+    violation: float = 0.0
+    build_s: float = 0.0
+    contact: "ContactState | None" = None
+    blocks: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, report: SolveReport, **more: Any) -> "Solution":
+        """A report as a solution with the fields ``more`` adds."""
+        return cls(**{f.name: getattr(report, f.name) for f in fields(SolveReport)}, **more)
+
+
+class Equilibrium:
+    """A weft problem's forward equilibrium in a fixed transcription (``transcribe``): the NLP
+    and its IPOPT instance built once, re-solved at many parameter values (studies, sweeps,
+    continuation, control, fit, calibrate); its sensitivities and stability check
+    (``sensitivity.KKT``) are built on first use. ``forward.equilibrium`` chooses the variant
+    (this, yarn contact, adaptive representatives)."""
+
+    def __init__(self, problem: WeftProblem, parametrisation: Parametrisation | None = None,
+                 *, verbose: bool | None = False) -> None:
+        if problem.yarn is not None and not self.with_contact:
+            # its solves and sensitivities would ignore the yarn's thickness
+            raise ValueError(f"{problem.source}: this Equilibrium ignores [yarn] radius; build "
+                             "it with forward.equilibrium(problem)")
+        t0 = time.perf_counter()
+        self.problem = problem
+        self.nlp = transcribe(problem, parametrisation)
+        self.solver = WeftSolver(self.nlp, verbose=verbose)
+        self._build_s = time.perf_counter() - t0
+        self._kkt: KKT | None = None
+        self.forward_solves = 0
+
+    with_contact = False        # whether solves and the KKT system hold yarn contact
+
+    @property
+    def wnlp(self) -> WeftNLP:
+        """The NLP (the inverse problems' name for :attr:`nlp`)."""
+        return self.nlp
+
+    @property
+    def params(self) -> WeftParams:
+        """The problem's own parameter values; change them with ``with_(...)``."""
+        return self.nlp.params
+
+    @property
+    def n(self) -> int:
+        return self.nlp.n_variables
+
+    @property
+    def build_s(self) -> float:
+        """Seconds spent building: the NLP, its IPOPT instance, the KKT Functions once used."""
+        return self._build_s
+
+    def as_params(self, params: WeftParams | np.ndarray | None) -> WeftParams:
+        """Parameters given as values, a vector of the NLP's layout ``p``, or None (the
+        problem's own)."""
+        if params is None:
+            return self.params
+        if isinstance(params, WeftParams):
+            return params
+        return WeftParams.from_vector(self.problem, np.asarray(params, dtype=float))
+
+    def solve(self, params: WeftParams | np.ndarray | None = None, x0: np.ndarray | None = None,
+              *, continuation: int | None = None, start: str = DEFAULT_START,
+              x0_params: WeftParams | np.ndarray | None = None,
+              origin: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
+        """Solve at ``params`` from ``x0`` (else from ``start``): direct, then continuation
+        from the natural parameters (:func:`solve`). ``x0_params`` (x0's parameters, if
+        known) and ``origin`` (a solved state and its parameters: one load step from there)
+        are for yarn contact's load steps only."""
+        params = self.as_params(params)
+        self.forward_solves += 1
+        rep = solve(self.nlp, self.solver, params=params, x0=x0, continuation=continuation,
+                    start=start)
+        return self.solution(rep, params)
+
+    def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        """The decision vector of another solved model's loops (``WeftNLP.lift``)."""
+        return self.nlp.lift(coeffs, starts)
+
+    def done(self) -> None:
+        """End the progress line of the solves (a newline where one was written)."""
+        self.solver.progress.done()
+
+    def solution(self, report: SolveReport, params: WeftParams | np.ndarray) -> Solution:
+        """A report of this NLP at ``params`` as a :class:`Solution` (its violation, and what
+        the variant keeps for its x)."""
+        params = self.as_params(params)
+        return Solution.of(report, nlp=self.nlp, params=params, build_s=self.build_s,
+                           violation=self.solver.violation(report.x, params.vector()))
+
+    # -- sensitivities: an optional capability, built on first use ----------------------
+    @property
+    def kkt_system(self) -> KKT:
+        """The KKT system at this equilibrium's solutions (``sensitivity.KKT``)."""
+        if self._kkt is None:
+            t0 = time.perf_counter()
+            self._kkt = KKT(self.nlp, self.solver.solver, self.contact_state)
+            self._build_s += time.perf_counter() - t0
+        return self._kkt
+
+    def contact_state(self, x: np.ndarray) -> ContactState | None:
+        """The contact solve behind base solution x (none without contact)."""
+        return None
+
+    def sensitivity(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray, dp: np.ndarray,
+                    sliding: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """dx/dθ and dλ/dθ for parameter directions dp (``KKT.sensitivity``)."""
+        return self.kkt_system.sensitivity(x, lam, p, dp, sliding)
+
+    def system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray) -> tuple[ca.DM, ca.DM, int]:
+        """The KKT matrix, ∂F/∂p and the size of its Hessian block (``KKT.system``)."""
+        return self.kkt_system.system(x, lam, p)
+
+    def linear_system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
+                      contact: bool = True):
+        """The sensitivities' linear system as SciPy matrices (``KKT.linear_system``)."""
+        return self.kkt_system.linear_system(x, lam, p, contact)
+
+    def stability(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
+                  method: str = "sparse") -> Stability:
+        """Smallest eigenvalue of the reduced Hessian (``KKT.stability``)."""
+        return self.kkt_system.stability(x, lam, p, method)
 
 
 def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, params: WeftParams | None = None,

@@ -223,7 +223,7 @@ class _Geometry:
             sj = (L / M) * ca.sum1(U)                                  # cell starts, 1 × n
             ell = srow - sj
             nodes = ca.repmat(sj, Q, 1) + ca.mtimes(ca.DM(xi), ell)    # Q × n
-            phis = _basis(nodes, L, t)                                 # nc matrices Q × n
+            phis = basis_mx(nodes, L, t)                                 # nc matrices Q × n
             Ak = A[:, k.tolist()]                                      # nc × n
             theta = sum(phis[c] * ca.repmat(Ak[c, :], Q, 1) for c in range(nc))
             cos, sin = ca.cos(theta), ca.sin(theta)
@@ -238,7 +238,7 @@ class _Geometry:
                                for c in range(nc)])
             self.sides.append((k, U, (ws, cos, sin, phis), I, dIx, dIy, X[:, kl]))
         PA, PB, Th = z[0:2, :], z[2:4, :], z[4, :]
-        self.phiB = ca.vertcat(*_basis(ca.transpose(sB), L, t))          # nc × n
+        self.phiB = ca.vertcat(*basis_mx(ca.transpose(sB), L, t))          # nc × n
         theta_B = ca.sum1(self.phiB * A[:, kB.tolist()])
         lift = ca.vertcat(PA - self.sides[0][6] - self.sides[0][3],
                           PB - self.sides[1][6] - self.sides[1][3], Th - theta_B)
@@ -277,7 +277,7 @@ class _Cells:
         return ca.mtimes(pp, coef)
 
 
-def _basis(u: ca.MX, L: float, t: int) -> list[ca.MX]:
+def basis_mx(u: ca.MX, L: float, t: int) -> list[ca.MX]:
     """φ_c(u) of eq. (15) elementwise on a matrix u, one matrix per basis function; the
     harmonics by the angle-addition recurrence (two trigonometric calls, not 2t)."""
     c1, s1 = ca.cos(2 * np.pi * u / L), ca.sin(2 * np.pi * u / L)
