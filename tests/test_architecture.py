@@ -160,3 +160,26 @@ def test_weft_subpackages_import_only_earlier_stages_of_the_pipeline():
             if tp[1] == "weft":
                 assert len(tp) > 2 and tp[2] in PIPELINE, (mod, target)
                 assert PIPELINE.index(tp[2]) <= PIPELINE.index(parts[2]), (mod, target)
+
+
+def constructing_modules(names: tuple[str, ...], root: Path = PACKAGE) -> set[str]:
+    """The package modules with a call of any of ``names`` (a class built there)."""
+    found = set()
+    for path in root.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Call):
+                f = node.func
+                name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(
+                    f, ast.Attribute) else None
+                if name in names:
+                    found.add(module_name(path, root.parent))
+    return found
+
+
+def test_one_forward_equilibrium_builds_the_solvers():
+    """The IPOPT instances and the contact solver of a weft problem are built in two modules
+    only (the solver's own, with the equilibrium of a fixed transcription, and the contact
+    equilibrium's), so a new model variant joins one equilibrium (``solving.forward``), not
+    several stacks (issue 38: six modules built them)."""
+    assert constructing_modules(("WeftSolver", "ContactSolver")) == {
+        "knit_nlp.weft.solving.solve", "knit_nlp.weft.solving.contact.solve"}

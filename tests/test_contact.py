@@ -14,7 +14,7 @@ from knit_nlp.weft.model.contact.crossings import Crossings, find_crossings, jud
 from knit_nlp.weft.model.contact.curves import Curves
 from knit_nlp.weft.model.contact.natural import NaturalFabric
 from knit_nlp.weft.model.contact.pairs import Grid
-from knit_nlp.weft.model.parametrisation import Reduced
+from knit_nlp.weft.model.parametrisation import Full, Reduced
 from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.model.problem import Clamp, Load, Yarn, parse_problem
 from knit_nlp.weft.output.check import check
@@ -22,7 +22,8 @@ from knit_nlp.weft.output.results import WeftResult
 from knit_nlp.weft.solving.contact.rounds import ContactSolver, Step
 from knit_nlp.weft.solving.contact.solve import ContactRefused
 from knit_nlp.weft.solving.solve import SolveReport, WeftSolver
-from knit_nlp.weft.transcription.contact import build_contact_nlp
+from knit_nlp.weft.transcription.contact import Slots
+from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.transcription.full import build_nlp
 
 L = 10.0
@@ -116,9 +117,9 @@ def _random_contact_nlp(seed: int = 1, n: int = 6):
     base = build_nlp(pr)
     rng = np.random.default_rng(seed)
     kA, kB = rng.integers(0, pr.n_loops, n), rng.integers(0, pr.n_loops, n)
-    c = build_contact_nlp(base, kA, kB)
+    c = transcribe(pr, Full(), contact=Slots(kA, kB), base=base)
     sA, sB = rng.uniform(0, L, n), rng.uniform(0, L, n)
-    x = c.lift(base.x0, sA, sB) + 0.01 * rng.normal(size=c.n_variables)
+    x = c.lift_slots(base.x0, sA, sB) + 0.01 * rng.normal(size=c.n_variables)
     p = c.parameters(base.p0, sA, sB, rng.choice([-1.0, 1.0], n))
     return c, x, p, rng
 
@@ -273,10 +274,32 @@ def test_warm_start_from_a_contact_result_reaches_the_next_load_step():
 
 def test_lifted_contact_points_start_on_their_rows():
     c, x, p, _ = _random_contact_nlp(seed=3)
-    x0 = c.lift(c.base.x0, p[c.base.p.size:c.base.p.size + c.n_slots],
-                p[c.base.p.size + c.n_slots:c.base.p.size + 2 * c.n_slots])
+    x0 = c.lift_slots(c.base.x0, c.p.get(p, "contact_s_A").ravel(),
+                      c.p.get(p, "contact_s_B").ravel())
     g = np.asarray(ca.Function("g", [c.nlp["x"], c.nlp["p"]], [c.nlp["g"]])(x0, p)).ravel()
     assert np.abs(g[c.g.slice("contact_lift")]).max() < 1e-12
+
+
+def test_the_contact_nlp_is_a_weft_nlp_read_through_its_base():
+    """The factory's contact NLP (``transcribe(problem, Full(), contact=Slots(...))``) offers
+    the protocol: its parameter layout names where each slot's s_A, s_B and σ lie in the vector
+    ``parameters`` builds, and what the protocol reads of a decision vector (loops, starts,
+    centrelines, energy) is its base part's; a reduced model with contact is refused."""
+    c, x, p, rng = _random_contact_nlp(seed=4)
+    base, nb = c.base, c.base.n_variables
+    sA, sB = rng.uniform(0, L, c.n_slots), rng.uniform(0, L, c.n_slots)
+    sigma = rng.choice([-1.0, 1.0], c.n_slots)
+    q = c.parameters(base.p0, sA, sB, sigma)
+    assert q.size == c.p.size and c.n_variables == nb + 5 * c.n_slots
+    for name, want in (("contact_s_A", sA), ("contact_s_B", sB), ("contact_sigma", sigma)):
+        np.testing.assert_array_equal(c.p.get(q, name).ravel(), want)
+    np.testing.assert_array_equal(c.centrelines(x), base.centrelines(x[:nb]))
+    assert c.energy(x, q) == base.energy(x[:nb], base.p0)
+    np.testing.assert_array_equal(c.coefficients(c.lift(base.coefficients(x[:nb]),
+                                                        base.starts(x[:nb]))),
+                                  base.coefficients(x[:nb]))
+    with pytest.raises(ValueError, match="full model"):
+        transcribe(base.problem, Reduced(), contact=Slots(c.kA, c.kB))
 
 
 def test_a_contact_solve_keeps_to_its_time_budget():

@@ -26,7 +26,9 @@ from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
 from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
 from ...model.contact.zones import Zones
-from ...transcription.contact import ContactNLP, build_contact_nlp
+from ...model.parametrisation import Full
+from ...transcription.contact import ContactNLP, Slots
+from ...transcription.factory import transcribe
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
 from ..solve import SolveReport, WeftSolver
@@ -255,7 +257,8 @@ class ContactSolver:
             kA += [a] * v
             kB += [b] * v
         t0 = time.perf_counter()
-        self.cnlp = build_contact_nlp(self.base, np.array(kA), np.array(kB))
+        self.cnlp = transcribe(self.base.problem, Full(), contact=Slots(np.array(kA), np.array(kB)),
+                               base=self.base)
         self.solver = self.base_solver.sibling(self.cnlp, ipopt=WARM)
         self.settler = None                        # built again when a round settles
         self.build_s += time.perf_counter() - t0
@@ -324,7 +327,7 @@ class ContactSolver:
         sA, sB, sigma, required, used, slot_of = self._assign(pairs)
         c = self.cnlp
         lbg, ubg = c.bounds(required, used)
-        x0 = c.lift(x_base, sA, sB)
+        x0 = c.lift_slots(x_base, sA, sB)
         lam0 = None
         if warm is not None:
             lam_gap = np.zeros(c.n_slots)
