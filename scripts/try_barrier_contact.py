@@ -51,7 +51,8 @@ class Prefix:
     ∂²I/∂a² (N, M+1, 2, nc, nc)."""
 
     def __init__(self, coeffs: np.ndarray, L: float, t: int, second: bool) -> None:
-        from knit_nlp.weft.model.contact.curves import basis_at, cell_nodes
+        from knit_nlp.weft.model.basis import basis_at
+        from knit_nlp.weft.model.contact.curves import cell_nodes
         u, hw = cell_nodes(L, t)
         phi = basis_at(u, L, t)                                       # (M, Q, nc)
         th = np.einsum("mqc,nc->nmq", phi, coeffs)
@@ -73,7 +74,8 @@ class Points:
     """Fixed material points (k, s): their cell, the partial cell's nodes and φ there."""
 
     def __init__(self, k: np.ndarray, s: np.ndarray, L: float, t: int) -> None:
-        from knit_nlp.weft.model.contact.curves import basis_at, cell_of, cell_rule
+        from knit_nlp.weft.model.basis import basis_at
+        from knit_nlp.weft.model.contact.curves import cell_of, cell_rule
         M, xi, self.w = cell_rule(t)
         self.k, self.s = np.asarray(k), np.asarray(s, dtype=float)
         self.j = cell_of(self.s, L, t)

@@ -39,9 +39,9 @@ import casadi as ca
 import numpy as np
 
 from ...layout import Layout
-from ..model.basis import n_coeffs
+from ..model.basis import basis_at, basis_terms, n_coeffs
 from ..model.parametrisation import Full
-from ..model.contact.curves import Curves, basis_at, cell_nodes, cell_of, cell_rule
+from ..model.contact.curves import Curves, cell_nodes, cell_of, cell_rule
 from .derivatives import _block_triu_sparsity, _triu_pairs, closed_form_derivatives
 from .full import FullNLP
 from .protocol import WeftNLP
@@ -332,14 +332,9 @@ class _Cells:
 
 
 def basis_mx(u: ca.MX, L: float, t: int) -> list[ca.MX]:
-    """φ_c(u) of eq. (15) elementwise on a matrix u, one matrix per basis function; the
-    harmonics by the angle-addition recurrence (two trigonometric calls, not 2t)."""
-    c1, s1 = ca.cos(2 * np.pi * u / L), ca.sin(2 * np.pi * u / L)
-    sins, coss = [s1], [c1]
-    for _ in range(t - 1):
-        sins.append(sins[-1] * c1 + coss[-1] * s1)
-        coss.append(coss[-1] * c1 - sins[-2] * s1)
-    return sins + coss + [u, ca.MX.ones(u.shape)]
+    """φ_c(u) of eq. (15) elementwise on a CasADi matrix u, one matrix per basis function
+    (``basis.basis_terms``, the definition the numbers use too)."""
+    return basis_terms(u, L, t, ca.sin, ca.cos, ca.MX.ones(u.shape))
 
 
 def _derivatives(base: FullNLP, geo: _Geometry, x, p, g, nx0: int, ng0: int, n: int) -> dict:

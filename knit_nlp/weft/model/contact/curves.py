@@ -16,6 +16,8 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
+from ..basis import basis_at, dbasis_at
+
 NODES = 8           # Gauss-Legendre nodes per cell
 
 
@@ -47,23 +49,6 @@ def cell_of(s: np.ndarray, L: float, t: int) -> np.ndarray:
     first or last cell)."""
     M = cells(t)
     return np.clip(np.floor(np.asarray(s, dtype=float) * M / L), 0, M - 1).astype(int)
-
-
-def basis_at(u: np.ndarray, L: float, t: int) -> np.ndarray:
-    """φ(u) of eq. (15) for an array u of any shape: shape u.shape + (2t+2,)."""
-    u = np.asarray(u, dtype=float)
-    arg = 2 * np.pi * u[..., None] * np.arange(1, t + 1) / L
-    return np.concatenate([np.sin(arg), np.cos(arg), u[..., None], np.ones(u.shape + (1,))],
-                          axis=-1)
-
-
-def dbasis_at(u: np.ndarray, L: float, t: int) -> np.ndarray:
-    """dφ/du for an array u: shape u.shape + (2t+2,); θ' = a·dφ is the curvature."""
-    u = np.asarray(u, dtype=float)
-    om = 2 * np.pi * np.arange(1, t + 1) / L
-    arg = u[..., None] * om
-    return np.concatenate([om * np.cos(arg), -om * np.sin(arg), np.ones(u.shape + (1,)),
-                           np.zeros(u.shape + (1,))], axis=-1)
 
 
 @dataclass(frozen=True)
