@@ -20,7 +20,7 @@ from knit_nlp.weft.model.problem import Clamp, Load, Yarn, parse_problem
 from knit_nlp.weft.output.check import check
 from knit_nlp.weft.output.results import WeftResult
 from knit_nlp.weft.solving.contact.rounds import ContactSolver, Step
-from knit_nlp.weft.solving.contact.solve import ContactRefused
+from knit_nlp.weft.solving.contact.equilibrium import ContactRefused
 from knit_nlp.weft.solving.solve import SolveReport, WeftSolver
 from knit_nlp.weft.transcription.contact import Slots
 from knit_nlp.weft.transcription.factory import transcribe

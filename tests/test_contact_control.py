@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.inverse.control import Controller
-from knit_nlp.weft.inverse.equilibrium import equilibrium_for
+from knit_nlp.weft.inverse.forward import equilibrium_for
 from knit_nlp.weft.solving.sensitivity import contact_system
 from knit_nlp.weft.solving.solve import Equilibrium
 from knit_nlp.problems import resolve

@@ -22,8 +22,8 @@ from knit_nlp.cli import main
 from knit_nlp.weft.inverse.calibration.curve import (SpecimenModel, fd_derivatives,
                                                      implicit_derivatives, strains_at)
 from knit_nlp.weft.inverse.calibration.specimen import build_specimen, specimen_doc
-from knit_nlp.weft.inverse.equilibrium import equilibrium_for
-from knit_nlp.weft.solving.contact.solve import ContactEquilibrium
+from knit_nlp.weft.inverse.forward import equilibrium_for
+from knit_nlp.weft.solving.contact.equilibrium import ContactEquilibrium
 from knit_nlp.weft.solving.solve import Equilibrium
 from knit_nlp.weft.inverse.fit import Fitter
 from knit_nlp.weft.inverse.observations import Observation

@@ -308,7 +308,7 @@ def test_a_study_path_steps_each_contact_point_from_the_last_at_its_parameters(m
 
     from knit_nlp.studies import LoadPath, run_study
     from knit_nlp.weft.model.params import WeftParams
-    from knit_nlp.weft.solving.contact import solve as contact_solve
+    from knit_nlp.weft.solving.contact import equilibrium as contact_solve
     seen = []
     real = contact_solve.solve_with_contact
 

@@ -1,6 +1,6 @@
 """Many solves of one weft problem, and what a study worker runs for one weft point.
 
-- :class:`WeftStudy`: the problem's forward equilibrium (``solving.forward.equilibrium``: a
+- :class:`WeftStudy`: the problem's forward equilibrium (``solving.variants.equilibrium``: a
   fixed transcription, the adaptive-representatives strategy, or the full model with yarn
   contact; built once) and the typed results of its solves. ``study.params`` is the problem's
   :class:`~knit_nlp.weft.model.params.WeftParams`, whose ``with_`` names changes (clamp targets
@@ -23,13 +23,13 @@ from .model.parametrisation import Parametrisation
 from .model.params import WeftParams
 from .model.problem import WeftProblem, parse_problem
 from .output.results import WeftResult
-from .solving.forward import equilibrium
+from .solving.variants import equilibrium
 from .solving.solve import DEFAULT_START, Solution, SolveReport
 from .transcription.factory import transcribe
 
 
 class WeftStudy:
-    """A weft problem's forward equilibrium (``solving.forward.equilibrium``), built once and
+    """A weft problem's forward equilibrium (``solving.variants.equilibrium``), built once and
     re-solved for many parameter values; :meth:`run` gives typed results (with yarn contact
     their ``contact`` block, with adaptive representatives their ``adaptive`` block)."""
 
@@ -89,7 +89,7 @@ class WeftStudy:
 def study(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
           verbose: bool | None = False) -> WeftStudy:
     """How ``problem`` is solved in ``parametrisation`` (None: the file's own): its
-    :class:`WeftStudy` (the variant is chosen by ``solving.forward.equilibrium``)."""
+    :class:`WeftStudy` (the variant is chosen by ``solving.variants.equilibrium``)."""
     return WeftStudy(problem, parametrisation, verbose=verbose)
 
 

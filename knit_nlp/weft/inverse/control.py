@@ -31,7 +31,7 @@ from ..model.problem import WeftProblem
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport
 from ..solving.sensitivity import Stability
-from .equilibrium import equilibrium_for
+from .forward import equilibrium_for
 from .plot import plot_control
 from .points import point_function, point_jacobian
 from .spec import Actuated, ControlProblem

@@ -32,7 +32,7 @@ from ..model.params import MATERIAL
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
 from ..solving.solve import Equilibrium, SolveReport
-from .equilibrium import equilibrium_for
+from .forward import equilibrium_for
 from .observations import Observation
 from .plot import plot_fit
 from .points import point_function, point_jacobian

@@ -35,7 +35,7 @@ and the active gap rows). Two ways, measured:
   10 × 10, out of reach at 30 × 30); the independent check in the tests, and the fallback
   without scipy.
 scipy is imported where these run (the command line starts without it: tests/test_imports.py);
-the inverse problems import it with their module (``inverse/equilibrium.py``).
+the inverse problems import it with their module (``inverse/forward.py``).
 """
 from __future__ import annotations
 

@@ -17,8 +17,8 @@ The NLP is built once; every solve reuses the same ``casadi.nlpsol`` object.
 :class:`Equilibrium` is a problem's forward equilibrium in a fixed transcription: the NLP and
 its :class:`WeftSolver` built once, ``solve(params, x0) -> Solution`` by the strategy above, the
 sensitivities (``sensitivity.KKT``) on first use. Its variants (yarn contact, adaptive
-representatives) and the one choice between them: ``forward.equilibrium``. Only this module
-and ``contact/solve.py`` build IPOPT instances (the contact NLP's are :meth:`WeftSolver.sibling`
+representatives) and the one choice between them: ``variants.equilibrium``. Only this module
+and ``contact/equilibrium.py`` build IPOPT instances (the contact NLP's are :meth:`WeftSolver.sibling`
 of the paper's).
 """
 from __future__ import annotations
@@ -227,7 +227,7 @@ class Equilibrium:
     """A weft problem's forward equilibrium in a fixed transcription (``transcribe``): the NLP
     and its IPOPT instance built once, re-solved at many parameter values (studies, sweeps,
     continuation, control, fit, calibrate); its sensitivities and stability check
-    (``sensitivity.KKT``) are built on first use. ``forward.equilibrium`` chooses the variant
+    (``sensitivity.KKT``) are built on first use. ``variants.equilibrium`` chooses the variant
     (this, yarn contact, adaptive representatives)."""
 
     def __init__(self, problem: WeftProblem, parametrisation: Parametrisation | None = None,
@@ -235,7 +235,7 @@ class Equilibrium:
         if problem.yarn is not None and not self.with_contact:
             # its solves and sensitivities would ignore the yarn's thickness
             raise ValueError(f"{problem.source}: this Equilibrium ignores [yarn] radius; build "
-                             "it with forward.equilibrium(problem)")
+                             "it with variants.equilibrium(problem)")
         t0 = time.perf_counter()
         self.problem = problem
         self.nlp = transcribe(problem, parametrisation)
@@ -279,13 +279,13 @@ class Equilibrium:
               x0_params: WeftParams | np.ndarray | None = None,
               origin: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
         """Solve at ``params`` from ``x0`` (else from ``start``): direct, then continuation
-        from the natural parameters (:func:`solve`). ``x0_params`` (x0's parameters, if
+        from the natural parameters (:func:`solve_nlp`). ``x0_params`` (x0's parameters, if
         known) and ``origin`` (a solved state and its parameters: one load step from there)
         are for yarn contact's load steps only."""
         params = self.as_params(params)
         self.forward_solves += 1
-        rep = solve(self.nlp, self.solver, params=params, x0=x0, continuation=continuation,
-                    start=start)
+        rep = solve_nlp(self.nlp, self.solver, params=params, x0=x0,
+                        continuation=continuation, start=start)
         return self.solution(rep, params)
 
     def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -337,9 +337,9 @@ class Equilibrium:
         return self.kkt_system.stability(x, lam, p, method)
 
 
-def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, params: WeftParams | None = None,
-          x0: np.ndarray | None = None, continuation: int | None = None,
-          start: str = DEFAULT_START) -> SolveReport:
+def solve_nlp(wnlp: WeftNLP, solver: WeftSolver | None = None,
+              params: WeftParams | None = None, x0: np.ndarray | None = None,
+              continuation: int | None = None, start: str = DEFAULT_START) -> SolveReport:
     """Solve robustly at ``params`` (the problem's own by default): direct, then continuation;
     from perturbed starts where degenerate. Without x0 the solve starts from ``start``
     (:func:`start_point`: ``multilevel``, ``rigid`` or ``natural``); a multilevel start's
@@ -429,7 +429,7 @@ def corner_start(cnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
     corner = transcribe(pr, Reduced())
     if corner.parametrisation == cnlp.parametrisation:
         return None
-    rep = solve(corner, WeftSolver(corner), params=WeftParams.from_vector(pr, p),
+    rep = solve_nlp(corner, WeftSolver(corner), params=WeftParams.from_vector(pr, p),
                 start="natural")
     if log is not None:
         log.append(f"corner start: {rep.status} ({rep.iterations} it, {rep.solve_s:.2f} s)")
@@ -455,12 +455,12 @@ def multilevel_start(wnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
     for level, cp in enumerate(reversed(chain)):
         nlp = transcribe(cp, Full())
         if prev is None:
-            rep = solve(nlp, WeftSolver(nlp), start="natural")
+            rep = solve_nlp(nlp, WeftSolver(nlp), start="natural")
         else:
             x0 = prolong(prev, x, nlp)
             rep = WeftSolver(nlp, ipopt=WARM).once(nlp.p0, x0, lam_g0=prolong_multipliers(prev, lam, nlp))
             if not rep.success:
-                rep = _combined(solve(nlp, WeftSolver(nlp), x0=x0), [rep], [])
+                rep = _combined(solve_nlp(nlp, WeftSolver(nlp), x0=x0), [rep], [])
         if log is not None:
             log.append(f"multilevel {cp.courses}x{cp.wales}: {rep.status} ({rep.iterations} it, "
                        f"{rep.solve_s:.2f} s)")

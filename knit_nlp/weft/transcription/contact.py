@@ -42,7 +42,7 @@ from ...layout import Layout
 from ..model.basis import basis_at, basis_terms, n_coeffs
 from ..model.parametrisation import Full
 from ..model.contact.curves import Curves, cell_nodes, cell_of, cell_rule
-from .derivatives import _block_triu_sparsity, _triu_pairs, closed_form_derivatives
+from .derivatives import block_triu_sparsity, triu_pairs, closed_form_derivatives
 from .full import FullNLP
 from .protocol import WeftNLP
 
@@ -397,7 +397,7 @@ def _contact_hessian(base: FullNLP, geo: _Geometry, lam_lift: ca.MX, lam_gap: ca
     n, nc, N = geo.n, geo.nc, pr.n_loops
     coeff0 = base.x.slice("coeffs").start
     lam = ca.reshape(lam_lift, LIFT, n)
-    iu, ju = _triu_pairs(nc)
+    iu, ju = triu_pairs(nc)
     blocks = ca.MX(len(iu), N)
     M = geo.cells.dx.shape[0]
     omega_x, omega_y = ca.MX(M, N), ca.MX(M, N)
@@ -411,7 +411,7 @@ def _contact_hessian(base: FullNLP, geo: _Geometry, lam_lift: ca.MX, lam_gap: ca
         omega_x += ca.mtimes(U * ca.repmat(lx, M, 1), scatter)          # Ω per loop and cell
         omega_y += ca.mtimes(U * ca.repmat(ly, M, 1), scatter)
     blocks += geo.cells.hessian_blocks(omega_x, omega_y, iu, ju)
-    H_blocks = ca.MX(_block_triu_sparsity(N, nc, coeff0, nx), ca.vec(blocks))
+    H_blocks = ca.MX(block_triu_sparsity(N, nc, coeff0, nx), ca.vec(blocks))
     slot = np.arange(n)
     th = nx0 + VARS * slot + 4
     lg = ca.transpose(lam_gap)

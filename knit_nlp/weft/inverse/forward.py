@@ -1,5 +1,5 @@
 """The forward equilibrium of the inverse problems (control, fit, calibrate): the problem's full
-model, with yarn contact where it has ``[yarn] radius`` (``solving.forward.equilibrium``, the
+model, with yarn contact where it has ``[yarn] radius`` (``solving.variants.equilibrium``, the
 one choice of variant), its solves and their implicit-function sensitivities and stability
 check (``solving.sensitivity``).
 
@@ -12,8 +12,9 @@ from __future__ import annotations
 
 from ..model.parametrisation import Full
 from ..model.problem import WeftProblem
-from ..solving.contact.solve import KEEP
-from ..solving.forward import ForwardEquilibrium, equilibrium
+from ..solving.contact.equilibrium import KEEP
+from ..solving.solve import Equilibrium
+from ..solving.variants import equilibrium
 
 try:    # with the module, not inside the first stability check: a one-time 0.15-0.5 s import,
     import scipy.sparse.linalg  # noqa: F401  (Python's, not a solve's cost; measured)
@@ -29,7 +30,7 @@ POLISH = 4
 CURVE_KEEP = 1024
 
 
-def equilibrium_for(problem: WeftProblem, keep: int = KEEP) -> ForwardEquilibrium:
+def equilibrium_for(problem: WeftProblem, keep: int = KEEP) -> Equilibrium:
     """The forward equilibrium control, fit and calibrate share: the full model (with yarn
     contact for a problem with a radius, remembering ``keep`` contact states for their
     sensitivities, its solves polished)."""

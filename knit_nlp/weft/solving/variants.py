@@ -6,7 +6,7 @@ fit and calibrate:
 
 - ``Equilibrium`` (``solve.py``): a fixed transcription, ``Full()`` or ``Reduced(...)``
   (``transcription.factory.transcribe``), with its sensitivities and stability check;
-- ``ContactEquilibrium`` (``contact/solve.py``): the full model of a problem with
+- ``ContactEquilibrium`` (``contact/equilibrium.py``): the full model of a problem with
   ``[yarn] radius`` (the reduced models refuse a radius: their loops are interpolated);
 - ``AdaptiveEquilibrium`` (``adaptive.py``): the adaptive-representatives strategy, which
   refines its grid afresh at every solve and has no sensitivities.
@@ -18,7 +18,7 @@ from __future__ import annotations
 from ..model.parametrisation import Adaptive, Parametrisation, Reduced
 from ..model.problem import WeftProblem
 from .adaptive import AdaptiveEquilibrium
-from .contact.solve import KEEP, ContactEquilibrium, refuse
+from .contact.equilibrium import KEEP, ContactEquilibrium, refuse
 from .solve import Equilibrium
 
 ForwardEquilibrium = Equilibrium | AdaptiveEquilibrium
@@ -29,7 +29,7 @@ def equilibrium(problem: WeftProblem, parametrisation: Parametrisation | None = 
                 polish: int = 0) -> ForwardEquilibrium:
     """How ``problem`` is solved in ``parametrisation`` (None: the file's own): a fixed
     transcription built once, the adaptive strategy, or the full model with yarn contact
-    (``[yarn] radius``; the reduced models refuse it, ``contact.solve.refuse``). ``verbose``:
+    (``[yarn] radius``; the reduced models refuse it, ``contact.equilibrium.refuse``). ``verbose``:
     IPOPT's progress line (None: never, a study's workers); ``keep`` and ``polish``: the
     contact solves remembered for their sensitivities and the re-solves that smooth x(p)
     (``ContactEquilibrium``)."""

@@ -1,5 +1,5 @@
 """Solving a weft problem that has a yarn radius: :class:`ContactEquilibrium`, the forward
-equilibrium with yarn contact (``forward.equilibrium`` chooses it for studies, ``solve``,
+equilibrium with yarn contact (``variants.equilibrium`` chooses it for studies, ``solve``,
 control, fit and calibrate).
 
 The paper's model is solved first, as always; if its state has no new crossing and no gap
@@ -26,7 +26,7 @@ from ...model.problem import WeftProblem
 from ...transcription.full import FullNLP
 from ..sensitivity import ContactState
 from ..solve import (DEFAULT_START, Equilibrium, Solution, SolveReport, WeftSolver,
-                     solve as solve_nlp, start_point)
+                     solve_nlp, start_point)
 from ..starts import needs_perturbation
 from .active import ACTIVE, active_gaps
 from .rounds import TOL, ContactRun, ContactSolver, Warm
