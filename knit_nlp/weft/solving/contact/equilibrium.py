@@ -29,7 +29,7 @@ from ..solve import (DEFAULT_START, Equilibrium, Solution, SolveReport, WeftSolv
                      solve_nlp, start_point)
 from ..starts import needs_perturbation
 from .active import ACTIVE, active_gaps
-from .rounds import TOL, ContactRun, ContactSolver, Warm
+from .rounds import TOL, ContactRun, ContactSolver
 
 STEPS = 4                  # first load steps of a contact path when none are asked for
 KEEP = 16                  # solved contact states remembered (by base solution) for the KKT
@@ -222,7 +222,7 @@ class ContactEquilibrium(Equilibrium):
     contact block and its accepted contact solve (:class:`ContactState`, with its active gap
     rows) are kept for the last ``keep`` base solutions: the sensitivities and the stability
     check at a solution hold its active contacts (``sensitivity``). ``polish``: re-solves with
-    the pairs searched on each solution (:meth:`_polish`; the inverse problems')."""
+    the pairs searched on each solution (``ContactSolver.polish``; the inverse problems')."""
 
     with_contact = True
 
@@ -262,7 +262,8 @@ class ContactEquilibrium(Equilibrium):
             block = contact_block(self.problem, self.contact, self._run,
                                   "one load step with contact from the last solved state",
                                   self.problem.solver.tol)
-        if self.polish and rep.success and self.contact.last is not None and self._polish(p, rep):
+        if (self.polish and rep.success and self.contact.last is not None
+                and self.contact.polish(p, rep, self.polish)):
             last = self.contact.last
             block = contact_block(self.problem, self.contact, ContactRun(rep, last.pairs, last.lam),
                                   block["route"] + ", polished", self.problem.solver.tol)
@@ -277,25 +278,6 @@ class ContactEquilibrium(Equilibrium):
         sol.contact = self.states.get(key)
         sol.blocks["contact"] = self.blocks.get(key, {})
         return sol
-
-    def _polish(self, p: np.ndarray, rep: SolveReport) -> bool:
-        """Solve again (warm) with the pairs searched on the solution, ``polish`` times: the
-        rounds accept contact points that moved less than half a sample, so two paths to the
-        same parameters end up to ~1e-3 apart; the re-solves make x(p) smooth enough for the
-        outer iteration and its forward check (measured: tests/test_contact_control.py)."""
-        c, polished = self.contact, False
-        for _ in range(self.polish):
-            kept = c.last
-            found = c.pairs(rep.x)
-            out, _ = c.solve_once(p, rep.x, found, Warm(rep.lam_g, kept.pairs, kept.lam), rep, [],
-                                  "polish")
-            xn = out.x[:self.nlp.n_variables]
-            if not out.success or c.crossed(xn, found, c.pairs(xn)):
-                c.last = kept
-                break
-            rep.x, rep.lam_g, rep.objective = xn, out.lam_g[:self.nlp.n_constraints], out.objective
-            polished = True
-        return polished
 
     def _from_origin(self, p: np.ndarray, origin: tuple[np.ndarray, np.ndarray]
                      ) -> SolveReport | None:

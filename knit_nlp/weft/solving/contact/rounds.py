@@ -423,6 +423,29 @@ class ContactSolver:
             settle = not self.violations(pairs, SETTLE).any()
         return Step("Contact_Rounds_Exceeded")
 
+    def polish(self, p: np.ndarray, rep: SolveReport, times: int) -> bool:
+        """Solve again (warm) at p from the accepted solution ``rep`` (its x, multipliers and
+        objective are replaced) with the pairs searched on it, ``times`` times or until a
+        solve fails or lets yarns cross (the last accepted solve is then kept); whether any
+        re-solve was accepted. The rounds accept contact points that moved less than half a
+        sample, so two paths to the same parameters end up to ~1e-3 apart; the re-solves make
+        x(p) smooth enough for the inverse problems' outer iteration and forward check
+        (measured: tests/test_contact_control.py)."""
+        polished = False
+        for _ in range(times):
+            kept = self.last
+            found = self.pairs(rep.x)
+            out, _ = self.solve_once(p, rep.x, found, Warm(rep.lam_g, kept.pairs, kept.lam), rep,
+                                     [], "polish")
+            xn = out.x[:self.base.n_variables]
+            if not out.success or self.crossed(xn, found, self.pairs(xn)):
+                self.last = kept
+                break
+            rep.x, rep.lam_g = xn, out.lam_g[:self.base.n_constraints]
+            rep.objective = out.objective
+            polished = True
+        return polished
+
     def touching(self) -> np.ndarray:
         """Which pairs of the last solve (``last``) hold a contact: ``active.active_gaps``
         on the solve's gap rows, as the result lists them."""
