@@ -1,13 +1,18 @@
 """φ(s) of eq. (15) is written once (``basis.basis_terms``): its numbers, its derivative and its
-CasADi evaluation against the closed form and against each other."""
+CasADi evaluation against the closed form and against each other. The integrals of eq. (1) by a
+fixed rule are written once too (``quadrature.rule_integrals``): by panels and by cells, the
+numbers and the CasADi expressions the NLPs use agree, and both converge to the integral."""
 from __future__ import annotations
 
 import casadi as ca
 import numpy as np
 import pytest
 
-from knit_nlp.weft.model.basis import basis_at, dbasis_at, dphi, phi
-from knit_nlp.weft.transcription.contact import basis_mx
+from knit_nlp.weft.model.basis import basis_at, dbasis_at, dphi, n_coeffs, phi
+from knit_nlp.weft.model.contact.curves import Curves
+from knit_nlp.weft.model.kinematics import LoopIntegrals, loop_displacements
+from knit_nlp.weft.model.quadrature import positions
+from knit_nlp.weft.transcription.contact import _Cells, basis_mx
 
 L = 10.0
 
@@ -35,3 +40,28 @@ def test_the_basis_is_the_closed_form_on_numbers_and_in_casadi(t):
     terms = ca.Function("phi", [U], basis_mx(U, L, t))(u)
     got = np.stack([np.asarray(m) for m in terms], axis=-1)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-13)
+
+
+def test_the_integrals_of_eq_1_by_panels_and_by_cells_agree_in_numbers_and_casadi():
+    """Random loops (t = 3): the panel rule's displacements to material points as numbers
+    (``LoopIntegrals``) and as the full NLP's CasADi Function (``loop_displacements``) agree to
+    1e-13, the cells' increments as numbers (``Curves``) and as the contact rows' CasADi
+    expressions (``_Cells``) too, and both rules give the fine reference (``positions``)."""
+    t, N = 3, 5
+    rng = np.random.default_rng(7)
+    A = rng.normal(0.0, 0.4, (N, n_coeffs(t)))
+    A[:, 0] += 2.0                                          # the jersey's θ = 2 sin(2πs/L)
+    s = np.array([1.3, 4.0, 7.7, L])
+    _, D = LoopIntegrals(L, t, s, 12).values(A)             # N × P × 2
+    fn = loop_displacements(L, t, s, 12)
+    cas = np.stack([np.asarray(fn(a)).T for a in A])
+    np.testing.assert_allclose(D, cas, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(D, positions(A, s, L, t, 48), rtol=0, atol=1e-8)
+    curves = Curves(A, np.zeros((N, 2)), L, t)
+    sym = ca.MX.sym("A", n_coeffs(t), N)
+    cells = _Cells(sym, L, t)
+    inc = ca.Function("inc", [sym], [cells.dx, cells.dy])(A.T)
+    prefix = np.cumsum(np.stack([np.asarray(inc[0]).T, np.asarray(inc[1]).T], -1), axis=1)
+    np.testing.assert_allclose(curves.prefix[:, 1:], prefix, rtol=0, atol=1e-13)
+    ends = positions(A, np.linspace(0, L, prefix.shape[1] + 1)[1:], L, t, 48)
+    np.testing.assert_allclose(prefix, ends, rtol=0, atol=1e-7)

@@ -39,9 +39,10 @@ import casadi as ca
 import numpy as np
 
 from ...layout import Layout
-from ..model.basis import basis_at, basis_terms, n_coeffs
+from ..model.basis import basis_terms, n_coeffs
 from ..model.parametrisation import Full
-from ..model.contact.curves import Curves, cell_nodes, cell_of, cell_rule
+from ..model.contact.curves import Curves, cell_of, cell_rule, cell_weights
+from ..model.quadrature import rule_integrals
 from .derivatives import block_triu_sparsity, triu_pairs, closed_form_derivatives
 from .full import FullNLP
 from .protocol import WeftNLP
@@ -310,13 +311,10 @@ class _Cells:
     nodes are fixed, so φ there is a constant matrix and θ = Φ·A one product for all loops."""
 
     def __init__(self, A: ca.MX, L: float, t: int) -> None:
-        u, hw = cell_nodes(L, t)                                       # M × Q, (Q,)
-        self.phi = basis_at(u.ravel(), L, t)                           # M·Q × nc
-        theta = ca.mtimes(ca.DM(self.phi), A)                          # M·Q × N
-        self.cos, self.sin = ca.cos(theta), ca.sin(theta)
-        self.rep = np.kron(np.eye(len(u)), hw[:, None])                # M·Q × M: h w_q
-        W = ca.DM(self.rep.T)                                          # M × M·Q
-        self.dx, self.dy = ca.mtimes(W, self.cos), ca.mtimes(W, self.sin)
+        self.phi, W = cell_weights(L, t)                               # M·Q × nc, M × M·Q
+        self.rep = W.T                                                 # M·Q × M: h w_q
+        self.cos, self.sin, self.dx, self.dy = rule_integrals(
+            ca.DM(self.phi), ca.DM(W), A, ca.cos, ca.sin, ca.mtimes)  # as the numbers (curves)
         self.ddx = [-ca.mtimes(ca.DM(self.rep.T * self.phi[:, c]), self.sin)
                     for c in range(self.phi.shape[1])]
         self.ddy = [ca.mtimes(ca.DM(self.rep.T * self.phi[:, c]), self.cos)
