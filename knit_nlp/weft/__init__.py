@@ -4,7 +4,9 @@
   energies (eqs. 6-12), a checked problem, its parameters and parametrisations;
 - ``transcription``: the NLP of eq. 13, full or condensed reduced (eqs. 22-27), through one
   factory (``transcribe``) and one written protocol (``WeftNLP``);
-- ``solving``: IPOPT, continuation, starts and the adaptive strategy;
+- ``solving``: IPOPT, continuation and starts; the forward equilibrium of a problem, built once
+  in its variant (``solving.variants.equilibrium``: a fixed transcription, yarn contact, the
+  adaptive strategy), with its sensitivities;
 - ``output``: the typed result, its JSON, pictures, loading paths, exports, summaries;
 - ``api`` and ``study``: solving and comparing from Python, many solves of one build;
   ``inverse``: control, identification and overlays through the equilibrium;
