@@ -29,7 +29,9 @@ def main(argv: list[str] | None = None) -> None:
     a = ap.parse_args(argv)
     from knit_nlp.weft.model.cases import diagonal_pull
     from knit_nlp.weft.model.problem import parse_problem
-    from knit_nlp.weft.transcription.contact import build_contact_nlp
+    from knit_nlp.weft.model.parametrisation import Full
+    from knit_nlp.weft.transcription.contact import Slots
+    from knit_nlp.weft.transcription.factory import transcribe
     from knit_nlp.weft.transcription.full import build_nlp
     pr = parse_problem(diagonal_pull(a.size), f"pull {a.size}")
     base = build_nlp(pr)
@@ -38,11 +40,11 @@ def main(argv: list[str] | None = None) -> None:
     kA = rng.integers(0, N, n)
     kB = np.minimum(kA + rng.integers(0, 2 * a.size + 2, n), N - 1)
     t0 = time.perf_counter()
-    c = build_contact_nlp(base, kA, kB)
+    c = transcribe(pr, Full(), contact=Slots(kA, kB), base=base)
     build = time.perf_counter() - t0
     sA, sB = rng.uniform(0, pr.L, n), rng.uniform(0, pr.L, n)
     pb = base.params.vector()
-    x = c.lift(base.x0, sA, sB)
+    x = c.lift_slots(base.x0, sA, sB)
     p = c.parameters(pb, sA, sB, np.ones(n))
     lam = rng.normal(size=c.n_constraints)
     # DM inputs: IPOPT hands CasADi its own arrays; numpy ones would add their conversion

@@ -35,7 +35,7 @@ from knit_nlp.weft.model.parametrisation import Full
 from knit_nlp.weft.transcription.factory import transcribe  # noqa: E402
 from knit_nlp.weft.model.problem import load_problem  # noqa: E402
 from knit_nlp.weft.model.params import WeftParams  # noqa: E402
-from knit_nlp.weft.solving.solve import WeftSolver, solve  # noqa: E402
+from knit_nlp.weft.solving.solve import WeftSolver, solve_nlp  # noqa: E402
 
 PLACE = ROOT / "problems" / "place_stitch.toml"
 
@@ -58,7 +58,7 @@ def forward_once(cp, u: np.ndarray) -> tuple[float, int]:
     for a in cp.actuated:
         ctl_p[wnlp.p.slice("targets").start + 2 * a.index:][:2] = u[k:k + 2]
         k += 2
-    rep = solve(wnlp, solver, params=WeftParams.from_vector(cp.problem, ctl_p))
+    rep = solve_nlp(wnlp, solver, params=WeftParams.from_vector(cp.problem, ctl_p))
     return time.perf_counter() - t0, rep.iterations
 
 

@@ -8,7 +8,7 @@ For each n x n diagonal pull (``bench_contact``'s problem, r = 0.15):
 
 1. the solve without contact (a ``WeftStudy`` built and run, the NLP's build included: what
    ``weft.api.solve`` in ``bench_contact.py`` does);
-2. the package's solve with contact (a ``ContactStudy``: load steps and rounds, the same
+2. the package's solve with contact (a ``WeftStudy``: load steps and rounds, the same
    build included), which lists the active contacts of its answer (``ContactSolver.touching``);
 3. the oracle: a fresh contact NLP with a slot for exactly those contacts (their material
    points, sides and required gaps), solved once by IPOPT at the target, (a) from the natural
@@ -37,10 +37,10 @@ def _solve(n: int, radius: float | None, budget: float):
     """The pull solved by the package (with its NLP build): the study, result and seconds."""
     from knit_nlp.weft.model.cases import diagonal_pull
     from knit_nlp.weft.model.parametrisation import Full
-    from knit_nlp.weft.study import ContactStudy, WeftStudy
+    from knit_nlp.weft.study import WeftStudy
     pr = bc._problem(diagonal_pull(n), radius, budget)
     t0 = time.perf_counter()
-    st = WeftStudy(pr, Full()) if radius is None else ContactStudy(pr)
+    st = WeftStudy(pr, Full())
     res = st.run()
     return st, res, time.perf_counter() - t0
 
@@ -52,8 +52,8 @@ def oracle(n: int, contacts, budget: float, start: str) -> dict:
     from knit_nlp.weft.model.cases import diagonal_pull
     from knit_nlp.weft.solving.solve import DEFAULT_START, SolveReport, start_point
     from knit_nlp.weft.output.check import check
-    from knit_nlp.weft.study import ContactStudy
-    st = ContactStudy(bc._problem(diagonal_pull(n), bc.RADIUS, budget))
+    from knit_nlp.weft.study import WeftStudy
+    st = WeftStudy(bc._problem(diagonal_pull(n), bc.RADIUS, budget))
     base, c, p = st.nlp, st.contact, st.params.vector()
     c.deadline = time.perf_counter() + budget
     t0 = time.perf_counter()
@@ -83,7 +83,7 @@ def bound(n: int, budget: float) -> None:
         print(f"{n}x{n}: the solve with contact did not converge ({res.status}): no answer, "
               f"no active set, no bound")
         return
-    pairs, _, _ = st.contact.last_pairs
+    pairs = st.contact.last.pairs
     contacts = pairs.select(st.contact.touching())
     print(f"{n}x{n}: without contact {plain:.2f} s; with contact {withc:.2f} s "
           f"({withc / plain:.1f} x), {len(pairs):,} pairs in its last solve, "

@@ -22,7 +22,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from knit_nlp.weft.inverse.equilibrium import Equilibrium  # noqa: E402
+from knit_nlp.weft.solving.solve import Equilibrium  # noqa: E402
 from knit_nlp.weft.inverse.overlay import Similarity  # noqa: E402
 from knit_nlp.weft.inverse.points import point_function  # noqa: E402
 from knit_nlp.weft.model.problem import load_problem  # noqa: E402

@@ -51,7 +51,8 @@ class Prefix:
     ∂²I/∂a² (N, M+1, 2, nc, nc)."""
 
     def __init__(self, coeffs: np.ndarray, L: float, t: int, second: bool) -> None:
-        from knit_nlp.weft.model.contact.curves import basis_at, cell_nodes
+        from knit_nlp.weft.model.basis import basis_at
+        from knit_nlp.weft.model.contact.curves import cell_nodes
         u, hw = cell_nodes(L, t)
         phi = basis_at(u, L, t)                                       # (M, Q, nc)
         th = np.einsum("mqc,nc->nmq", phi, coeffs)
@@ -73,7 +74,8 @@ class Points:
     """Fixed material points (k, s): their cell, the partial cell's nodes and φ there."""
 
     def __init__(self, k: np.ndarray, s: np.ndarray, L: float, t: int) -> None:
-        from knit_nlp.weft.model.contact.curves import basis_at, cell_of, cell_rule
+        from knit_nlp.weft.model.basis import basis_at
+        from knit_nlp.weft.model.contact.curves import cell_of, cell_rule
         M, xi, self.w = cell_rule(t)
         self.k, self.s = np.asarray(k), np.asarray(s, dtype=float)
         self.j = cell_of(self.s, L, t)
@@ -254,13 +256,14 @@ def setup(n: int, budget: float):
     search for it)."""
     from knit_nlp.weft.model.cases import diagonal_pull
     from knit_nlp.weft.solving.contact.rounds import ContactSolver
+    from knit_nlp.weft.solving.solve import WeftSolver
     from knit_nlp.weft.transcription.factory import transcribe
     from knit_nlp.weft.model.parametrisation import Full
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import bench_contact                 # the benchmark's problem: its radius, our budget
     pr = bench_contact._problem(diagonal_pull(n), RADIUS, budget)
     base = transcribe(pr, Full())
-    return pr, base, ContactSolver(base, RADIUS)
+    return pr, base, ContactSolver(WeftSolver(base), RADIUS)
 
 
 def check(n: int = 4, seed: int = 0) -> tuple[float, float]:

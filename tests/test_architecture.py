@@ -160,3 +160,61 @@ def test_weft_subpackages_import_only_earlier_stages_of_the_pipeline():
             if tp[1] == "weft":
                 assert len(tp) > 2 and tp[2] in PIPELINE, (mod, target)
                 assert PIPELINE.index(tp[2]) <= PIPELINE.index(parts[2]), (mod, target)
+
+
+def constructing_modules(names: tuple[str, ...], root: Path = PACKAGE) -> set[str]:
+    """The package modules with a call of any of ``names`` (a class built there)."""
+    found = set()
+    for path in root.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Call):
+                f = node.func
+                name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(
+                    f, ast.Attribute) else None
+                if name in names:
+                    found.add(module_name(path, root.parent))
+    return found
+
+
+def test_one_forward_equilibrium_builds_the_solvers():
+    """The IPOPT instances and the contact solver of a weft problem are built in two modules
+    only (the solver's own, with the equilibrium of a fixed transcription, and the contact
+    equilibrium's), so a new model variant joins one equilibrium (``solving.variants``), not
+    several stacks (issue 38: six modules built them)."""
+    assert constructing_modules(("WeftSolver", "ContactSolver")) == {
+        "knit_nlp.weft.solving.solve", "knit_nlp.weft.solving.contact.equilibrium"}
+
+
+def private_imports(root: Path = PACKAGE) -> list[tuple[str, str]]:
+    """(module, name) for every ``from <package module> import _name``: a private name used
+    outside its module."""
+    found = []
+    for path in root.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").startswith(
+                    root.name)):
+                found += [(module_name(path, root.parent), a.name) for a in node.names
+                          if a.name.startswith("_") and not a.name.startswith("__")]
+    return found
+
+
+def test_no_private_name_is_imported_from_another_module(tmp_path):
+    """A name another module needs is public (issue 38: seven private names crossed modules,
+    a public parser among them); the walk sees such an import wherever it is."""
+    assert private_imports() == []
+    bad = tmp_path / "knit_nlp"
+    bad.mkdir()
+    (bad / "a.py").write_text("def _helper():\n    pass\n")
+    (bad / "b.py").write_text("def f():\n    from .a import _helper  # noqa\n")
+    assert private_imports(bad) == [("knit_nlp.b", "_helper")]
+
+
+def test_few_file_names_are_reused_inside_weft():
+    """At most three file names of ``weft/`` name two modules (issue 38: six did, e.g. two
+    ``crossings.py`` for the crossing springs' points and for yarns crossing in contact)."""
+    names: dict[str, list[Path]] = defaultdict(list)
+    for path in (PACKAGE / "weft").rglob("*.py"):
+        if path.name != "__init__.py":
+            names[path.name].append(path)
+    reused = sorted(name for name, paths in names.items() if len(paths) > 1)
+    assert len(reused) <= 3, reused

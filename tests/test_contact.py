@@ -14,15 +14,16 @@ from knit_nlp.weft.model.contact.crossings import Crossings, find_crossings, jud
 from knit_nlp.weft.model.contact.curves import Curves
 from knit_nlp.weft.model.contact.natural import NaturalFabric
 from knit_nlp.weft.model.contact.pairs import Grid
-from knit_nlp.weft.model.parametrisation import Reduced
+from knit_nlp.weft.model.parametrisation import Full, Reduced
 from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.model.problem import Clamp, Load, Yarn, parse_problem
 from knit_nlp.weft.output.check import check
 from knit_nlp.weft.output.results import WeftResult
-from knit_nlp.weft.solving.contact.rounds import ContactSolver
-from knit_nlp.weft.solving.contact.solve import ContactRefused
-from knit_nlp.weft.solving.solve import SolveReport
-from knit_nlp.weft.transcription.contact import build_contact_nlp
+from knit_nlp.weft.solving.contact.rounds import ContactSolver, Step
+from knit_nlp.weft.solving.contact.equilibrium import ContactRefused
+from knit_nlp.weft.solving.solve import SolveReport, WeftSolver
+from knit_nlp.weft.transcription.contact import Slots
+from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.transcription.full import build_nlp
 
 L = 10.0
@@ -92,11 +93,11 @@ def test_envelope_theorem_with_active_contacts():
     d, h = 0.5, 1e-4
     pr = squeezed(d)
     base = build_nlp(pr)
-    contact = ContactSolver(base, pr.yarn.radius)
+    contact = ContactSolver(WeftSolver(base), pr.yarn.radius)
     report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
     p_at = WeftParams.natural(pr).vector()
     run = contact.run(base.params.vector(), p_at, base.x0, 4, report)
-    used, lam = run.solved                          # the pairs of the last solve
+    used, lam = run.solved.pairs, run.solved.lam_gap    # the pairs of the last solve
     assert run.report.success and (lam < -1e-3).any()               # a contact pushes
 
     def energy(delta: float) -> float:
@@ -116,9 +117,9 @@ def _random_contact_nlp(seed: int = 1, n: int = 6):
     base = build_nlp(pr)
     rng = np.random.default_rng(seed)
     kA, kB = rng.integers(0, pr.n_loops, n), rng.integers(0, pr.n_loops, n)
-    c = build_contact_nlp(base, kA, kB)
+    c = transcribe(pr, Full(), contact=Slots(kA, kB), base=base)
     sA, sB = rng.uniform(0, L, n), rng.uniform(0, L, n)
-    x = c.lift(base.x0, sA, sB) + 0.01 * rng.normal(size=c.n_variables)
+    x = c.lift_slots(base.x0, sA, sB) + 0.01 * rng.normal(size=c.n_variables)
     p = c.parameters(base.p0, sA, sB, rng.choice([-1.0, 1.0], n))
     return c, x, p, rng
 
@@ -273,10 +274,32 @@ def test_warm_start_from_a_contact_result_reaches_the_next_load_step():
 
 def test_lifted_contact_points_start_on_their_rows():
     c, x, p, _ = _random_contact_nlp(seed=3)
-    x0 = c.lift(c.base.x0, p[c.base.p.size:c.base.p.size + c.n_slots],
-                p[c.base.p.size + c.n_slots:c.base.p.size + 2 * c.n_slots])
+    x0 = c.lift_slots(c.base.x0, c.p.get(p, "contact_s_A").ravel(),
+                      c.p.get(p, "contact_s_B").ravel())
     g = np.asarray(ca.Function("g", [c.nlp["x"], c.nlp["p"]], [c.nlp["g"]])(x0, p)).ravel()
     assert np.abs(g[c.g.slice("contact_lift")]).max() < 1e-12
+
+
+def test_the_contact_nlp_is_a_weft_nlp_read_through_its_base():
+    """The factory's contact NLP (``transcribe(problem, Full(), contact=Slots(...))``) offers
+    the protocol: its parameter layout names where each slot's s_A, s_B and σ lie in the vector
+    ``parameters`` builds, and what the protocol reads of a decision vector (loops, starts,
+    centrelines, energy) is its base part's; a reduced model with contact is refused."""
+    c, x, p, rng = _random_contact_nlp(seed=4)
+    base, nb = c.base, c.base.n_variables
+    sA, sB = rng.uniform(0, L, c.n_slots), rng.uniform(0, L, c.n_slots)
+    sigma = rng.choice([-1.0, 1.0], c.n_slots)
+    q = c.parameters(base.p0, sA, sB, sigma)
+    assert q.size == c.p.size and c.n_variables == nb + 5 * c.n_slots
+    for name, want in (("contact_s_A", sA), ("contact_s_B", sB), ("contact_sigma", sigma)):
+        np.testing.assert_array_equal(c.p.get(q, name).ravel(), want)
+    np.testing.assert_array_equal(c.centrelines(x), base.centrelines(x[:nb]))
+    assert c.energy(x, q) == base.energy(x[:nb], base.p0)
+    np.testing.assert_array_equal(c.coefficients(c.lift(base.coefficients(x[:nb]),
+                                                        base.starts(x[:nb]))),
+                                  base.coefficients(x[:nb]))
+    with pytest.raises(ValueError, match="full model"):
+        transcribe(base.problem, Reduced(), contact=Slots(c.kA, c.kB))
 
 
 def test_a_contact_solve_keeps_to_its_time_budget():
@@ -317,12 +340,12 @@ def test_a_failed_step_after_a_widened_search_reports_the_solved_pairs(monkeypat
     (they differed in length: an IndexError in the result's contact block at 10 x 10)."""
     pr = squeezed(0.5)
     base = build_nlp(pr)
-    contact = ContactSolver(base, pr.yarn.radius)
+    contact = ContactSolver(WeftSolver(base), pr.yarn.radius)
     report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
     real_step, real_pairs, solved = contact.step, contact.pairs, []
 
     def step(*args, **kwargs):              # the first step is solved, every later one fails
-        out = real_step(*args, **kwargs) if not solved else None
+        out = real_step(*args, **kwargs) if not solved else Step("Invalid_Number_Detected")
         solved.append(out)
         return out
 
@@ -334,8 +357,8 @@ def test_a_failed_step_after_a_widened_search_reports_the_solved_pairs(monkeypat
     monkeypatch.setattr(contact, "pairs", pairs)
     run = contact.run(base.params.vector(), WeftParams.natural(pr).vector(), base.x0, 2, report,
                       max_halvings=1)
-    assert solved[0] is not None and not run.report.success
-    assert len(run.pairs) == len(run.lam_gap) == len(solved[0][1])
+    assert solved[0].success and not run.report.success
+    assert len(run.pairs) == len(run.lam_gap) == len(solved[0].pairs)
 
 
 def test_the_pair_search_takes_the_samples_a_chunk_at_a_time_with_the_same_answer(monkeypatch):
@@ -345,13 +368,12 @@ def test_the_pair_search_takes_the_samples_a_chunk_at_a_time_with_the_same_answe
     points to 1e-14 L: numpy's vector operations may round differently on shorter arrays; at
     the default CHUNK the 10 x 10 and 30 x 30 pulls' pairs are the same bit for bit)."""
     from knit_nlp.weft.model.contact import pairs as P
-    from knit_nlp.weft.solving.solve import WeftSolver
     pr = parse_problem({**diagonal_pull(4), "yarn": {"radius": 0.15}}, "pull 4")
     base = build_nlp(pr)
     x = WeftSolver(base, verbose=None).once(base.params.vector(), base.x0).x
-    whole = ContactSolver(base, 0.15).pairs(x)
+    whole = ContactSolver(WeftSolver(base), 0.15).pairs(x)
     monkeypatch.setattr(P, "CHUNK", 7)
-    chunked = ContactSolver(base, 0.15).pairs(x)
+    chunked = ContactSolver(WeftSolver(base), 0.15).pairs(x)
     assert len(whole) > 100
     for f in dataclasses.fields(whole):
         np.testing.assert_allclose(getattr(chunked, f.name), getattr(whole, f.name), rtol=0,

@@ -7,9 +7,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from knit_nlp.weft.inverse.contact_equilibrium import ContactEquilibrium, contact_system
 from knit_nlp.weft.inverse.control import Controller
-from knit_nlp.weft.inverse.equilibrium import Equilibrium
+from knit_nlp.weft.inverse.forward import equilibrium_for
+from knit_nlp.weft.solving.sensitivity import contact_system
+from knit_nlp.weft.solving.solve import Equilibrium
 from knit_nlp.problems import resolve
 from knit_nlp.weft.inverse.spec import load_control, parse_control
 from knit_nlp.weft.output.check import check
@@ -21,7 +22,7 @@ def jammed():
     """The loop squeezed by 0.5 between its rigid clamps (r = 0.15): one contact pushes at its
     neck; the sensitivities to the moving clamp's x translation, and central differences of
     forward contact solves (one load step from the solution, as control takes them)."""
-    eq = ContactEquilibrium(squeezed(0.5))
+    eq = equilibrium_for(squeezed(0.5))
     p = eq.wnlp.p0.copy()
     i = eq.wnlp.p.slice("rigid").start + 3           # rigid clamp 2, translation x
     rep = eq.solve(p)
@@ -49,10 +50,10 @@ def test_sensitivities_with_an_active_contact_match_central_differences(jammed):
     eq, rep, p, E, fd = jammed
     dx, _ = eq.sensitivity(rep.x, rep.lam_g, p, E)
     assert _error(dx, fd) < 1e-3
-    held, _ = Equilibrium.sensitivity(eq, rep.x, rep.lam_g, p, E)
+    held, _ = eq.sensitivity(rep.x, rep.lam_g, p, E, sliding=False)
     assert _error(held, fd) > 1e-2
     st = eq.state(rep.x)
-    K, Fp, _ = contact_system(st, eq._dFdp(rep.x, st.lam[:eq.wnlp.n_constraints], p), eq.n,
+    K, Fp, _ = contact_system(st, eq.kkt_system.dFdp(rep.x, st.lam[:eq.wnlp.n_constraints], p), eq.n,
                               keep_active=False)
     dropped = np.linalg.solve(np.asarray(ca.densify(K)), -np.asarray(ca.densify(Fp)) @ E)
     assert _error(dropped[:eq.n], fd) > 0.1
@@ -114,5 +115,5 @@ def test_the_shipped_control_with_a_radius_passes_its_forward_check():
 def test_the_paper_equilibrium_refuses_a_radius_and_names_the_factory():
     """Control, fit and calibrate get their equilibrium from ``equilibrium_for``; the paper's
     one, built directly for a problem with a radius, refuses rather than drop the contacts."""
-    with pytest.raises(ValueError, match=r"ignores \[yarn\] radius.*equilibrium_for"):
+    with pytest.raises(ValueError, match=r"ignores \[yarn\] radius.*equilibrium\(problem\)"):
         Equilibrium(squeezed(0.5))

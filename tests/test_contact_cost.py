@@ -14,7 +14,7 @@ from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.solving.contact import rounds
 from knit_nlp.weft.solving.contact.rounds import ContactSolver
-from knit_nlp.weft.solving.solve import SolveReport
+from knit_nlp.weft.solving.solve import SolveReport, WeftSolver
 from knit_nlp.weft.transcription.full import build_nlp
 
 SQUEEZE = {"name": "squeeze", "fabric": {"courses": 1, "wales": 1}, "yarn": {"radius": 0.15},
@@ -28,7 +28,7 @@ SQUEEZE = {"name": "squeeze", "fabric": {"courses": 1, "wales": 1}, "yarn": {"ra
 def _solver() -> tuple[ContactSolver, object]:
     pr = parse_problem(SQUEEZE, "squeeze")
     base = build_nlp(pr)
-    return ContactSolver(base, pr.yarn.radius), base
+    return ContactSolver(WeftSolver(base), pr.yarn.radius), base
 
 
 def _pairs(n: int) -> Pairs:
@@ -58,8 +58,7 @@ def _reaches(status: str) -> list[float]:
 
     def step(p, x, pairs, warm, final, report, rounds_, note):
         seen.append(contact.reach)
-        report.status = status
-        return None
+        return rounds.Step(status)
 
     contact.step = step
     report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
@@ -100,7 +99,7 @@ def _pull(n: int) -> tuple[ContactSolver, object, list[tuple[str, int]]]:
     from knit_nlp.weft.model.cases import diagonal_pull
     pr = parse_problem({**diagonal_pull(n), "yarn": {"radius": 0.15}}, "pull")
     base = build_nlp(pr)
-    contact = ContactSolver(base, pr.yarn.radius)
+    contact = ContactSolver(WeftSolver(base), pr.yarn.radius)
     solves: list[tuple[str, int]] = []
     contact.log = lambda r: solves.append((r.note, r.iterations)) if isinstance(
         r, rounds.Round) else None
@@ -131,10 +130,11 @@ def test_a_contact_solve_restarted_at_its_solution_stops_at_once():
     forgot the scale."""
     contact, base, _ = _pull(4)
     run = _run(contact, base)
-    pairs, lam = run.solved
+    pairs, lam = run.solved.pairs, run.solved.lam_gap
     report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
     again, lam_again = contact.solve_once(base.params.vector(), run.report.x, pairs,
-                                          (run.report.lam_g, pairs, lam), report, [], "again")
+                                          rounds.Warm(run.report.lam_g, pairs, lam), report, [],
+                                          "again")
     assert again.success and again.iterations == 0
     np.testing.assert_allclose(lam_again, lam, atol=1e-12)
 
@@ -192,10 +192,10 @@ def test_a_restart_repeats_its_round_not_the_whole_step():
     contact.crossed = lambda x, used, found: False
     contact.touching = lambda: np.zeros(contact.n_pairs, dtype=bool)
     contact._hold = lambda x, held: held
-    contact._restart = lambda start, deep: start[1].concat(deep)
+    contact._restart = lambda x0, pairs0, deep: pairs0.concat(deep)
     contact._again = lambda x, deep_met, pairs: Pairs.empty()
     report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
     out = contact.step(base.params.vector(), base.x0, _one(0.3), None, False, report, [], "load")
-    assert out is not None and len(starts) == 3
+    assert out.success and len(starts) == 3
     np.testing.assert_array_equal(starts[2], starts[1])          # round 2's start, again
     assert not np.array_equal(starts[2], starts[0])              # not the step's start

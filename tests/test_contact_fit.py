@@ -23,8 +23,9 @@ from knit_nlp.cli import main
 from knit_nlp.weft.inverse.calibration.curve import (SpecimenModel, fd_derivatives,
                                                      implicit_derivatives, strains_at)
 from knit_nlp.weft.inverse.calibration.specimen import build_specimen, specimen_doc
-from knit_nlp.weft.inverse.contact_equilibrium import ContactEquilibrium, equilibrium_for
-from knit_nlp.weft.inverse.equilibrium import Equilibrium
+from knit_nlp.weft.inverse.forward import equilibrium_for
+from knit_nlp.weft.solving.contact.equilibrium import ContactEquilibrium
+from knit_nlp.weft.solving.solve import Equilibrium
 from knit_nlp.weft.inverse.fit import Fitter
 from knit_nlp.weft.inverse.observations import Observation
 from knit_nlp.weft.model.problem import parse_problem
@@ -65,7 +66,7 @@ def test_curve_sensitivities_with_active_contacts_match_central_differences(pull
     _, Ft, _, Lt = model.node_sensitivities(c, names)
     with pytest.MonkeyPatch.context() as mp:          # the paper's KKT system at each node
         mp.setattr(model.eq, "linear_system",
-                   lambda x, lam, p: Equilibrium.linear_system(model.eq, x, lam, p))
+                   lambda x, lam, p: Equilibrium.linear_system(model.eq, x, lam, p, False))
         _, Ft0, _, Lt0 = model.node_sensitivities(c, names)
     worst = 0.0
     for k, name in enumerate(names):
@@ -158,7 +159,7 @@ def test_the_fits_jacobian_with_active_contacts_matches_central_differences():
     assert fitter.solve_cases(v)
     J, _ = fitter.jacobian(v)
     c = fitter.cases[0]
-    dx0, _ = Equilibrium.sensitivity(c.eq, c.x, c.lam, fitter._params(c, v), fitter._dp(c))
+    dx0, _ = c.eq.sensitivity(c.x, c.lam, fitter._params(c, v), fitter._dp(c), sliding=False)
     J0 = np.asarray(c.points(c.x)[1] @ ca.DM(dx0))
     fd = []
     for k in range(2):
@@ -214,7 +215,7 @@ def test_the_factory_gives_contact_to_problems_with_a_radius_only():
     assert isinstance(eq, ContactEquilibrium)
     doc = specimen_doc(SYNTH_DOC, "wales", 2, 3, "plain")
     assert type(equilibrium_for(parse_problem(doc, "plain.toml"))) is Equilibrium
-    with pytest.raises(ValueError, match=r"ignores \[yarn\] radius.*equilibrium_for"):
+    with pytest.raises(ValueError, match=r"ignores \[yarn\] radius.*equilibrium\(problem\)"):
         Equilibrium(pr)
     with pytest.raises(ValueError, match="solve it here first"):
         eq.sensitivity(eq.wnlp.x0, np.zeros(eq.wnlp.n_constraints), eq.wnlp.p0,

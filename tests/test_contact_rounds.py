@@ -17,16 +17,16 @@ from knit_nlp.weft.model.cases import diagonal_pull
 from knit_nlp.weft.model.problem import Yarn, parse_problem
 from knit_nlp.weft.solving.contact import rounds
 from knit_nlp.weft.solving.contact.rounds import ContactSolver
-from knit_nlp.weft.study import ContactStudy
+from knit_nlp.weft.study import WeftStudy
 
 R = 0.15
 
 
-def _study(n: int, budget: float) -> ContactStudy:
+def _study(n: int, budget: float) -> WeftStudy:
     pr = parse_problem(diagonal_pull(n), f"pull {n}")
     pr = dataclasses.replace(pr, solver=dataclasses.replace(pr.solver, max_time=budget),
                              yarn=Yarn(R))
-    return ContactStudy(pr, verbose=None)
+    return WeftStudy(pr, verbose=None)
 
 
 def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_start():
@@ -66,9 +66,9 @@ def test_the_pairs_a_restart_was_for_stay_in_every_later_round_of_its_step():
         calls.append((note, pairs))
         return once(p, x, pairs, warm, report, rounds_, note, settle)
 
-    def spy_restart(start, deep):
+    def spy_restart(x0, pairs0, deep):
         calls.append(("restart", deep))
-        return restart(start, deep)
+        return restart(x0, pairs0, deep)
 
     st.contact.solve_once, st.contact._restart = spy, spy_restart
     assert st.run().success
@@ -287,7 +287,7 @@ def test_a_warm_start_whose_contact_rounds_fail_takes_a_load_step_from_it():
     # length until the budget ends
     pr = dataclasses.replace(pr, yarn=Yarn(0.656),
                              solver=dataclasses.replace(pr.solver, max_time=240.0))
-    st = ContactStudy(pr, verbose=None)
+    st = WeftStudy(pr, verbose=None)
     width = n * pr.natural.wale_spacing
     first = st.run(st.params.with_(rigid={2: (0.05 * width, 0.0, 0.0)}))
     assert first.success
@@ -312,16 +312,16 @@ def test_a_study_path_steps_each_contact_point_from_the_last_at_its_parameters(m
     from concurrent.futures import ThreadPoolExecutor
 
     from knit_nlp.studies import LoadPath, run_study
-    from knit_nlp.weft import study as weft_study
     from knit_nlp.weft.model.params import WeftParams
+    from knit_nlp.weft.solving.contact import equilibrium as contact_solve
     seen = []
-    real = weft_study.solve_with_contact
+    real = contact_solve.solve_with_contact
 
     def spy(base, solver, contact, params, continuation=None, x_start=None, p_start=None):
         seen.append((x_start is not None, p_start))
         return real(base, solver, contact, params, continuation, x_start, p_start)
 
-    monkeypatch.setattr(weft_study, "solve_with_contact", spy)
+    monkeypatch.setattr(contact_solve, "solve_with_contact", spy)
     doc = {**diagonal_pull(4), "yarn": {"radius": R}}
     points = [{"displacements": {"2": [d, 0.5 * d]}} for d in (1.0, 2.0)]
     points.insert(1, {"displacements": {"7": [0.0, 0.0]}})
@@ -345,7 +345,7 @@ def test_the_listed_active_contacts_alone_hold_the_answer():
     st = _study(6, 120.0)
     res = st.run()
     assert res.success
-    pairs, _, _ = st.contact.last_pairs
+    pairs = st.contact.last.pairs
     listed = pairs.select(st.contact.touching())
     assert len(listed) == res.extra["contact"]["active"] >= 10
     fresh = _study(6, 120.0)

@@ -16,7 +16,7 @@ from knit_nlp.weft.model.contact.pairs import Grid, find_pairs
 from knit_nlp.weft.model.contact.zones import Zones
 from knit_nlp.weft.model.problem import Yarn, parse_problem
 from knit_nlp.weft.output.check import check
-from knit_nlp.weft.study import ContactStudy
+from knit_nlp.weft.study import WeftStudy
 
 L = 10.0
 R = 0.15
@@ -131,7 +131,7 @@ def test_a_pull_whose_interlocks_slide_needs_no_restart(n):
     pr = parse_problem(diagonal_pull(n), f"pull {n}")
     pr = dataclasses.replace(pr, solver=dataclasses.replace(pr.solver, max_time=120.0),
                              yarn=Yarn(R))
-    st = ContactStudy(pr, verbose=None)
+    st = WeftStudy(pr, verbose=None)
     said: list[str] = []
     st.contact.log = lambda m: said.append(m if isinstance(m, str) else "")
     res = st.run()

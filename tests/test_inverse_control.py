@@ -7,7 +7,8 @@ import pytest
 
 from knit_nlp.cli import main
 from knit_nlp.weft.inverse.control import Controller, control
-from knit_nlp.weft.inverse.equilibrium import Equilibrium, Stability
+from knit_nlp.weft.solving.sensitivity import Stability
+from knit_nlp.weft.solving.solve import Equilibrium
 from knit_nlp.weft.inverse.spec import load_control
 from knit_nlp.weft.model.problem import load_problem
 from knit_nlp.weft.solving.starts import perturbed_starts

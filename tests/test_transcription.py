@@ -4,7 +4,7 @@ import pytest
 
 import knit_nlp
 from knit_nlp.weft import Adaptive, Full, Reduced, WeftNLP, transcribe
-from knit_nlp.weft.solving.solve import WeftSolver, solve
+from knit_nlp.weft.solving.solve import WeftSolver, solve_nlp
 from knit_nlp.weft.transcription.condensed.nlp import CondensedNLP
 from knit_nlp.weft.transcription.full import FullNLP
 
@@ -40,12 +40,12 @@ def test_the_solver_passes_the_transcriptions_bounds(param):
     natural = problem.natural_position(problem.clamps[1].loop, problem.clamps[1].s)
     nlp.lbg, nlp.ubg = nlp.lbg.copy(), nlp.ubg.copy()
     nlp.lbg[rows], nlp.ubg[rows] = natural - target - 1.0, natural - target + 1.0
-    free = solve(nlp, WeftSolver(nlp), start="natural")
+    free = solve_nlp(nlp, WeftSolver(nlp), start="natural")
     assert free.success and nlp.energy(free.x, nlp.p0)[0] + nlp.energy(free.x, nlp.p0)[1] < 1e-10
     assert np.max(np.abs(free.lam_g[rows])) < 1e-8
     # a box in x only, reaching 0.5 short of the natural x: the point is pulled to its edge
     nlp.lbg[rows], nlp.ubg[rows] = [natural[0] - target[0] + 0.5, -np.inf], [np.inf, np.inf]
-    pulled = solve(nlp, WeftSolver(nlp), start="natural")
+    pulled = solve_nlp(nlp, WeftSolver(nlp), start="natural")
     x_end = nlp.special_positions(pulled.x)[0, nlp.clamp_points[1]]
     assert pulled.success and x_end == pytest.approx(natural[0] + 0.5, abs=1e-6)
     assert pulled.lam_g[rows][0] < 0 and abs(pulled.lam_g[rows][1]) < 1e-8

@@ -32,7 +32,7 @@ displacement = {d}
 
 
 def _diagonal(write_problem, n, extra=""):
-    from knit_nlp.weft.model.natural import natural_loop, preset_coeffs
+    from knit_nlp.weft.model.natural_loop import natural_loop, preset_coeffs
     loop = natural_loop(preset_coeffs("jersey", 3), 10.0, 3)
     h = np.array([(n - 1) * loop.wale_spacing, 0.0]) + loop.xy([6.420998])[0]
     c, s = np.cos(np.radians(25.26)), np.sin(np.radians(25.26))

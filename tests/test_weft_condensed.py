@@ -11,7 +11,7 @@ from knit_nlp.weft.model.kinematics import LoopIntegrals, loop_displacements
 from knit_nlp.weft.model.parametrisation import Full, Reduced
 from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.model.problem import load_problem, parse_problem
-from knit_nlp.weft.solving.solve import WeftSolver, solve
+from knit_nlp.weft.solving.solve import WeftSolver, solve_nlp
 
 from reference import lifted_reduced_solve
 
@@ -115,7 +115,7 @@ def test_condensed_and_lifted_reduced_models_reach_the_same_minimum(write_proble
     pr = load_problem(write_problem(MIXED))
     cond = transcribe(pr, pr.reduction)
     # the same start for both (the condensed default would solve the corner form first)
-    rc = solve(cond, WeftSolver(cond), start="natural")
+    rc = solve_nlp(cond, WeftSolver(cond), start="natural")
     rl = lifted_reduced_solve(pr, pr.reduction)
     assert rc.success and rl.success
     assert rc.objective == pytest.approx(rl.objective, rel=1e-9)
@@ -132,7 +132,7 @@ def test_every_loop_representative_condensed_equals_the_full_model(write_problem
     pr = load_problem(write_problem(MIXED))
     every = Reduced(tuple(range(1, 5)), tuple(range(1, 6)))
     cond, full = transcribe(pr, every), transcribe(pr, Full())
-    rc, rf = solve(cond, WeftSolver(cond)), solve(full, WeftSolver(full))
+    rc, rf = solve_nlp(cond, WeftSolver(cond)), solve_nlp(full, WeftSolver(full))
     assert rc.success and rf.success
     assert rc.objective == pytest.approx(rf.objective, rel=1e-9)
     np.testing.assert_allclose(cond.coefficients(rc.x), full.coefficients(rf.x), atol=1e-6)
@@ -146,7 +146,8 @@ def test_shooting_segments_reach_the_single_shooting_minimum_in_fewer_iterations
     seg, one = build_condensed(pr, segment=12), build_condensed(pr, segment=20)
     assert (seg.n_seg, one.n_seg) == (2, 1)
     assert seg.g.size == one.g.size + 2 * 20            # one chaining row pair per course
-    rs, r1 = solve(seg, WeftSolver(seg, max_iter=100)), solve(one, WeftSolver(one, max_iter=100))
+    rs = solve_nlp(seg, WeftSolver(seg, max_iter=100))
+    r1 = solve_nlp(one, WeftSolver(one, max_iter=100))
     assert rs.success and r1.success
     assert rs.objective == pytest.approx(r1.objective, rel=1e-9)
     np.testing.assert_allclose(seg.coefficients(rs.x), one.coefficients(r1.x), atol=1e-6)
@@ -159,8 +160,8 @@ def test_a_finer_reduced_grid_starts_from_the_corner_form():
     # iterations against 45 from the natural state, to the same minimum (docs/measurements.md)
     pr = parse_problem(diagonal_pull(16), "<diagonal pull 16 x 16>")
     grid = build_condensed(pr, Reduced((1, 3, 5, 7, 10, 12, 14, 16), (1, 3, 5, 7, 10, 12, 14, 16)))
-    warm = solve(grid, WeftSolver(grid, max_iter=200))
-    cold = solve(grid, WeftSolver(grid, max_iter=200), start="natural")
+    warm = solve_nlp(grid, WeftSolver(grid, max_iter=200))
+    cold = solve_nlp(grid, WeftSolver(grid, max_iter=200), start="natural")
     assert warm.success and cold.success
     first = warm.attempts[0]
     assert first.startswith("corner start: Solve_Succeeded")
@@ -169,4 +170,5 @@ def test_a_finer_reduced_grid_starts_from_the_corner_form():
     assert warm.objective == pytest.approx(cold.objective, rel=1e-9)
     np.testing.assert_allclose(grid.coefficients(warm.x), grid.coefficients(cold.x), atol=1e-6)
     corner = build_condensed(pr)
-    assert not any(a.startswith("corner start") for a in solve(corner, WeftSolver(corner)).attempts)
+    attempts = solve_nlp(corner, WeftSolver(corner)).attempts
+    assert not any(a.startswith("corner start") for a in attempts)

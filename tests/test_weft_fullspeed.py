@@ -7,7 +7,7 @@ from knit_nlp.weft.model.parametrisation import Full
 from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.model.problem import load_problem, parse_problem
 from knit_nlp.weft.solving import solve as solving, starts as start
-from knit_nlp.weft.solving.solve import WeftSolver, solve
+from knit_nlp.weft.solving.solve import WeftSolver, solve_nlp
 from knit_nlp.weft.solving.starts import rigid_start
 from knit_nlp.weft.transcription.derivatives import closed_form_derivatives
 from knit_nlp.weft.transcription.factory import transcribe
@@ -149,8 +149,8 @@ def test_rigid_start_is_consistent_and_exact_for_a_rigid_motion(all_terms):
 def test_rigid_and_natural_starts_reach_the_same_minimum(n, doc):
     wnlp = transcribe(parse_problem(doc(n), "p"))
     solver = WeftSolver(wnlp)
-    nat = solve(wnlp, solver, start="natural")
-    rig = solve(wnlp, solver, start="rigid")
+    nat = solve_nlp(wnlp, solver, start="natural")
+    rig = solve_nlp(wnlp, solver, start="rigid")
     assert nat.success and rig.success
     assert abs(nat.objective - rig.objective) < 1e-9 * nat.objective
     assert np.max(np.abs(wnlp.coefficients(nat.x) - wnlp.coefficients(rig.x))) < 1e-6
@@ -166,8 +166,8 @@ def test_multilevel_and_natural_starts_reach_the_same_minimum(n, doc, monkeypatc
     monkeypatch.setattr(solving, "EASY_ITERATIONS", 0)
     wnlp = transcribe(parse_problem(doc(n), "p"))
     solver = WeftSolver(wnlp)
-    nat = solve(wnlp, solver, start="natural")
-    ml = solve(wnlp, solver, start="multilevel")
+    nat = solve_nlp(wnlp, solver, start="natural")
+    ml = solve_nlp(wnlp, solver, start="multilevel")
     assert nat.success and ml.success
     assert [a.split(":")[0] for a in ml.attempts[:-1]] == (
         ["multilevel 5x5"] if n == 10 else ["multilevel 5x5", "multilevel 10x10"])
@@ -241,8 +241,8 @@ def test_prolonged_start_is_near_the_fine_solution_in_energy():
     fine = transcribe(parse_problem(diagonal_pull(24), "p"))
     cp = start.coarse_chain(fine.problem, WeftParams.of(fine.problem))[0]
     coarse = transcribe(cp)
-    xc = solve(coarse, WeftSolver(coarse)).x
-    xf = solve(fine, WeftSolver(fine)).x
+    xc = solve_nlp(coarse, WeftSolver(coarse)).x
+    xf = solve_nlp(fine, WeftSolver(fine)).x
     energy = ca.Function("E", [fine.nlp["x"], fine.nlp["p"]], [fine.nlp["f"]])
     ratio = float(energy(start.prolong(coarse, xc, fine), fine.p0) / energy(xf, fine.p0))
     assert 1.0 < ratio < 2.0
@@ -258,7 +258,7 @@ def test_prolonged_multipliers_approximate_the_fine_ones_and_save_iterations():
     along the wrong axis 94 %.)"""
     fine = transcribe(parse_problem(diagonal_pull(24, 16), "p"))
     coarse = transcribe(start.coarse_problem(fine.problem, fine.params, 8, 12))
-    rc = solve(coarse, WeftSolver(coarse), start="natural")
+    rc = solve_nlp(coarse, WeftSolver(coarse), start="natural")
     x0 = start.prolong(coarse, rc.x, fine)
     cold = WeftSolver(fine).once(fine.p0, x0)
     lam = start.prolong_multipliers(coarse, rc.lam_g, fine)

@@ -4,9 +4,9 @@ import pytest
 from scipy.special import j0
 
 from knit_nlp.weft.model.basis import bending_diagonal, continuity_rows, dphi, phi
-from knit_nlp.weft.model.crossings import CrossingError, find_crossings
+from knit_nlp.weft.model.crossing_points import CrossingError, find_crossings
 from knit_nlp.weft.model.energy import bending_energy, bending_energy_quadrature
-from knit_nlp.weft.model.natural import natural_loop, preset_coeffs
+from knit_nlp.weft.model.natural_loop import natural_loop, preset_coeffs
 from knit_nlp.weft.model.quadrature import panel_rule
 
 

@@ -21,6 +21,7 @@ from .model.params import WeftParams
 from .model.problem import MAX_CONTINUATION, WeftProblem
 from .output.comparison import Comparison, grid_row
 from .output.results import WeftResult
+from .solving.contact.equilibrium import refuse
 from .study import study
 
 
@@ -44,7 +45,6 @@ def solve(problem: WeftProblem, parametrisation: Parametrisation | None = None, 
         if not isinstance(param, Full):
             raise ValueError("warm_from_reduced starts the full model: use Full()")
         if problem.yarn is not None:
-            from .solving.contact.solve import refuse     # scipy.spatial only with contact
             raise refuse(problem, "the warm start from the reduced model")
         return _warm_from_reduced(problem, params, continuation, verbose)[1]
     return study(problem, param, verbose=verbose).run(params, continuation=continuation,
@@ -109,10 +109,9 @@ def compare(problem: WeftProblem, samples: int = SAMPLES, *, warm: bool = False,
 
 def check_compare(problem: WeftProblem, grids: Sequence[int] = ()) -> list[int]:
     """What ``compare`` checks before solving: the problem has no yarn radius (the reduced
-    model has no contact: :func:`~.solving.contact.solve.refuse`) and the grids
+    model has no contact: :func:`~.solving.contact.equilibrium.refuse`) and the grids
     (:func:`check_grids`, returned)."""
     if problem.yarn is not None:
-        from .solving.contact.solve import refuse     # scipy.spatial only with contact
         raise refuse(problem, "compare (its reduced model)")
     return check_grids(grids, problem)
 

@@ -1,173 +1,105 @@
 """Many solves of one weft problem, and what a study worker runs for one weft point.
 
-- :class:`WeftStudy`: a transcription (``transcribe``) and its IPOPT instance built once;
-  ``study.params`` is the problem's :class:`~knit_nlp.weft.model.params.WeftParams`, whose
-  ``with_`` names changes (clamp targets or displacements, rigid-clamp motions, material values,
-  loads; numbered from 1); :meth:`WeftStudy.solve` re-solves, warm-started from a given point.
-- :class:`AdaptiveStudy`: the adaptive-representatives strategy (``solving.adaptive``), which
-  refines its grid afresh at every point (a grid fitted to one load is not another's).
-- :class:`ContactStudy`: a problem with ``[yarn] radius``: the full model with yarn contact
-  (``solving.contact``); the reduced and adaptive models refuse a radius.
-- :func:`study` picks one for a parametrisation: the one place ``Adaptive`` and a yarn radius
-  are told apart.
+- :class:`WeftStudy`: the problem's forward equilibrium (``solving.variants.equilibrium``: a
+  fixed transcription, the adaptive-representatives strategy, or the full model with yarn
+  contact; built once) and the typed results of its solves. ``study.params`` is the problem's
+  :class:`~knit_nlp.weft.model.params.WeftParams`, whose ``with_`` names changes (clamp targets
+  or displacements, rigid-clamp motions, material values, loads; numbered from 1);
+  :meth:`WeftStudy.solve` re-solves, warm-started from a given point.
+- :func:`study` builds one for a parametrisation.
 - :func:`prepare_point`, :func:`solve_point` and :func:`study_row`: a study point from plain
   data (a problem document, parameter changes, a warm start) and its summary row, for
   ``knit_nlp.studies``; :func:`animate_points`: a GIF of a study's solved points.
 """
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from .model.centrelines import natural_centrelines
-from .model.parametrisation import Adaptive, Full, Parametrisation, Reduced
+from .model.parametrisation import Parametrisation
 from .model.params import WeftParams
 from .model.problem import WeftProblem, parse_problem
 from .output.results import WeftResult
-from .solving.adaptive import solve_adaptive
-from .solving.contact.rounds import ContactSolver
-from .solving.contact.solve import refuse, solve_with_contact
-from .solving.solve import DEFAULT_START, SolveReport, WeftSolver, solve
+from .solving.variants import equilibrium
+from .solving.solve import DEFAULT_START, Solution, SolveReport
 from .transcription.factory import transcribe
 
 
 class WeftStudy:
-    """A weft problem's NLP, built once and re-solved for many parameter values."""
+    """A weft problem's forward equilibrium (``solving.variants.equilibrium``), built once and
+    re-solved for many parameter values; :meth:`run` gives typed results (with yarn contact
+    their ``contact`` block, with adaptive representatives their ``adaptive`` block)."""
 
     def __init__(self, problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
                  verbose: bool | None = False) -> None:
-        t0 = time.perf_counter()
         self.problem = problem
-        self.nlp = transcribe(problem, parametrisation)
-        self.solver = WeftSolver(self.nlp, verbose=verbose)
-        self.build_s = time.perf_counter() - t0
-        self.builds = 1
+        self.eq = equilibrium(problem, parametrisation, verbose=verbose)
 
     @property
     def params(self) -> WeftParams:
         """The problem's own parameter values; change them with ``with_(...)``."""
-        return self.nlp.params
+        return self.eq.params
+
+    @property
+    def nlp(self):
+        """The transcription solved (a fixed one; not for adaptive representatives)."""
+        return self.eq.nlp
+
+    @property
+    def solver(self):
+        return self.eq.solver
+
+    @property
+    def contact(self):
+        """The contact solver (a problem with ``[yarn] radius``)."""
+        return self.eq.contact
 
     def solve(self, params: WeftParams, x0: np.ndarray | None = None,
-              continuation: int | None = None, start: str = DEFAULT_START) -> SolveReport:
-        """Solve at ``params`` from ``x0`` (else from ``start``); falls back to continuation
-        from the natural parameters when the direct solve fails."""
-        return solve(self.nlp, self.solver, params=params, x0=x0, continuation=continuation,
-                     start=start)
+              continuation: int | None = None, start: str = DEFAULT_START,
+              x0_params: WeftParams | None = None) -> Solution:
+        """Solve at ``params`` from ``x0`` (at ``x0_params``, if known: yarn contact steps
+        the load from there), else from ``start``; falls back to continuation from the
+        natural parameters when the direct solve fails."""
+        return self.eq.solve(params, x0, continuation=continuation, start=start,
+                             x0_params=x0_params)
 
     def result(self, rep: SolveReport, params: WeftParams) -> WeftResult:
         """The typed result of a solution at ``params``."""
-        return WeftResult(self.nlp, rep, params, self.build_s,
-                          self.solver.violation(rep.x, params.vector()))
+        return WeftResult.of(rep if isinstance(rep, Solution) else self.eq.solution(rep, params))
 
     def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
             continuation: int | None = None, start_from: WeftResult | None = None,
             x0_params: WeftParams | None = None) -> WeftResult:
         """Solve at ``params`` (default: the problem's own) from ``x0`` (a solution at
         ``x0_params``, if known: only yarn contact uses them), or from another solved model's
-        loops lifted into this one (``start_from``), and return the typed result."""
+        loops lifted into this one (``start_from``, at its parameters), and return the typed
+        result."""
         params = params or self.params
         if start_from is not None:
-            x0 = self.nlp.lift(start_from.coefficients, start_from.starts)
-        rep = self.solve(params, x0, continuation)
-        self.solver.progress.done()
-        return self.result(rep, params)
-
-
-class ContactStudy(WeftStudy):
-    """The full model of a problem with ``[yarn] radius``: the paper's NLP built once (its
-    solutions, reactions and loading paths read as without contact) and the contact NLP grown
-    with the pairs the solves meet (``solving.contact``); results carry ``extra["contact"]``."""
-
-    def __init__(self, problem: WeftProblem, *, verbose: bool | None = False) -> None:
-        super().__init__(problem, Full(), verbose=verbose)
-        self.contact = ContactSolver(self.nlp, problem.yarn.radius, verbose=verbose)
-        self.block: dict[str, Any] = {}
-        self._p_start: np.ndarray | None = None
-
-    def solve(self, params: WeftParams, x0: np.ndarray | None = None,
-              continuation: int | None = None, start: str = DEFAULT_START) -> SolveReport:
-        """Solve with contact at ``params`` from ``x0`` (load steps from it), else from the
-        paper's solution or the natural fabric (``solving.contact.solve``)."""
-        rep, self.block = solve_with_contact(self.nlp, self.solver, self.contact, params,
-                                             continuation, x0, self._p_start)
-        return rep
-
-    def result(self, rep: SolveReport, params: WeftParams) -> WeftResult:
-        result = super().result(rep, params)
-        result.build_s += self.contact.build_s
-        result.extra["contact"] = self.block
-        return result
-
-    def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
-            continuation: int | None = None, start_from: WeftResult | None = None,
-            x0_params: WeftParams | None = None) -> WeftResult:
-        """As :meth:`WeftStudy.run`; load steps from ``start_from`` start at its parameters,
-        from ``x0`` at ``x0_params`` (unknown: one step at the target, then the natural
-        fabric)."""
-        at = start_from.params if start_from is not None else x0_params
-        self._p_start = None if at is None else at.vector()
-        try:
-            return super().run(params, x0, continuation, start_from)
-        finally:
-            self._p_start = None
-
-
-class AdaptiveStudy:
-    """Adaptive representatives (``solving.adaptive``) at any parameters; the result carries
-    every step's grid under ``adaptive``."""
-
-    def __init__(self, problem: WeftProblem, config: Adaptive) -> None:
-        self.problem, self.config = problem, config
-
-    @property
-    def params(self) -> WeftParams:
-        return WeftParams.of(self.problem)
-
-    def run(self, params: WeftParams | None = None, x0: np.ndarray | None = None,
-            continuation: int | None = None, start_from: WeftResult | None = None,
-            x0_params: WeftParams | None = None) -> WeftResult:
-        """Refine from the corners at ``params``; ``x0`` (a vector of another grid) and
-        ``x0_params`` are not used, and a ``start_from`` is refused: the refinement starts from
-        the corner form."""
-        if start_from is not None:
-            raise ValueError("start does not apply to adaptive representatives: they start "
-                             "from the corner form")
-        run = solve_adaptive(self.problem, self.config, continuation=continuation,
-                             params=params)
-        p = params or run.cnlp.params
-        return WeftResult(run.cnlp, run.report, p, run.build_s,
-                          run.solver.violation(run.report.x, p.vector()),
-                          {"adaptive": {"steps": [st.as_dict() for st in run.steps],
-                                        "estimate": run.steps[-1].estimate}})
+            x0 = self.eq.lift(start_from.coefficients, start_from.starts)
+            x0_params = start_from.params
+        sol = self.solve(params, x0, continuation, x0_params=x0_params)
+        self.eq.done()
+        return WeftResult.of(sol)
 
 
 def study(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
-          verbose: bool | None = False) -> WeftStudy | AdaptiveStudy:
-    """How ``problem`` is solved in ``parametrisation`` (None: the file's own): a fixed
-    transcription built once, the adaptive strategy, or the full model with yarn contact
-    (``[yarn] radius``; the reduced models refuse it, :func:`refuse`)."""
-    param = problem.parametrisation if parametrisation is None else parametrisation
-    if problem.yarn is not None:
-        if isinstance(param, (Reduced, Adaptive)):
-            own = " (the file's [reduction])" if parametrisation is None else ""
-            raise refuse(problem, f"the reduced model{own}")
-        return ContactStudy(problem, verbose=verbose)
-    if isinstance(param, Adaptive):
-        return AdaptiveStudy(problem, param)
-    return WeftStudy(problem, param, verbose=verbose)
+          verbose: bool | None = False) -> WeftStudy:
+    """How ``problem`` is solved in ``parametrisation`` (None: the file's own): its
+    :class:`WeftStudy` (the variant is chosen by ``solving.variants.equilibrium``)."""
+    return WeftStudy(problem, parametrisation, verbose=verbose)
 
 
-def prepare_point(doc: dict[str, Any]) -> WeftStudy | AdaptiveStudy:
+def prepare_point(doc: dict[str, Any]) -> WeftStudy:
     """What a study worker builds once per document: the document's problem in its own
     parametrisation (``knit_nlp.studies`` keeps it for the points that follow)."""
     return study(parse_problem(doc, f"<study {doc.get('name', '')}>"), verbose=None)
 
 
-def solve_point(built: WeftStudy | AdaptiveStudy, changes: dict[str, Any],
+def solve_point(built: WeftStudy, changes: dict[str, Any],
                 x0: np.ndarray | None, x0_changes: dict[str, Any] | None = None
                 ) -> tuple[dict[str, Any], np.ndarray]:
     """One study point: the built problem at the parameters ``changes`` names

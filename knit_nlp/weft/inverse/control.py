@@ -31,8 +31,8 @@ from ..model.problem import WeftProblem
 from ..output.plausibility import summary_line as implausible
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport
-from .contact_equilibrium import equilibrium_for
-from .equilibrium import Stability
+from ..solving.sensitivity import Stability
+from .forward import equilibrium_for
 from .plot import plot_control
 from .points import point_function, point_jacobian
 from .spec import Actuated, ControlProblem
@@ -97,7 +97,7 @@ class ControlResult(Outcome):
     @property
     def equilibrium(self) -> WeftResult:
         """The forward model's result at the answer (its clamps, loops, energy)."""
-        return self.ctl.eq.result(self.state.report, self.p)
+        return WeftResult.of(self.ctl.eq.solution(self.state.report, self.p))
 
     @property
     def energy(self) -> Energy:

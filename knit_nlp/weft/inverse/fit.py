@@ -31,9 +31,8 @@ from ..model.centrelines import natural_centrelines
 from ..model.params import MATERIAL
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
-from ..solving.solve import SolveReport
-from .contact_equilibrium import equilibrium_for
-from .equilibrium import Equilibrium
+from ..solving.solve import Equilibrium, SolveReport
+from .forward import equilibrium_for
 from .observations import Observation
 from .plot import plot_fit
 from .points import point_function, point_jacobian
@@ -112,7 +111,7 @@ class FitResult(Outcome):
         for n, v in zip(self.names, self.values):
             wnlp.p.put(p, n, v)
         report = SolveReport(True, "Solve_Succeeded", c.x, c.lam, float("nan"), 0, 0.0)
-        return c.eq.result(report, p)
+        return WeftResult.of(c.eq.solution(report, p))
 
 
 NAME_CHARS = 60       # a fit's default name joins its cases' names up to this length

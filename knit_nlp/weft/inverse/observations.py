@@ -15,7 +15,7 @@ import numpy as np
 
 from ...errors import ProblemError
 from ...tomlio import Table, read_regular_file
-from ..model.problem import WeftProblem, _PointReader
+from ..model.problem import WeftProblem, PointReader
 
 COLUMNS = ["case", "course", "wale", "point", "x", "y"]
 
@@ -98,7 +98,7 @@ def load_observations(path: Path | str, problems: dict[str, WeftProblem],
         except ValueError:
             point = label
         tab = Table({"loop": [i, j], "point": point}, path, where)
-        reader = _PointReader(pr.courses, pr.wales, pr.natural, pr.crossings)
+        reader = PointReader(pr.courses, pr.wales, pr.natural, pr.crossings)
         loop = reader.loop(tab)
         name, s = reader.point(tab)
         xy = np.array([_number(path, where, "x", row["x"]), _number(path, where, "y", row["y"])])

@@ -18,7 +18,7 @@ import numpy as np
 
 from ...errors import ProblemError, shown
 from ...tomlio import Table, load_toml, read_regular_file
-from ..model.problem import WeftProblem, _PointReader, parse_problem
+from ..model.problem import WeftProblem, PointReader, parse_problem
 from ..model.quadrature import positions
 from .spec import strip_control_keys
 
@@ -169,15 +169,15 @@ def check_shape(shape: SolvedShape, pr: WeftProblem, result_path: Path, problem:
                            f"{(k - 2) // 2}: pass the result's own problem with --problem")
 
 
-def point_reader(problem_path: Path) -> tuple[_PointReader, WeftProblem]:
+def point_reader(problem_path: Path) -> tuple[PointReader, WeftProblem]:
     pr = parse_problem(strip_control_keys(load_toml(problem_path)), problem_path)
-    return _PointReader(pr.courses, pr.wales, pr.natural, pr.crossings), pr
+    return PointReader(pr.courses, pr.wales, pr.natural, pr.crossings), pr
 
 
 MAX_PIXEL = 1e7      # |pixel coordinate|: far beyond any photograph MAX_IMAGE_PIXELS admits
 
 
-def parse_match(text: str, reader: _PointReader) -> Match:
+def parse_match(text: str, reader: PointReader) -> Match:
     """``C,W,POINT=PX,PY`` (course, wale, point label or s; pixel, origin top left, y down)."""
     try:
         left, right = text.split("=")

@@ -13,7 +13,7 @@ from matplotlib.patches import FancyArrowPatch
 
 from ...figures import legend_below, new_figure, save_figure
 from ...units import Units
-from ..output.plot import (DPI, KEY_WIDTH, _figure, colour_key, course_lines, draw_solution,
+from ..output.plot import (DPI, KEY_WIDTH, fabric_figure, colour_key, course_lines, draw_solution,
                            reference_arrow)
 from ..output.reactions import SolvedFabric
 
@@ -41,7 +41,7 @@ def plot_control(path: Path, result: SolvedFabric, natural: np.ndarray, start: n
     units = result.problem.units
     pts = np.concatenate([natural.reshape(-1, 2), start.reshape(-1, 2), achieved.reshape(-1, 2),
                           goals.reshape(-1, 2)])
-    fig, ax = _figure(pts.max(axis=0) - pts.min(axis=0))
+    fig, ax = fabric_figure(pts.max(axis=0) - pts.min(axis=0))
     same = same_shape(start, natural)
     if not same:
         ax.add_collection(LineCollection(course_lines(start), colors="0.45", linewidths=0.8,

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ...tomlio import Table, load_toml
-from ..model.problem import WeftProblem, _PointReader, parse_problem
+from ..model.problem import WeftProblem, PointReader, parse_problem
 from ..model.reach import yarn_between
 
 CLAMP_KEYS = ("actuated", "bounds")
@@ -112,7 +112,7 @@ def parse_control(path: Path | str, doc: dict[str, Any]) -> ControlProblem:
     top = Table(doc, path, "")
     actuated = [a for k, t in enumerate(top.tables("clamp")) if (a := _read_actuated_clamp(t, k, pr))]
     actuated += [a for k, t in enumerate(top.tables("rigid_clamp")) if (a := _read_actuated_rigid(t, k, pr))]
-    points = _PointReader(pr.courses, pr.wales, pr.natural, pr.crossings)
+    points = PointReader(pr.courses, pr.wales, pr.natural, pr.crossings)
     goals = tuple(_read_goal(t, points, pr) for t in top.tables("goal"))
     openings = tuple(_read_opening(t, points) for t in top.tables("opening"))
     ctl = top.table("control")
@@ -192,7 +192,7 @@ def _read_actuated_rigid(tab: Table, k: int, pr: WeftProblem) -> Actuated | None
     return Actuated("rigid", k, np.r_[lo_t, lo_r], np.r_[hi_t, hi_r], k + 1)
 
 
-def _read_goal(tab: Table, points: _PointReader, pr: WeftProblem) -> Goal:
+def _read_goal(tab: Table, points: PointReader, pr: WeftProblem) -> Goal:
     tab.allow("loop", "point", "position", "displacement", "fix", "weight")
     loop = points.loop(tab)
     label, s = points.point(tab)
@@ -210,7 +210,7 @@ def _read_goal(tab: Table, points: _PointReader, pr: WeftProblem) -> Goal:
     return Goal(loop, label, s, target, ("x" in fix, "y" in fix), weight)
 
 
-def _read_opening(tab: Table, points: _PointReader) -> Opening:
+def _read_opening(tab: Table, points: PointReader) -> Opening:
     tab.allow("points", "at_least")
     pts = []
     for sub in tab.tables("points"):

@@ -1,9 +1,13 @@
 """The loop functions φ(s) of eq. (15) and the linear rows built from them (eqs. 11, 18-21).
 
 A loop's tangent angle is θ(s) = a·φ(s) (eq. 14) with
-φ(s) = [sin(2πks/L) for k=1..t, cos(2πks/L) for k=1..t, s, 1]  (2t+2 entries, that order).
+φ(s) = [sin(2πks/L) for k=1..t, cos(2πks/L) for k=1..t, s, 1]  (2t+2 entries, that order),
+written once (:func:`basis_terms`) and evaluated on numbers (:func:`basis_at`, :func:`phi`) and
+on CasADi matrices (``transcription.contact.basis_mx``).
 """
 from __future__ import annotations
+
+from typing import Any, Callable
 
 import numpy as np
 
@@ -13,22 +17,45 @@ def n_coeffs(t: int) -> int:
     return 2 * t + 2
 
 
+def basis_terms(u: Any, L: float, t: int, sin: Callable, cos: Callable, one: Any) -> list:
+    """φ_c(u) of eq. (15) elementwise on u, one term per basis function in φ's order
+    (sin 2πku/L for k = 1..t, cos 2πku/L for k = 1..t, u, 1; ``one`` is the last, of u's
+    shape); the harmonics by the angle-addition recurrence (two trigonometric calls, not 2t).
+    Written once for numpy arrays (:func:`basis_at`) and CasADi matrices
+    (``transcription.contact.basis_mx``): ``sin``, ``cos`` are the library's."""
+    c1, s1 = cos(2 * np.pi * u / L), sin(2 * np.pi * u / L)
+    sins, coss = [s1], [c1]
+    for _ in range(t - 1):
+        sins.append(sins[-1] * c1 + coss[-1] * s1)
+        coss.append(coss[-1] * c1 - sins[-2] * s1)
+    return sins + coss + [u, one]
+
+
+def basis_at(u: np.ndarray | float, L: float, t: int) -> np.ndarray:
+    """φ(u) of eq. (15) for an array u of any shape: shape u.shape + (2t+2,)."""
+    u = np.asarray(u, dtype=float)
+    return np.stack(basis_terms(u, L, t, np.sin, np.cos, np.ones_like(u)), axis=-1)
+
+
+def dbasis_at(u: np.ndarray | float, L: float, t: int) -> np.ndarray:
+    """dφ/du for an array u: shape u.shape + (2t+2,); θ' = a·dφ is the curvature. From the
+    terms of φ: d sin(ωu)/du = ω cos(ωu), d cos(ωu)/du = −ω sin(ωu)."""
+    u = np.asarray(u, dtype=float)
+    terms = basis_terms(u, L, t, np.sin, np.cos, np.ones_like(u))
+    om = 2 * np.pi * np.arange(1, t + 1) / L
+    return np.stack([w * c for w, c in zip(om, terms[t:2 * t])]
+                    + [-w * s for w, s in zip(om, terms[:t])]
+                    + [np.ones_like(u), np.zeros_like(u)], axis=-1)
+
+
 def phi(s: np.ndarray | float, L: float, t: int) -> np.ndarray:
     """φ(s) of eq. (15), one row per s: shape (len(s), 2t+2)."""
-    s = np.atleast_1d(np.asarray(s, dtype=float))
-    k = np.arange(1, t + 1)
-    arg = 2 * np.pi * np.outer(s, k) / L
-    return np.hstack([np.sin(arg), np.cos(arg), s[:, None], np.ones((s.size, 1))])
+    return basis_at(np.atleast_1d(np.asarray(s, dtype=float)), L, t)
 
 
 def dphi(s: np.ndarray | float, L: float, t: int) -> np.ndarray:
     """dφ/ds, one row per s: θ'(s) = a·dφ(s) is the curvature."""
-    s = np.atleast_1d(np.asarray(s, dtype=float))
-    k = np.arange(1, t + 1)
-    om = 2 * np.pi * k / L
-    arg = np.outer(s, om)
-    return np.hstack([om * np.cos(arg), -om * np.sin(arg), np.ones((s.size, 1)),
-                      np.zeros((s.size, 1))])
+    return dbasis_at(np.atleast_1d(np.asarray(s, dtype=float)), L, t)
 
 
 def bending_diagonal(L: float, t: int) -> np.ndarray:

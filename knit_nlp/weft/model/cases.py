@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from .crossings import find_crossings
-from .natural import natural_loop, preset_coeffs
+from .crossing_points import find_crossings
+from .natural_loop import natural_loop, preset_coeffs
 
 PAPER_MATERIAL = {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0}      # eq. 28's values
 EQ28_TARGET = (16.2, 13.9)                                    # x₁₅(s_H), y₁₅(s_H) on 5 × 5

@@ -11,17 +11,16 @@ import casadi as ca
 import numpy as np
 
 from .basis import n_coeffs, phi
-from .quadrature import panel_rule
+from .quadrature import panel_rule, rule_integrals
 
 
 def loop_displacements(L: float, t: int, points: np.ndarray, nodes_per_panel: int) -> ca.Function:
     """Function a (2t+2) -> D (2 × P): displacement from the loop start to each point s_p."""
     rule = panel_rule(points, L, nodes_per_panel)
     a = ca.MX.sym("a", n_coeffs(t))
-    theta = ca.mtimes(ca.DM(phi(rule.nodes, L, t)), a)
-    trig = ca.horzcat(ca.cos(theta), ca.sin(theta))
-    disp = ca.mtimes(ca.DM(rule.cumulative), trig).T
-    return ca.Function("loop_displacements", [a], [disp], ["a"], ["D"])
+    _, _, dx, dy = rule_integrals(ca.DM(phi(rule.nodes, L, t)), ca.DM(rule.cumulative), a,
+                                  ca.cos, ca.sin, ca.mtimes)
+    return ca.Function("loop_displacements", [a], [ca.horzcat(dx, dy).T], ["a"], ["D"])
 
 
 class LoopIntegrals:
@@ -40,10 +39,11 @@ class LoopIntegrals:
         self.PhiPhi = np.einsum("qa,qb->qab", self.Phi, self.Phi).reshape(len(rule.nodes), -1)
 
     def values(self, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """θ at the nodes (N × Q) and D (N × P × 2) for coefficients A (N × nc)."""
+        """θ at the nodes (N × Q) and D (N × P × 2) for coefficients A (N × nc), by the rule
+        ``loop_displacements`` evaluates in CasADi (``quadrature.rule_integrals``)."""
         theta = A @ self.Phi.T
-        D = np.stack([np.cos(theta) @ self.W.T, np.sin(theta) @ self.W.T], axis=-1)
-        return theta, D
+        _, _, dx, dy = rule_integrals(self.Phi, self.W, A.T, np.cos, np.sin, np.matmul)
+        return theta, np.stack([dx.T, dy.T], axis=-1)
 
     def jacobians(self, theta: np.ndarray) -> np.ndarray:
         """∂D/∂a per loop, (N × P × 2 × nc)."""

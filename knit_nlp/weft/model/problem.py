@@ -19,9 +19,9 @@ from ...outcome import SolverOptions as BaseSolverOptions
 from ...units import Units, read_units
 from .basis import n_coeffs
 from .reach import unreachable
-from .crossings import LABELS, CrossingError, Crossings, find_crossings
+from .crossing_points import LABELS, CrossingError, Crossings, find_crossings
 from .parametrisation import Adaptive, Full, Parametrisation, Reduced
-from .natural import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
+from .natural_loop import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
 
 # Gauss-Legendre nodes per panel. Panels break at every material point the model needs and are
 # at most L/4 long; on the 10 x 10 diagonal pull 8 nodes give energy within 7e-12 (relative) and
@@ -189,7 +189,7 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
     k_b = mat.number("k_b", 0.01, nonnegative=True)
     R_f = mat.number("R_f", 1.0, positive=True)     # R_f = 0: loops bend freely, no equilibrium
     mat.finish()
-    points = _PointReader(m, n, natural, crossings)
+    points = PointReader(m, n, natural, crossings)
     starts = natural_starts(natural, m, n)
     clamps = tuple(c for t in top.tables("clamp") for c in _read_clamp(t, points, starts))
     rigid = tuple(_read_rigid(t, points, starts) for t in top.tables("rigid_clamp"))
@@ -270,7 +270,7 @@ def _measured(coeffs: bytes, L: float, t: int,
         return natural, None, str(err)
 
 
-class _PointReader:
+class PointReader:
     """Resolves the ``loop`` (or ``course``, ``wale``, ``edge``) and ``point`` keys of clamp and
     load tables to loops (i, j) and s."""
 
@@ -359,7 +359,7 @@ def _direction(tab: Table, size_key: str) -> np.ndarray | None:
     return unit * tab.number(size_key, nonnegative=True)
 
 
-def _read_clamp(tab: Table, points: _PointReader, starts: np.ndarray) -> list[Clamp]:
+def _read_clamp(tab: Table, points: PointReader, starts: np.ndarray) -> list[Clamp]:
     """One clamp per loop the table names (a course, wale or edge shorthand makes several)."""
     tab.allow(*SELECTORS, "point", "position", "displacement", "direction", "distance", "fix",
               "angle")
@@ -391,7 +391,7 @@ def _read_clamp(tab: Table, points: _PointReader, starts: np.ndarray) -> list[Cl
                   "distance" if pull is not None else (given or ["fix"])[0]) for loop in loops]
 
 
-def _read_rigid(tab: Table, points: _PointReader, starts: np.ndarray) -> RigidClamp:
+def _read_rigid(tab: Table, points: PointReader, starts: np.ndarray) -> RigidClamp:
     """A rigid clamp over listed ``points``, or over ``point`` of every loop of a course, wale or
     edge; moved by ``translation`` (or ``direction`` + ``distance``) and ``rotation``."""
     tab.allow("points", *SELECTORS[1:], "point", "translation", "direction", "distance",
@@ -430,7 +430,7 @@ def _read_rigid(tab: Table, points: _PointReader, starts: np.ndarray) -> RigidCl
     return RigidClamp(tuple(pts), translation, rotation, centre)
 
 
-def _read_load(tab: Table, points: _PointReader) -> list[Load]:
+def _read_load(tab: Table, points: PointReader) -> list[Load]:
     """One load per loop the table names; a course, wale or edge gets the force at every point."""
     tab.allow(*SELECTORS, "point", "force", "direction", "magnitude", "moment")
     loops, default_point = points.loops(tab)
@@ -456,7 +456,7 @@ def canonical_point(loop: tuple[int, int], s: float, L: float, n: int) -> tuple[
 
 
 def _check_overconstraint(top: Table, clamps: tuple[Clamp, ...], rigid: tuple[RigidClamp, ...],
-                          points: _PointReader) -> None:
+                          points: PointReader) -> None:
     """No coordinate or angle of one material point may be held twice."""
     held: dict[tuple[Any, ...], str] = {}
     L, n = points.natural.length, points.n

@@ -1,4 +1,5 @@
-"""Gauss–Legendre panels on [0, L] for the position integrals of eq. (1).
+"""Gauss–Legendre panels on [0, L] for the position integrals of eq. (1), and the integrals by
+any fixed rule (:func:`rule_integrals`, written once for numbers and CasADi).
 
 The panels break at every material point whose position the model needs, so each position is
 a cumulative sum of whole-panel integrals and converges with the node count like the rule itself.
@@ -6,6 +7,7 @@ a cumulative sum of whole-panel integrals and converges with the node count like
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Callable
 
 import numpy as np
 
@@ -37,6 +39,20 @@ class PanelRule:
             -1, self.nodes_per_panel, values.reshape(self.nodes.size, -1).shape[1]).sum(axis=1)
         cum = np.vstack([np.zeros((1, panels.shape[1])), np.cumsum(panels, axis=0)])
         return cum[self.point_panels].reshape((self.points.size,) + values.shape[1:])
+
+
+def rule_integrals(Phi: Any, W: Any, A: Any, cos: Callable, sin: Callable,
+                   mtimes: Callable) -> tuple[Any, Any, Any, Any]:
+    """The integrals of eq. (1) by a fixed rule for loops with coefficients A (nc × N): θ = Φ·A
+    at the rule's nodes (Φ: nodes × nc, eq. 14), then W·cos θ and W·sin θ (W: one row of node
+    weights per integral: the cumulative panel weights to each material point,
+    ``PanelRule.cumulative``, or each cell's weights, ``contact.curves``). Written once for
+    numbers (``np.cos``, ``np.sin``, ``np.matmul``) and for CasADi (``ca.cos``, ``ca.sin``,
+    ``ca.mtimes`` with Φ and W as ``ca.DM``); returns cos θ, sin θ and the two integrals
+    (integrals × N)."""
+    theta = mtimes(Phi, A)
+    c, s = cos(theta), sin(theta)
+    return c, s, mtimes(W, c), mtimes(W, s)
 
 
 def panel_rule(points: np.ndarray | list[float], L: float, nodes_per_panel: int,

@@ -43,7 +43,7 @@ def _segments(lines: np.ndarray) -> np.ndarray:
     return np.stack([lines[..., :-1, :], lines[..., 1:, :]], axis=-2).reshape(-1, 2, 2)
 
 
-def _figure(extent: np.ndarray, width: float = 7.5) -> tuple[Figure, Axes]:
+def fabric_figure(extent: np.ndarray, width: float = 7.5) -> tuple[Figure, Axes]:
     """A figure whose axes have about the data's aspect ratio (tight framing)."""
     w, h = np.maximum(extent, 1e-9)
     height = float(np.clip((width - 2.2) * h / w, 2.5, 10.0)) + 1.7    # axes + title, legend
@@ -153,7 +153,7 @@ def solution_figure(result: SolvedFabric, natural: np.ndarray, deformed: np.ndar
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}; got {colour!r}")
     units = result.problem.units
     pts = np.concatenate([natural.reshape(-1, 2), deformed.reshape(-1, 2)])
-    fig, ax = _figure(pts.max(axis=0) - pts.min(axis=0))
+    fig, ax = fabric_figure(pts.max(axis=0) - pts.min(axis=0))
     mapped, forces = draw_solution(ax, result, natural, deformed, colour, yarn=yarn)
     colour_key(fig, ax, mapped, colour, len(deformed), units)
     reference_arrow(ax, forces, units)
@@ -297,7 +297,7 @@ def animate(path: Path, natural: np.ndarray, frames: Sequence[tuple[str, np.ndar
     picture lies inside every frame."""
     pts = np.concatenate([natural.reshape(-1, 2)] + [d.reshape(-1, 2) for _, d in frames])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    fig, ax = _figure(hi - lo, width=6.0)
+    fig, ax = fabric_figure(hi - lo, width=6.0)
     fig.set_dpi(GIF_DPI)
     ax.add_collection(LineCollection(course_lines(natural), colors="0.8", linewidths=1.0,
                                      label="natural"))
@@ -378,7 +378,7 @@ def plot_overlay(path: Path, full: np.ndarray, reduced: np.ndarray, title: str,
     between corresponding centreline points."""
     units = units or Units()
     pts = np.concatenate([full.reshape(-1, 2), reduced.reshape(-1, 2)])
-    fig, ax = _figure(pts.max(axis=0) - pts.min(axis=0))
+    fig, ax = fabric_figure(pts.max(axis=0) - pts.min(axis=0))
     ax.add_collection(LineCollection(course_lines(full), colors="k", linewidths=0.8,
                                      label="full model"))
     err = np.linalg.norm(full - reduced, axis=-1)

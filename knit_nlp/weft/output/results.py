@@ -19,7 +19,7 @@ from ..model.basis import phi
 from ..model.centrelines import SAMPLES, natural_centrelines
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
-from ..solving.solve import SolveReport
+from ..solving.solve import Solution, SolveReport
 from ..transcription.protocol import WeftNLP
 from .export import write_centreline_csv, write_centreline_svg
 from .reactions import ClampReaction, LoadResult, RigidClampReaction
@@ -41,6 +41,13 @@ class WeftResult(Outcome):
     build_s: float
     violation: float
     extra: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, solution: Solution) -> "WeftResult":
+        """The typed result of a forward solve (``Equilibrium.solve``), with its variant's
+        blocks (``contact``, ``adaptive``) under ``extra``."""
+        return cls(solution.nlp, solution, solution.params, solution.build_s,
+                   solution.violation, dict(solution.blocks))
 
     @property
     def problem(self) -> WeftProblem:

@@ -38,7 +38,6 @@ Start from the corner form; after each solve of the condensed reduced model
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -47,10 +46,9 @@ from ..model.centrelines import centrelines
 from ..model.parametrisation import Adaptive, Full, Reduced
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
-from ..transcription.factory import transcribe
 from ..transcription.protocol import WeftNLP
 from ..transcription.rows import n_parameters
-from .solve import SolveReport, WeftSolver, solve
+from .solve import DEFAULT_START, Equilibrium, Solution, SolveReport, WeftSolver
 
 MARK = 0.25
 
@@ -110,18 +108,16 @@ def solve_grid(pr: WeftProblem, red: Reduced, start: GridSolve | None = None,
     the problem's own), from ``start``'s loops lifted (its grid must be contained in ``red`` for
     the lift to be exact) or the model's default start. The factory may add the clamped courses
     and wales (dependent clamps); the result's ``red`` is the grid solved."""
-    t0 = time.perf_counter()
-    cnlp = transcribe(pr, red)
-    solver = WeftSolver(cnlp)
-    build_s = time.perf_counter() - t0
+    eq = Equilibrium(pr, red)
+    cnlp = eq.nlp
     params = params or (start.params if start is not None else cnlp.params)
     x0 = None if start is None else cnlp.lift(start.coeffs, start.starts)
-    rep = solve(cnlp, solver, params=params, x0=x0, continuation=continuation)
+    rep = eq.solve(params, x0, continuation=continuation)
     coeffs, starts = cnlp.coefficients(rep.x), cnlp.starts(rep.x)
     spring, bend, _ = cnlp.energy(rep.x, params.vector())
-    return GridSolve(cnlp.parametrisation, cnlp, solver, rep, coeffs, starts,
-                     centrelines(coeffs, starts, pr.L, pr.t, samples)[0], spring + bend, build_s,
-                     params)
+    return GridSolve(cnlp.parametrisation, cnlp, eq.solver, rep, coeffs, starts,
+                     centrelines(coeffs, starts, pr.L, pr.t, samples)[0], spring + bend,
+                     eq.build_s, params)
 
 
 def bisect(reps: tuple[int, ...], marked: set[int] | None = None) -> tuple[int, ...]:
@@ -246,3 +242,43 @@ def solve_adaptive(pr: WeftProblem, cfg: Adaptive = Adaptive(), samples: int = 2
             return run
         red, reuse = nxt
         grid = reuse if reuse is not None else solve_grid(pr, red, grid, samples, continuation)
+
+
+class AdaptiveEquilibrium:
+    """Adaptive representatives (module docstring) at any parameters: every solve refines from
+    the corners afresh (a grid fitted to one load is not another's), so a warm start ``x0``
+    (a vector of some other grid) is not used and a start from another model's loops is
+    refused (:meth:`lift`); no sensitivities. The solution carries every step's grid in its
+    ``adaptive`` block."""
+
+    with_contact = False
+
+    def __init__(self, problem: WeftProblem, config: Adaptive) -> None:
+        self.problem, self.config = problem, config
+        self.forward_solves = 0
+        self.build_s = 0.0
+
+    @property
+    def params(self) -> WeftParams:
+        return WeftParams.of(self.problem)
+
+    def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        raise ValueError("start does not apply to adaptive representatives: they start "
+                         "from the corner form")
+
+    def solve(self, params: WeftParams | None = None, x0: np.ndarray | None = None, *,
+              continuation: int | None = None, start: str = DEFAULT_START,
+              x0_params: WeftParams | None = None, origin=None) -> Solution:
+        """Refine from the corners at ``params`` (``x0``, ``x0_params``, ``start`` and
+        ``origin`` are not used)."""
+        self.forward_solves += 1
+        run = solve_adaptive(self.problem, self.config, continuation=continuation, params=params)
+        p = params or run.cnlp.params
+        self.build_s = run.build_s
+        return Solution.of(run.report, nlp=run.cnlp, params=p, build_s=run.build_s,
+                           violation=run.solver.violation(run.report.x, p.vector()),
+                           blocks={"adaptive": {"steps": [st.as_dict() for st in run.steps],
+                                                "estimate": run.steps[-1].estimate}})
+
+    def done(self) -> None:
+        """Nothing to close: each grid's solver ends its own progress line."""

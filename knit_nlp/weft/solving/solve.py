@@ -13,11 +13,19 @@
   fabrics first for the full model (``multilevel_start``), the corner grid first for a finer
   reduced grid (``corner_start``); these solve, so they live here with the solver.
 The NLP is built once; every solve reuses the same ``casadi.nlpsol`` object.
+
+:class:`Equilibrium` is a problem's forward equilibrium in a fixed transcription: the NLP and
+its :class:`WeftSolver` built once, ``solve(params, x0) -> Solution`` by the strategy above, the
+sensitivities (``sensitivity.KKT``) on first use. Its variants (yarn contact, adaptive
+representatives) and the one choice between them: ``variants.equilibrium``. Only this module
+and ``contact/equilibrium.py`` build IPOPT instances (the contact NLP's are :meth:`WeftSolver.sibling`
+of the paper's).
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -25,10 +33,12 @@ import numpy as np
 from ...ipopt import ipopt_options, succeeded
 from ...outcome import OUT_OF_TIME
 from ...progress import QUIET_FOR, IterationLine
-from ..model.parametrisation import Full, Reduced
+from ..model.parametrisation import Full, Parametrisation, Reduced
 from ..model.params import WeftParams
+from ..model.problem import WeftProblem
 from ..transcription.factory import transcribe
 from ..transcription.protocol import WeftNLP
+from .sensitivity import KKT, ContactState, Stability
 from .starts import (STARTS, coarse_chain, needs_perturbation, perturbed_starts, prolong,
                      prolong_multipliers, rigid_start)
 
@@ -74,14 +84,23 @@ class SolveReport:
                       for k in set(self.stats) | set(other.stats)}
 
 
+@dataclass
+class Clock:
+    """The wall-clock deadline (``time.perf_counter`` seconds) that solvers sharing it stop at:
+    the paper's solves and the contact solves of one forward solve share one budget
+    ``[solver] max_time`` (:meth:`WeftSolver.sibling`)."""
+
+    deadline: float = np.inf
+
+
 class WeftSolver:
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
                  print_level: int = 0, verbose: bool | None = False,
-                 ipopt: dict | None = None) -> None:
+                 ipopt: dict | None = None, clock: Clock | None = None) -> None:
         opts = wnlp.problem.solver
-        self.wnlp = wnlp
+        self.wnlp, self.verbose = wnlp, verbose
         t0 = time.perf_counter()
         # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of IPOPT's own
         # time and the KKT systems here are well scaled without them
@@ -99,12 +118,30 @@ class WeftSolver:
         options["iteration_callback"] = self.progress
         self.solver = ca.nlpsol("weft", "ipopt", wnlp.nlp, options)
         self.setup_s = time.perf_counter() - t0
-        self.start_clock()
+        self.clock = Clock() if clock is None else clock
+        if clock is None:
+            self.start_clock()
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
+
+    def sibling(self, wnlp: WeftNLP, ipopt: dict | None = None) -> "WeftSolver":
+        """An IPOPT instance for another NLP of the same problem (yarn contact's, with more
+        variables and rows) that shares this one's clock and progress setting: its solves stop
+        at the same deadline."""
+        return WeftSolver(wnlp, verbose=self.verbose, ipopt=ipopt, clock=self.clock)
+
+    @property
+    def deadline(self) -> float:
+        """When the solves stop (the shared :class:`Clock`)."""
+        return self.clock.deadline
+
+    @deadline.setter
+    def deadline(self, when: float) -> None:
+        self.clock.deadline = when
 
     def start_clock(self) -> None:
         """Start the wall-clock budget ``[solver] max_time`` shared by the solves that follow
-        (:meth:`once` ends a solve at this deadline through the iteration callback)."""
+        (:meth:`once` ends a solve at this deadline through the iteration callback), and by
+        every solver sharing this one's clock."""
         self.deadline = time.perf_counter() + self.wnlp.problem.solver.max_time
         self.progress.start()
 
@@ -166,9 +203,144 @@ class WeftSolver:
         return total
 
 
-def solve(wnlp: WeftNLP, solver: WeftSolver | None = None, params: WeftParams | None = None,
-          x0: np.ndarray | None = None, continuation: int | None = None,
-          start: str = DEFAULT_START) -> SolveReport:
+@dataclass
+class Solution(SolveReport):
+    """A forward solve of one problem (:meth:`Equilibrium.solve`): IPOPT's report on the NLP
+    ``nlp`` (x, multipliers, status, effort, attempts, loading path), the parameters solved
+    at, the largest violation of the rows' bounds at x, the time the equilibrium took to
+    build, and what its variant adds: ``contact`` (the contact solve behind x, None without
+    one) and the result JSON's blocks (``contact``, ``adaptive``) in ``blocks``."""
+
+    nlp: WeftNLP | None = None
+    params: WeftParams | None = None
+    violation: float = 0.0
+    build_s: float = 0.0
+    contact: "ContactState | None" = None
+    blocks: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, report: SolveReport, **more: Any) -> "Solution":
+        """A report as a solution with the fields ``more`` adds."""
+        return cls(**{f.name: getattr(report, f.name) for f in fields(SolveReport)}, **more)
+
+
+class Equilibrium:
+    """A weft problem's forward equilibrium in a fixed transcription (``transcribe``): the NLP
+    and its IPOPT instance built once, re-solved at many parameter values (studies, sweeps,
+    continuation, control, fit, calibrate); its sensitivities and stability check
+    (``sensitivity.KKT``) are built on first use. ``variants.equilibrium`` chooses the variant
+    (this, yarn contact, adaptive representatives)."""
+
+    def __init__(self, problem: WeftProblem, parametrisation: Parametrisation | None = None,
+                 *, verbose: bool | None = False) -> None:
+        if problem.yarn is not None and not self.with_contact:
+            # its solves and sensitivities would ignore the yarn's thickness
+            raise ValueError(f"{problem.source}: this Equilibrium ignores [yarn] radius; build "
+                             "it with variants.equilibrium(problem)")
+        t0 = time.perf_counter()
+        self.problem = problem
+        self.nlp = transcribe(problem, parametrisation)
+        self.solver = WeftSolver(self.nlp, verbose=verbose)
+        self._build_s = time.perf_counter() - t0
+        self._kkt: KKT | None = None
+        self.forward_solves = 0
+
+    with_contact = False        # whether solves and the KKT system hold yarn contact
+
+    @property
+    def wnlp(self) -> WeftNLP:
+        """The NLP (the inverse problems' name for :attr:`nlp`)."""
+        return self.nlp
+
+    @property
+    def params(self) -> WeftParams:
+        """The problem's own parameter values; change them with ``with_(...)``."""
+        return self.nlp.params
+
+    @property
+    def n(self) -> int:
+        return self.nlp.n_variables
+
+    @property
+    def build_s(self) -> float:
+        """Seconds spent building: the NLP, its IPOPT instance, the KKT Functions once used."""
+        return self._build_s
+
+    def as_params(self, params: WeftParams | np.ndarray | None) -> WeftParams:
+        """Parameters given as values, a vector of the NLP's layout ``p``, or None (the
+        problem's own)."""
+        if params is None:
+            return self.params
+        if isinstance(params, WeftParams):
+            return params
+        return WeftParams.from_vector(self.problem, np.asarray(params, dtype=float))
+
+    def solve(self, params: WeftParams | np.ndarray | None = None, x0: np.ndarray | None = None,
+              *, continuation: int | None = None, start: str = DEFAULT_START,
+              x0_params: WeftParams | np.ndarray | None = None,
+              origin: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
+        """Solve at ``params`` from ``x0`` (else from ``start``): direct, then continuation
+        from the natural parameters (:func:`solve_nlp`). ``x0_params`` (x0's parameters, if
+        known) and ``origin`` (a solved state and its parameters: one load step from there)
+        are for yarn contact's load steps only."""
+        params = self.as_params(params)
+        self.forward_solves += 1
+        rep = solve_nlp(self.nlp, self.solver, params=params, x0=x0,
+                        continuation=continuation, start=start)
+        return self.solution(rep, params)
+
+    def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        """The decision vector of another solved model's loops (``WeftNLP.lift``)."""
+        return self.nlp.lift(coeffs, starts)
+
+    def done(self) -> None:
+        """End the progress line of the solves (a newline where one was written)."""
+        self.solver.progress.done()
+
+    def solution(self, report: SolveReport, params: WeftParams | np.ndarray) -> Solution:
+        """A report of this NLP at ``params`` as a :class:`Solution` (its violation, and what
+        the variant keeps for its x)."""
+        params = self.as_params(params)
+        return Solution.of(report, nlp=self.nlp, params=params, build_s=self.build_s,
+                           violation=self.solver.violation(report.x, params.vector()))
+
+    # -- sensitivities: an optional capability, built on first use ----------------------
+    @property
+    def kkt_system(self) -> KKT:
+        """The KKT system at this equilibrium's solutions (``sensitivity.KKT``)."""
+        if self._kkt is None:
+            t0 = time.perf_counter()
+            self._kkt = KKT(self.nlp, self.solver.solver, self.contact_state)
+            self._build_s += time.perf_counter() - t0
+        return self._kkt
+
+    def contact_state(self, x: np.ndarray) -> ContactState | None:
+        """The contact solve behind base solution x (none without contact)."""
+        return None
+
+    def sensitivity(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray, dp: np.ndarray,
+                    sliding: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """dx/dθ and dλ/dθ for parameter directions dp (``KKT.sensitivity``)."""
+        return self.kkt_system.sensitivity(x, lam, p, dp, sliding)
+
+    def system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray) -> tuple[ca.DM, ca.DM, int]:
+        """The KKT matrix, ∂F/∂p and the size of its Hessian block (``KKT.system``)."""
+        return self.kkt_system.system(x, lam, p)
+
+    def linear_system(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
+                      contact: bool = True):
+        """The sensitivities' linear system as SciPy matrices (``KKT.linear_system``)."""
+        return self.kkt_system.linear_system(x, lam, p, contact)
+
+    def stability(self, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
+                  method: str = "sparse") -> Stability:
+        """Smallest eigenvalue of the reduced Hessian (``KKT.stability``)."""
+        return self.kkt_system.stability(x, lam, p, method)
+
+
+def solve_nlp(wnlp: WeftNLP, solver: WeftSolver | None = None,
+              params: WeftParams | None = None, x0: np.ndarray | None = None,
+              continuation: int | None = None, start: str = DEFAULT_START) -> SolveReport:
     """Solve robustly at ``params`` (the problem's own by default): direct, then continuation;
     from perturbed starts where degenerate. Without x0 the solve starts from ``start``
     (:func:`start_point`: ``multilevel``, ``rigid`` or ``natural``); a multilevel start's
@@ -258,7 +430,7 @@ def corner_start(cnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
     corner = transcribe(pr, Reduced())
     if corner.parametrisation == cnlp.parametrisation:
         return None
-    rep = solve(corner, WeftSolver(corner), params=WeftParams.from_vector(pr, p),
+    rep = solve_nlp(corner, WeftSolver(corner), params=WeftParams.from_vector(pr, p),
                 start="natural")
     if log is not None:
         log.append(f"corner start: {rep.status} ({rep.iterations} it, {rep.solve_s:.2f} s)")
@@ -284,12 +456,12 @@ def multilevel_start(wnlp: WeftNLP, p: np.ndarray, log: list[str] | None = None
     for level, cp in enumerate(reversed(chain)):
         nlp = transcribe(cp, Full())
         if prev is None:
-            rep = solve(nlp, WeftSolver(nlp), start="natural")
+            rep = solve_nlp(nlp, WeftSolver(nlp), start="natural")
         else:
             x0 = prolong(prev, x, nlp)
             rep = WeftSolver(nlp, ipopt=WARM).once(nlp.p0, x0, lam_g0=prolong_multipliers(prev, lam, nlp))
             if not rep.success:
-                rep = _combined(solve(nlp, WeftSolver(nlp), x0=x0), [rep], [])
+                rep = _combined(solve_nlp(nlp, WeftSolver(nlp), x0=x0), [rep], [])
         if log is not None:
             log.append(f"multilevel {cp.courses}x{cp.wales}: {rep.status} ({rep.iterations} it, "
                        f"{rep.solve_s:.2f} s)")

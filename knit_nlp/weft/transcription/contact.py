@@ -39,10 +39,13 @@ import casadi as ca
 import numpy as np
 
 from ...layout import Layout
-from ..model.basis import n_coeffs
-from ..model.contact.curves import Curves, basis_at, cell_nodes, cell_of, cell_rule
-from .derivatives import _block_triu_sparsity, _triu_pairs, closed_form_derivatives
+from ..model.basis import basis_terms, n_coeffs
+from ..model.parametrisation import Full
+from ..model.contact.curves import Curves, cell_of, cell_rule, cell_weights
+from ..model.quadrature import rule_integrals
+from .derivatives import block_triu_sparsity, triu_pairs, closed_form_derivatives
 from .full import FullNLP
+from .protocol import WeftNLP
 
 VARS = 5               # P_A (2), P_B (2), Θ per slot
 LIFT = 5               # lifting rows per slot
@@ -57,12 +60,31 @@ ROW_SCALE = 0.1
 
 
 @dataclass
-class ContactNLP:
-    """The full weft NLP of ``base`` with contact slots appended (variables, parameters, rows).
+class Slots:
+    """The contact slots of a contact NLP: slot c holds a pair of points on loops kA[c] and
+    kB[c] (which points, and their side, are parameters set per solve)."""
+
+    kA: np.ndarray
+    kB: np.ndarray
+
+
+def _from_base(name: str) -> property:
+    """A member of the contact NLP that is its base NLP's (the problem, its clamped and loaded
+    points, their rows, its parameter values)."""
+    return property(lambda self: getattr(self.base, name),
+                    doc=f"The base NLP's ``{name}`` (``WeftNLP``).")
+
+
+@dataclass
+class ContactNLP(WeftNLP):
+    """The full weft NLP of ``base`` with contact slots appended (variables, parameters, rows):
+    a :class:`~knit_nlp.weft.transcription.protocol.WeftNLP` (``factory.transcribe(problem,
+    Full(), contact=Slots(kA, kB))``).
 
     Variables: base x, then per slot (P_A, P_B, Θ). Parameters: base p, then s_A, s_B, σ of
     every slot, then the cell masks U of A's and of B's points (cells × slots each). Rows: base
-    g, then the lifting rows (5 per slot), then the gap rows (1 per slot).
+    g, then the lifting rows (5 per slot), then the gap rows (1 per slot). What the protocol
+    reads of a decision vector (loops, starts, special points, energy) is its base part's.
     """
 
     base: FullNLP
@@ -71,31 +93,38 @@ class ContactNLP:
     nlp: dict
     nlpsol_options: dict
     x: Layout
+    p: Layout
     g: Layout
     gap_rows: slice
-    model: str = "full"
-    extra_p: int = 0
     jacobian: ca.Function | None = field(default=None, repr=False)
+    parametrisation: Full = Full()
+    model: str = "full"
 
-    @property
-    def problem(self):
-        return self.base.problem
+    problem = _from_base("problem")
+    params = _from_base("params")
+    specials = _from_base("specials")
+    clamp_points = _from_base("clamp_points")
+    load_points = _from_base("load_points")
+    rigid_points = _from_base("rigid_points")
+    clamp_rows = _from_base("clamp_rows")
+    rigid_rows = _from_base("rigid_rows")
+    n_parameters = _from_base("n_parameters")
 
     @property
     def n_slots(self) -> int:
         return len(self.kA)
 
     @property
-    def n_variables(self) -> int:
-        return self.x.size
+    def p0(self) -> np.ndarray:
+        """The problem's parameters with every slot at mid-loop (``parameters``)."""
+        mid = np.full(self.n_slots, 0.5 * self.problem.L)
+        return self.parameters(self.base.p0, mid, mid, np.ones(self.n_slots))
 
     @property
-    def n_constraints(self) -> int:
-        return self.g.size
-
-    @property
-    def params(self):
-        return self.base.params
+    def x0(self) -> np.ndarray:
+        """The natural state, every slot's points at mid-loop."""
+        mid = np.full(self.n_slots, 0.5 * self.problem.L)
+        return self.lift_slots(self.base.x0, mid, mid)
 
     @property
     def lbg(self) -> np.ndarray:
@@ -105,6 +134,27 @@ class ContactNLP:
     @property
     def ubg(self) -> np.ndarray:
         return self.bounds(np.zeros(self.n_slots), np.zeros(self.n_slots, dtype=bool))[1]
+
+    def energy(self, x: np.ndarray, p: np.ndarray) -> tuple[float, float, float]:
+        return self.base.energy(np.asarray(x)[:self.base.n_variables],
+                                np.asarray(p)[:self.base.p.size])
+
+    def coefficients(self, x: np.ndarray) -> np.ndarray:
+        return self.base.coefficients(np.asarray(x)[:self.base.n_variables])
+
+    def starts(self, x: np.ndarray) -> np.ndarray:
+        return self.base.starts(np.asarray(x)[:self.base.n_variables])
+
+    def special_positions(self, x: np.ndarray) -> np.ndarray:
+        return self.base.special_positions(np.asarray(x)[:self.base.n_variables])
+
+    def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        """The decision vector of these loops, every slot's points at mid-loop."""
+        mid = np.full(self.n_slots, 0.5 * self.problem.L)
+        return self.lift_slots(self.base.lift(coeffs, starts), mid, mid)
+
+    def representatives(self) -> None:
+        return None
 
     def parameters(self, p_base: np.ndarray, sA: np.ndarray, sB: np.ndarray,
                    sigma: np.ndarray) -> np.ndarray:
@@ -125,7 +175,7 @@ class ContactNLP:
         ubg[self.gap_rows] = np.inf
         return lbg, ubg
 
-    def lift(self, x_base: np.ndarray, sA: np.ndarray, sB: np.ndarray) -> np.ndarray:
+    def lift_slots(self, x_base: np.ndarray, sA: np.ndarray, sB: np.ndarray) -> np.ndarray:
         """A full decision vector: base x and the slots' points and angles computed from it."""
         pr = self.problem
         curves = Curves.of(self.base.coefficients(x_base), self.base.starts(x_base), pr.L)
@@ -167,37 +217,42 @@ class ContactNLP:
         return sigma * np.sum((z[:, 0:2] - z[:, 2:4]) * n, axis=1)
 
 
-def build_contact_nlp(base: FullNLP, kA: np.ndarray, kB: np.ndarray) -> ContactNLP:
-    """The base NLP with one contact slot per entry of (kA, kB), closed-form derivatives."""
+def build_contact_nlp(base: FullNLP, slots: Slots) -> ContactNLP:
+    """The base NLP with one contact slot per entry of (kA, kB), closed-form derivatives
+    (``factory.transcribe(problem, Full(), contact=slots)`` calls it)."""
     if base.model != "full":
         raise ValueError("contact is built on the full model")
-    kA, kB = np.asarray(kA, dtype=int), np.asarray(kB, dtype=int)
+    kA, kB = np.asarray(slots.kA, dtype=int), np.asarray(slots.kB, dtype=int)
     n, nx0, ng0, np0 = len(kA), base.n_variables, base.n_constraints, base.p.size
     x = ca.MX.sym("x", nx0 + VARS * n)
     M = cell_rule(base.problem.t)[0]
-    extra = (3 + 2 * M) * n
-    p = ca.MX.sym("p", np0 + extra)
+    pl = _extended(base.p, [("contact_s_A", n, 1), ("contact_s_B", n, 1),
+                            ("contact_sigma", n, 1), ("contact_masks", M, 2 * n)])
+    p = ca.MX.sym("p", pl.size)
     xb, pb = x[:nx0], p[:np0]
     f_base = ca.Function("f_base", [base.nlp["x"], base.nlp["p"]], [base.nlp["f"]])
     g_base = ca.Function("g_base", [base.nlp["x"], base.nlp["p"]], [base.nlp["g"]])
-    sA, sB, sigma = p[np0:np0 + n], p[np0 + n:np0 + 2 * n], p[np0 + 2 * n:np0 + 3 * n]
-    masks = ca.reshape(p[np0 + 3 * n:], M, 2 * n)
+    sA, sB, sigma = (p[pl.slice(name)] for name in ("contact_s_A", "contact_s_B",
+                                                     "contact_sigma"))
+    masks = ca.reshape(p[pl.slice("contact_masks")], M, 2 * n)
     geo = _Geometry(base, x, sA, sB, sigma, kA, kB, (masks[:, :n], masks[:, n:]))
     g = ca.vertcat(g_base(xb, pb), ROW_SCALE * geo.lift_rows, ROW_SCALE * geo.gap)
-    xl = Layout()
-    for name, (_, _, shape) in base.x.blocks.items():
-        xl.add(name, *shape)
-    xl.add("contact", VARS, n)
-    gl = Layout()
-    for name, (_, _, shape) in base.g.blocks.items():
-        gl.add(name, *shape)
-    gl.add("contact_lift", LIFT, n)
-    gap_rows = gl.add("contact_gap", n, 1)
+    xl = _extended(base.x, [("contact", VARS, n)])
+    gl = _extended(base.g, [("contact_lift", LIFT, n), ("contact_gap", n, 1)])
     nlp = {"x": x, "p": p, "f": f_base(xb, pb), "g": g}
     derivs = _derivatives(base, geo, x, p, g, nx0, ng0, n)
-    return ContactNLP(base, kA, kB, nlp, derivs, xl, gl, gap_rows, extra_p=extra,
+    return ContactNLP(base, kA, kB, nlp, derivs, xl, pl, gl, gl.slice("contact_gap"),
                       jacobian=derivs["jac_g"])
 
+
+def _extended(layout: Layout, more: list[tuple[str, int, int]]) -> Layout:
+    """A copy of ``layout`` with the blocks ``more`` (name, rows, columns) appended."""
+    out = Layout()
+    for name, (_, _, shape) in layout.blocks.items():
+        out.add(name, *shape)
+    for name, rows, cols in more:
+        out.add(name, rows, cols)
+    return out
 
 class _Geometry:
     """Symbolic pieces shared by the rows and their derivatives, vectorised over the points
@@ -223,7 +278,7 @@ class _Geometry:
             sj = (L / M) * ca.sum1(U)                                  # cell starts, 1 × n
             ell = srow - sj
             nodes = ca.repmat(sj, Q, 1) + ca.mtimes(ca.DM(xi), ell)    # Q × n
-            phis = _basis(nodes, L, t)                                 # nc matrices Q × n
+            phis = basis_mx(nodes, L, t)                                 # nc matrices Q × n
             Ak = A[:, k.tolist()]                                      # nc × n
             theta = sum(phis[c] * ca.repmat(Ak[c, :], Q, 1) for c in range(nc))
             cos, sin = ca.cos(theta), ca.sin(theta)
@@ -238,7 +293,7 @@ class _Geometry:
                                for c in range(nc)])
             self.sides.append((k, U, (ws, cos, sin, phis), I, dIx, dIy, X[:, kl]))
         PA, PB, Th = z[0:2, :], z[2:4, :], z[4, :]
-        self.phiB = ca.vertcat(*_basis(ca.transpose(sB), L, t))          # nc × n
+        self.phiB = ca.vertcat(*basis_mx(ca.transpose(sB), L, t))          # nc × n
         theta_B = ca.sum1(self.phiB * A[:, kB.tolist()])
         lift = ca.vertcat(PA - self.sides[0][6] - self.sides[0][3],
                           PB - self.sides[1][6] - self.sides[1][3], Th - theta_B)
@@ -256,13 +311,10 @@ class _Cells:
     nodes are fixed, so φ there is a constant matrix and θ = Φ·A one product for all loops."""
 
     def __init__(self, A: ca.MX, L: float, t: int) -> None:
-        u, hw = cell_nodes(L, t)                                       # M × Q, (Q,)
-        self.phi = basis_at(u.ravel(), L, t)                           # M·Q × nc
-        theta = ca.mtimes(ca.DM(self.phi), A)                          # M·Q × N
-        self.cos, self.sin = ca.cos(theta), ca.sin(theta)
-        self.rep = np.kron(np.eye(len(u)), hw[:, None])                # M·Q × M: h w_q
-        W = ca.DM(self.rep.T)                                          # M × M·Q
-        self.dx, self.dy = ca.mtimes(W, self.cos), ca.mtimes(W, self.sin)
+        self.phi, W = cell_weights(L, t)                               # M·Q × nc, M × M·Q
+        self.rep = W.T                                                 # M·Q × M: h w_q
+        self.cos, self.sin, self.dx, self.dy = rule_integrals(
+            ca.DM(self.phi), ca.DM(W), A, ca.cos, ca.sin, ca.mtimes)  # as the numbers (curves)
         self.ddx = [-ca.mtimes(ca.DM(self.rep.T * self.phi[:, c]), self.sin)
                     for c in range(self.phi.shape[1])]
         self.ddy = [ca.mtimes(ca.DM(self.rep.T * self.phi[:, c]), self.cos)
@@ -277,15 +329,10 @@ class _Cells:
         return ca.mtimes(pp, coef)
 
 
-def _basis(u: ca.MX, L: float, t: int) -> list[ca.MX]:
-    """φ_c(u) of eq. (15) elementwise on a matrix u, one matrix per basis function; the
-    harmonics by the angle-addition recurrence (two trigonometric calls, not 2t)."""
-    c1, s1 = ca.cos(2 * np.pi * u / L), ca.sin(2 * np.pi * u / L)
-    sins, coss = [s1], [c1]
-    for _ in range(t - 1):
-        sins.append(sins[-1] * c1 + coss[-1] * s1)
-        coss.append(coss[-1] * c1 - sins[-2] * s1)
-    return sins + coss + [u, ca.MX.ones(u.shape)]
+def basis_mx(u: ca.MX, L: float, t: int) -> list[ca.MX]:
+    """φ_c(u) of eq. (15) elementwise on a CasADi matrix u, one matrix per basis function
+    (``basis.basis_terms``, the definition the numbers use too)."""
+    return basis_terms(u, L, t, ca.sin, ca.cos, ca.MX.ones(u.shape))
 
 
 def _derivatives(base: FullNLP, geo: _Geometry, x, p, g, nx0: int, ng0: int, n: int) -> dict:
@@ -348,7 +395,7 @@ def _contact_hessian(base: FullNLP, geo: _Geometry, lam_lift: ca.MX, lam_gap: ca
     n, nc, N = geo.n, geo.nc, pr.n_loops
     coeff0 = base.x.slice("coeffs").start
     lam = ca.reshape(lam_lift, LIFT, n)
-    iu, ju = _triu_pairs(nc)
+    iu, ju = triu_pairs(nc)
     blocks = ca.MX(len(iu), N)
     M = geo.cells.dx.shape[0]
     omega_x, omega_y = ca.MX(M, N), ca.MX(M, N)
@@ -362,7 +409,7 @@ def _contact_hessian(base: FullNLP, geo: _Geometry, lam_lift: ca.MX, lam_gap: ca
         omega_x += ca.mtimes(U * ca.repmat(lx, M, 1), scatter)          # Ω per loop and cell
         omega_y += ca.mtimes(U * ca.repmat(ly, M, 1), scatter)
     blocks += geo.cells.hessian_blocks(omega_x, omega_y, iu, ju)
-    H_blocks = ca.MX(_block_triu_sparsity(N, nc, coeff0, nx), ca.vec(blocks))
+    H_blocks = ca.MX(block_triu_sparsity(N, nc, coeff0, nx), ca.vec(blocks))
     slot = np.arange(n)
     th = nx0 + VARS * slot + 4
     lg = ca.transpose(lam_gap)

@@ -59,9 +59,9 @@ def closed_form_derivatives(wnlp: FullNLP) -> dict[str, ca.Function]:
     W = ca.mtimes(Cd.T, ca.reshape(mu[0, :], P, N))
     V = ca.mtimes(Cd.T, ca.reshape(mu[1, :], P, N))
     w = -(W * cos + V * sin)                                       # Q × N
-    iu, ju = _triu_pairs(nc)
+    iu, ju = triu_pairs(nc)
     Psi = ca.DM(Phi[:, iu] * Phi[:, ju]).T                         # T × Q
-    Hg = ca.MX(_block_triu_sparsity(N, nc, coeffs.start, wnlp.x.size), ca.vec(ca.mtimes(Psi, w)))
+    Hg = ca.MX(block_triu_sparsity(N, nc, coeffs.start, wnlp.x.size), ca.vec(ca.mtimes(Psi, w)))
     Hf = ca.triu(ca.hessian(nlp["f"], x)[0])
     hess = lam_f * Hf + Hg
     hess_lag = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess],
@@ -95,15 +95,15 @@ def _jd_sparsity(N: int, P: int, nc: int, offset: int, nx: int) -> ca.Sparsity:
     return ca.Sparsity.triplet(2 * N * P, nx, rows.tolist(), cols.tolist())
 
 
-def _triu_pairs(nc: int) -> tuple[np.ndarray, np.ndarray]:
+def triu_pairs(nc: int) -> tuple[np.ndarray, np.ndarray]:
     """(row, column) of the upper triangle of an nc × nc block in column-major order."""
     pairs = [(i, j) for j in range(nc) for i in range(j + 1)]
     return np.array([i for i, _ in pairs]), np.array([j for _, j in pairs])
 
 
-def _block_triu_sparsity(N: int, nc: int, offset: int, nx: int) -> ca.Sparsity:
+def block_triu_sparsity(N: int, nc: int, offset: int, nx: int) -> ca.Sparsity:
     """Upper triangles of the N coefficient blocks on the diagonal of the x × x Hessian."""
-    iu, ju = _triu_pairs(nc)
+    iu, ju = triu_pairs(nc)
     base = offset + np.arange(N)[:, None] * nc
     rows, cols = (base + iu).ravel(), (base + ju).ravel()
     return ca.Sparsity.triplet(nx, nx, rows.tolist(), cols.tolist())

@@ -5,13 +5,15 @@
 ``Reduced(...)`` gives the condensed reduced model (with the clamped courses and wales added
 where the clamps would otherwise be dependent: ``condensed.build_condensed``). ``Adaptive``
 chooses its representatives by solving (``solving.adaptive``): it is a solve strategy, not a
-transcription, and is refused here.
+transcription, and is refused here. ``contact=Slots(...)`` with ``Full()`` gives the full NLP
+with yarn contact slots (``contact.ContactNLP``).
 """
 from __future__ import annotations
 
 from ..model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from ..model.problem import WeftProblem
 from .condensed.nlp import build_condensed
+from .contact import Slots, build_contact_nlp
 from .derivatives import closed_form_derivatives
 from .full import FullNLP, build_nlp
 from .protocol import WeftNLP
@@ -20,13 +22,16 @@ DERIVATIVES = ("closed_form", "casadi")
 
 
 def transcribe(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
-               derivatives: str = "closed_form", segment: int | None = None) -> WeftNLP:
+               derivatives: str = "closed_form", segment: int | None = None,
+               contact: Slots | None = None, base: FullNLP | None = None) -> WeftNLP:
     """The NLP of ``problem`` in ``parametrisation`` (None: the problem's own, reduced when the
     file has ``[reduction]``).
 
     ``derivatives`` (full model): ``"closed_form"`` (default) or ``"casadi"`` (CasADi's AD of
     the NLP expressions, for comparisons); the condensed model has only its own hand-assembled
-    derivatives. ``segment``: loops per shooting segment of the condensed model.
+    derivatives. ``segment``: loops per shooting segment of the condensed model. ``contact``
+    (full model): yarn contact slots (``contact.Slots``) appended to ``base``, the problem's
+    full NLP (built here when not given).
     """
     param = problem.parametrisation if parametrisation is None else parametrisation
     if derivatives not in DERIVATIVES:
@@ -34,6 +39,10 @@ def transcribe(problem: WeftProblem, parametrisation: Parametrisation | None = N
     if isinstance(param, Adaptive):
         raise ValueError("Adaptive() chooses representatives by solving: use "
                          "knit_nlp.weft.solve(problem, Adaptive(...)), not transcribe")
+    if contact is not None:
+        if not isinstance(param, Full):
+            raise ValueError("yarn contact is built on the full model: use Full()")
+        return build_contact_nlp(base or _full(problem, derivatives), contact)
     if isinstance(param, Full):
         return _full(problem, derivatives)
     if isinstance(param, Reduced):

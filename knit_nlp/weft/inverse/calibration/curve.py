@@ -1,6 +1,6 @@
 """A model test curve: the pulled clamp moved in warm-started steps, force and strains recorded.
 
-One forward NLP is built per specimen (``contact_equilibrium.equilibrium_for``: with
+One forward NLP is built per specimen (``forward.equilibrium_for``: with
 ``[yarn] radius`` every solve is a contact solve and the KKT system holds the active contacts)
 and re-solved at every step from the previous step's solution. Steps aim at even force
 increments (the secant stiffness of the last step sets the next), so the curve is resolved
@@ -25,7 +25,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 from scipy.sparse.linalg import splu
 
-from ..contact_equilibrium import CURVE_KEEP, equilibrium_for
+from ..forward import CURVE_KEEP, equilibrium_for
 from ..points import point_function, point_jacobian
 from ...model.params import WeftParams
 from .specimen import PULLED, Specimen

@@ -16,6 +16,9 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
+from ..basis import basis_at, dbasis_at
+from ..quadrature import rule_integrals
+
 NODES = 8           # Gauss-Legendre nodes per cell
 
 
@@ -42,28 +45,23 @@ def cell_nodes(L: float, t: int) -> tuple[np.ndarray, np.ndarray]:
     return (np.arange(M)[:, None] + xi) * h, h * w
 
 
+@lru_cache(maxsize=16)
+def cell_weights(L: float, t: int) -> tuple[np.ndarray, np.ndarray]:
+    """φ at every whole cell's nodes (cells·NODES × 2t+2) and the weights W (cells ×
+    cells·NODES, row i: cell i's h·w) with which ``quadrature.rule_integrals`` gives each
+    cell's increment ΔI_i of eq. (1), here and in the contact rows (``transcription.contact``)."""
+    u, hw = cell_nodes(L, t)
+    Phi, W = basis_at(u.ravel(), L, t), np.kron(np.eye(len(u)), hw[None, :])
+    Phi.setflags(write=False)               # shared by every caller (cached)
+    W.setflags(write=False)
+    return Phi, W
+
+
 def cell_of(s: np.ndarray, L: float, t: int) -> np.ndarray:
     """The cell j of each material point s (integers; points before 0 or past L take the
     first or last cell)."""
     M = cells(t)
     return np.clip(np.floor(np.asarray(s, dtype=float) * M / L), 0, M - 1).astype(int)
-
-
-def basis_at(u: np.ndarray, L: float, t: int) -> np.ndarray:
-    """φ(u) of eq. (15) for an array u of any shape: shape u.shape + (2t+2,)."""
-    u = np.asarray(u, dtype=float)
-    arg = 2 * np.pi * u[..., None] * np.arange(1, t + 1) / L
-    return np.concatenate([np.sin(arg), np.cos(arg), u[..., None], np.ones(u.shape + (1,))],
-                          axis=-1)
-
-
-def dbasis_at(u: np.ndarray, L: float, t: int) -> np.ndarray:
-    """dφ/du for an array u: shape u.shape + (2t+2,); θ' = a·dφ is the curvature."""
-    u = np.asarray(u, dtype=float)
-    om = 2 * np.pi * np.arange(1, t + 1) / L
-    arg = u[..., None] * om
-    return np.concatenate([om * np.cos(arg), -om * np.sin(arg), np.ones(u.shape + (1,)),
-                           np.zeros(u.shape + (1,))], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -93,9 +91,9 @@ class Curves:
     @cached_property
     def prefix(self) -> np.ndarray:
         """∫ from 0 to each cell's start, every loop: (N, cells + 1, 2), by the cell rule."""
-        u, hw = cell_nodes(self.L, self.t)                            # (M, Q), (Q,)
-        theta = np.einsum("mqc,nc->nmq", basis_at(u, self.L, self.t), self.coeffs)
-        inc = np.stack([np.cos(theta) @ hw, np.sin(theta) @ hw], axis=-1)
+        Phi, W = cell_weights(self.L, self.t)
+        _, _, dx, dy = rule_integrals(Phi, W, self.coeffs.T, np.cos, np.sin, np.matmul)
+        inc = np.stack([dx.T, dy.T], axis=-1)                          # (N, M, 2)
         return np.concatenate([np.zeros((len(self.coeffs), 1, 2)), np.cumsum(inc, axis=1)],
                               axis=1)
 

@@ -26,7 +26,9 @@ from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
 from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
 from ...model.contact.zones import Zones
-from ...transcription.contact import ContactNLP, build_contact_nlp
+from ...model.parametrisation import Full
+from ...transcription.contact import ContactNLP, Slots
+from ...transcription.factory import transcribe
 from ...transcription.full import FullNLP
 from ....outcome import OUT_OF_TIME
 from ....progress import loading
@@ -125,6 +127,16 @@ class Look:
 
 
 @dataclass
+class Warm:
+    """What a contact solve starts its multipliers from: the base rows' multipliers of the last
+    solve, its pairs and their gap multipliers (carried to the new pairs by matching)."""
+
+    lam_base: np.ndarray
+    pairs: Pairs
+    lam_gap: np.ndarray
+
+
+@dataclass
 class ContactRun:
     """The outcome of a contact solve: the base-layout solution and what contact did."""
 
@@ -134,16 +146,54 @@ class ContactRun:
     rounds: list[Round] = field(default_factory=list)
     n_variables: int = 0
     n_constraints: int = 0
-    solved: tuple[Pairs, np.ndarray] | None = None    # the last solve's pairs and multipliers
+    solved: Warm | None = None     # the last solve's pairs and multipliers (its warm start)
+
+
+@dataclass
+class ContactSolve:
+    """An accepted solve of the contact NLP (what the sensitivities with contact and the
+    result's active contacts need): the NLP, its parameters (base p, s_A, s_B, σ, cell masks),
+    its solution and multipliers, per slot which are in use, their sides σ and required gaps;
+    per pair its slot's gap multiplier and the gap row's value."""
+
+    cnlp: ContactNLP
+    params: np.ndarray
+    x: np.ndarray
+    lam_g: np.ndarray
+    used: np.ndarray
+    sigma: np.ndarray
+    required: np.ndarray
+    pairs: Pairs
+    lam: np.ndarray
+    gap: np.ndarray
+
+
+@dataclass
+class Step:
+    """The outcome of a load step (:meth:`ContactSolver.step`): ``status`` (``Solve_Succeeded``,
+    or why it failed: IPOPT's status, ``CROSSED``, ``DEEP_PAIRS``, rounds exceeded); when it
+    succeeded, the state, its pairs, the warm start for the next step and the pairs'
+    multipliers."""
+
+    status: str
+    x: np.ndarray | None = None
+    pairs: Pairs | None = None
+    warm: Warm | None = None
+    lam: np.ndarray | None = None
+
+    @property
+    def success(self) -> bool:
+        return self.x is not None
 
 
 class ContactSolver:
-    """Contact rounds for one problem (the base NLP and its solver are the caller's)."""
+    """Contact rounds for one problem: the base NLP is ``solver``'s (the paper's IPOPT
+    instance); the contact NLP's solvers share its clock (:meth:`WeftSolver.sibling`)."""
 
-    def __init__(self, base: FullNLP, radius: float, per_loop: int | None = None, *,
-                 verbose: bool | None = False) -> None:
+    def __init__(self, solver: WeftSolver, radius: float, per_loop: int | None = None) -> None:
+        base = solver.wnlp
         pr = base.problem
-        self.verbose = verbose           # the progress lines of its solves (WeftSolver)
+        self.base_solver = solver
         self.base, self.radius = base, float(radius)
         self.fabric = NaturalFabric.of(pr, radius)
         per_loop = per_loop or max(16, int(np.ceil(pr.L / radius)))
@@ -154,14 +204,17 @@ class ContactSolver:
         self.settler: WeftSolver | None = None     # the same NLP's IPOPT for settling rounds
         self.build_s = 0.0
         self.log = None                  # a callable receiving every Round as it ends
-        # the last successful solve of the contact NLP: (NLP, its parameters, x, λ, slots in
-        # use, sides σ, required gaps), and its pairs with their gap multipliers and the gap
-        # rows' values (what the sensitivities with contact and the result's active contacts
-        # need: inverse/contact_equilibrium.py, solve.contact_block)
-        self.last: tuple | None = None
-        self.last_pairs: tuple[Pairs, np.ndarray, np.ndarray] | None = None
-        self.deadline = np.inf           # the wall-clock budget shared with the paper's solves
+        self.last: ContactSolve | None = None   # the last successful solve of the contact NLP
         self._look: Look | None = None
+
+    @property
+    def deadline(self) -> float:
+        """The wall-clock deadline shared with the paper's solves (the base solver's clock)."""
+        return self.base_solver.deadline
+
+    @deadline.setter
+    def deadline(self, when: float) -> None:
+        self.base_solver.deadline = when
 
     def look(self, x_base: np.ndarray) -> Look:
         """A base-layout state's curves, crossings, verdict and designed zones. The last
@@ -205,9 +258,9 @@ class ContactSolver:
             kA += [a] * v
             kB += [b] * v
         t0 = time.perf_counter()
-        self.cnlp = build_contact_nlp(self.base, np.array(kA), np.array(kB))
-        self.solver = WeftSolver(self.cnlp, ipopt=WARM, verbose=self.verbose)
-        self.solver.deadline = self.deadline
+        self.cnlp = transcribe(self.base.problem, Full(), contact=Slots(np.array(kA), np.array(kB)),
+                               base=self.base)
+        self.solver = self.base_solver.sibling(self.cnlp, ipopt=WARM)
         self.settler = None                        # built again when a round settles
         self.build_s += time.perf_counter() - t0
         return True
@@ -264,7 +317,7 @@ class ContactSolver:
         return bool(np.any(through))
 
     def solve_once(self, p_base: np.ndarray, x_base: np.ndarray, pairs: Pairs,
-                   warm: tuple[np.ndarray, Pairs, np.ndarray] | None, report: SolveReport,
+                   warm: Warm | None, report: SolveReport,
                    rounds: list[Round], note: str, settle: bool = False
                    ) -> tuple[SolveReport, np.ndarray]:
         """One IPOPT solve with a slot for every pair, from x_base (warm: the last solve's
@@ -275,13 +328,12 @@ class ContactSolver:
         sA, sB, sigma, required, used, slot_of = self._assign(pairs)
         c = self.cnlp
         lbg, ubg = c.bounds(required, used)
-        x0 = c.lift(x_base, sA, sB)
+        x0 = c.lift_slots(x_base, sA, sB)
         lam0 = None
         if warm is not None:
-            lam_base, old, lam_old = warm
             lam_gap = np.zeros(c.n_slots)
-            lam_gap[slot_of] = carry((old, lam_old), pairs)
-            lam0 = np.concatenate([lam_base, c.warm_multipliers(x0, sigma, lam_gap)])
+            lam_gap[slot_of] = carry((warm.pairs, warm.lam_gap), pairs)
+            lam0 = np.concatenate([warm.lam_base, c.warm_multipliers(x0, sigma, lam_gap)])
         params = c.parameters(p_base, sA, sB, sigma)
         ipopt = self._ipopt(settle and warm is not None)
         # the progress line names the step: a long contact solve is several IPOPT solves
@@ -294,8 +346,8 @@ class ContactSolver:
             self.log(rounds[-1])
         lam = c.gap_multipliers(rep.lam_g)[slot_of]
         if rep.success:
-            self.last = (c, params, rep.x, rep.lam_g, used, sigma, required)
-            self.last_pairs = (pairs, lam, c.gaps(rep.x, sigma)[slot_of])
+            self.last = ContactSolve(c, params, rep.x, rep.lam_g, used, sigma, required, pairs,
+                                     lam, c.gaps(rep.x, sigma)[slot_of])
         return rep, lam
 
     def _ipopt(self, settle: bool) -> WeftSolver:
@@ -306,55 +358,49 @@ class ContactSolver:
         if self.settler is None:
             t0 = time.perf_counter()
             mu = SETTLE_MU * self.base.problem.solver.tol
-            self.settler = WeftSolver(self.cnlp, ipopt={**WARM, "mu_init": mu},
-                                      verbose=self.verbose)
+            self.settler = self.base_solver.sibling(self.cnlp, ipopt={**WARM, "mu_init": mu})
             self.build_s += time.perf_counter() - t0
-        self.settler.deadline = self.deadline
         return self.settler
 
-    def step(self, p: np.ndarray, x: np.ndarray, pairs: Pairs, warm, final: bool,
-             report: SolveReport, rounds: list[Round], note: str):
+    def step(self, p: np.ndarray, x: np.ndarray, pairs: Pairs, warm: Warm | None, final: bool,
+             report: SolveReport, rounds: list[Round], note: str) -> Step:
         """Solve at parameters p from the uncrossed state x and its pairs; solve again from
         the result with its own pairs until they meet their gaps (and, at the target, stop
         moving). A solve that ends with pairs it had no slot for far inside their gap (yarns
         out of reach where it started, now nearly crossed) is not continued from there: the
         round is solved again from its start (for the first round the step's) with those pairs
         added (:meth:`_restart`), and they stay in every later round (:meth:`_again`).
-        None when a solve fails or yarns crossed; else the state, its pairs, warm data and the
-        pairs' multipliers."""
+        The :class:`Step`: its status says why when a solve failed or yarns crossed."""
         tol = TOL if final else STEP_TOL
         restarts, settle = 0, False
         deep_met = Pairs.empty()        # the pairs a restart was for: in every later round
         for k in range(MAX_ROUNDS):
-            begun = (x, pairs, warm)    # where this round starts: a restart repeats it
+            begun_x, begun_pairs, begun_warm = x, pairs, warm   # a restart repeats this round
             rep, lam = self.solve_once(p, x, pairs, warm, report, rounds,
                                        note if k == 0 else f"{note}, round {k + 1}", settle)
             if not rep.success:
-                report.status = rep.status
-                return None
+                return Step(rep.status)
             xn = rep.x[:self.base.n_variables]
             found = self.pairs(xn)
             if self.crossed(xn, pairs, found):
-                report.status = CROSSED
                 if self.log is not None:
                     self.log(self.why)
-                return None
+                return Step(CROSSED)
             deep = found.gap < found.required * (1 - DEEP)
             if deep.any() and restarts == RESTARTS:
                 # still nearly crossed after the restarts: continuing from here took 370+
                 # IPOPT iterations a round on the 30 x 30 pull and drove the energy 100x up;
                 # a shorter step is cheaper
-                report.status = DEEP_PAIRS
                 if self.log is not None:
                     self.log(f"  {int(deep.sum())} pairs still deep inside their gap after "
                              f"{RESTARTS} restarts: the step fails")
-                return None
+                return Step(DEEP_PAIRS)
             if deep.any():
-                more = self._restart(begun, found.select(deep))
+                more = self._restart(begun_x, begun_pairs, found.select(deep))
                 if more is not None:
                     restarts += 1
                     deep_met = deep_met.concat(found.select(deep))
-                    x, pairs, warm = begun[0], more, begun[2]
+                    x, pairs, warm = begun_x, more, begun_warm
                     settle = False
                     if self.log is not None:
                         self.log(f"  restart: {int(deep.sum())} pairs met deep inside their "
@@ -364,11 +410,11 @@ class ContactSolver:
             lost = lost_contacts(touching, found, self.grid.h * SAME)
             held = unrepeated(found, self._hold(xn, lost), self.grid.h * SAME)
             moved = final and contacts_moved(touching, found.concat(held), self.grid.h * MOVED)
-            x, warm = xn, (rep.lam_g[:self.base.n_constraints], pairs, lam)
+            x, warm = xn, Warm(rep.lam_g[:self.base.n_constraints], pairs, lam)
             report.x, report.objective = x, rep.objective
             report.lam_g = rep.lam_g[:self.base.n_constraints]
             if not self.violations(found, tol).any() and not moved:
-                return x, found, warm, carry((pairs, lam), found)
+                return Step("Solve_Succeeded", x, found, warm, carry((pairs, lam), found))
             if self.log is not None:
                 short = np.max(1 - found.gap / np.maximum(found.required, 1e-300), initial=0)
                 self.log(f"  again: {int(self.violations(found, tol).sum())} short (worst "
@@ -376,20 +422,42 @@ class ContactSolver:
             pairs = found.concat(held)
             pairs = pairs.concat(self._again(xn, deep_met, pairs))
             settle = not self.violations(pairs, SETTLE).any()
-        report.status = "Contact_Rounds_Exceeded"
-        return None
+        return Step("Contact_Rounds_Exceeded")
+
+    def polish(self, p: np.ndarray, rep: SolveReport, times: int) -> bool:
+        """Solve again (warm) at p from the accepted solution ``rep`` (its x, multipliers and
+        objective are replaced) with the pairs searched on it, ``times`` times or until a
+        solve fails or lets yarns cross (the last accepted solve is then kept); whether any
+        re-solve was accepted. The rounds accept contact points that moved less than half a
+        sample, so two paths to the same parameters end up to ~1e-3 apart; the re-solves make
+        x(p) smooth enough for the inverse problems' outer iteration and forward check
+        (measured: tests/test_contact_control.py)."""
+        polished = False
+        for _ in range(times):
+            kept = self.last
+            found = self.pairs(rep.x)
+            out, _ = self.solve_once(p, rep.x, found, Warm(rep.lam_g, kept.pairs, kept.lam), rep,
+                                     [], "polish")
+            xn = out.x[:self.base.n_variables]
+            if not out.success or self.crossed(xn, found, self.pairs(xn)):
+                self.last = kept
+                break
+            rep.x, rep.lam_g = xn, out.lam_g[:self.base.n_constraints]
+            rep.objective = out.objective
+            polished = True
+        return polished
 
     def touching(self) -> np.ndarray:
-        """Which pairs of the last solve (``last_pairs``) hold a contact: ``active.active_gaps``
+        """Which pairs of the last solve (``last``) hold a contact: ``active.active_gaps``
         on the solve's gap rows, as the result lists them."""
-        pairs, lam, gap = self.last_pairs
-        return active_gaps(gap, pairs.required, lam, np.ones(len(pairs), dtype=bool),
+        last = self.last
+        return active_gaps(last.gap, last.pairs.required, last.lam, np.ones(len(last.pairs), dtype=bool),
                            self.base.problem.solver.tol, 2 * self.radius)
 
     def solved_at(self, x_base: np.ndarray) -> bool:
         """Whether the last successful contact solve (``last``) ended at the base state x."""
         return self.last is not None and np.array_equal(
-            self.last[2][:self.base.n_variables], x_base)
+            self.last.x[:self.base.n_variables], x_base)
 
     def _hold(self, x: np.ndarray, held: Pairs) -> Pairs:
         """Held pairs (``matching.lost_contacts``) at the state x: A's point against its foot on
@@ -414,11 +482,10 @@ class ContactSolver:
         now, _ = reseat(self.fabric, look.curves, self.grid, deep_met, look.zones)
         return unrepeated(pairs, now, self.grid.h * SAME)
 
-    def _restart(self, start: tuple, deep: Pairs) -> Pairs | None:
+    def _restart(self, x0: np.ndarray, pairs0: Pairs, deep: Pairs) -> Pairs | None:
         """A round's starting pairs with ``deep`` (pairs its solve met far inside their gap)
         carried back to the round's start, where they are still apart; None when
         none of them is new there (nothing to gain)."""
-        x0, pairs0, _ = start
         look = self.look(x0)
         back = reseat(self.fabric, look.curves, self.grid, deep, look.zones)[0]
         back = back.select(back.gap >= back.required)
@@ -442,10 +509,12 @@ class ContactSolver:
             loading(tau)                              # the progress line's share and estimate
             out = self.step(p_natural + nxt * (p_target - p_natural), x, pairs, warm,
                             nxt >= 1.0, report, rounds, f"load {nxt:.4g}")
-            if out is None and report.status == OUT_OF_TIME:
+            if not out.success:
+                report.status = out.status
+            if not out.success and out.status == OUT_OF_TIME:
                 report.success = False        # no time for a wider search or a shorter step
                 break
-            if out is None:
+            if not out.success:
                 # first widen the reach (a pair farther away may be what the step needed:
                 # a body pushed by a load has nothing else to stop it), then halve the step
                 # (a step still nearly crossed after its restarts is halved at once: on the
@@ -468,7 +537,7 @@ class ContactSolver:
                     break
                 dtau /= 2
                 continue
-            x, pairs, warm, lam = out
+            x, pairs, warm, lam = out.x, out.pairs, out.warm, out.lam
             solved = pairs
             tau, halvings, self.reach = nxt, 0, REACH * self.base.problem.L
             report.success, report.status = True, "Solve_Succeeded"
@@ -481,6 +550,5 @@ class ContactSolver:
             lam = np.zeros(len(solved))
         return ContactRun(report, solved, lam, rounds,
                           0 if self.cnlp is None else self.cnlp.n_variables,
-                          0 if self.cnlp is None else self.cnlp.n_constraints,
-                          None if warm is None else (warm[1], warm[2]))
+                          0 if self.cnlp is None else self.cnlp.n_constraints, warm)
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .basis import phi
-from .natural import NaturalLoop
+from .natural_loop import NaturalLoop
 
 LABELS = ("A", "C", "B", "D", "F", "E", "Q", "S", "R", "G", "P", "H")
 

@@ -1,4 +1,6 @@
-"""Solving a weft problem that has a yarn radius (the contact study of ``weft.study`` calls it).
+"""Solving a weft problem that has a yarn radius: :class:`ContactEquilibrium`, the forward
+equilibrium with yarn contact (``variants.equilibrium`` chooses it for studies, ``solve``,
+control, fit and calibrate).
 
 The paper's model is solved first, as always; if its state has no new crossing and no gap
 short of its requirement the contact is inactive and that is the answer. Otherwise contact
@@ -12,20 +14,25 @@ result JSON's ``contact`` block beside it.
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 
 import numpy as np
 
 from ....errors import ProblemError
 from ...model.contact.pairs import Pairs
+from ...model.parametrisation import Full
 from ...model.params import WeftParams
 from ...model.problem import WeftProblem
 from ...transcription.full import FullNLP
-from ..solve import DEFAULT_START, SolveReport, WeftSolver, solve as solve_nlp, start_point
+from ..sensitivity import ContactState
+from ..solve import (DEFAULT_START, Equilibrium, Solution, SolveReport, WeftSolver,
+                     solve_nlp, start_point)
 from ..starts import needs_perturbation
-from .active import ACTIVE
+from .active import ACTIVE, active_gaps
 from .rounds import TOL, ContactRun, ContactSolver
 
 STEPS = 4                  # first load steps of a contact path when none are asked for
+KEEP = 16                  # solved contact states remembered (by base solution) for the KKT
 
 
 class ContactRefused(ProblemError, ValueError):
@@ -52,10 +59,7 @@ def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver
     from there; unknown, the target's) if given: the report and the result JSON's ``contact``
     block. Load steps from a start that fail are tried again from the natural fabric."""
     problem = base.problem
-    solver.start_clock()
-    contact.deadline = solver.deadline
-    if contact.solver is not None:
-        contact.solver.deadline = solver.deadline
+    solver.start_clock()            # the contact solves share its clock (ContactSolver)
     p = params.vector()
     start = WeftParams.natural(problem).vector(), base.x0
     if x_start is not None and contact.clean(x_start):
@@ -196,8 +200,8 @@ def _active(contact: ContactSolver, run: ContactRun, tol: float
     Otherwise (no contact solve, or a failed run): the run's pairs with their carried
     multipliers and searched gaps, active where they push."""
     if contact.solved_at(run.report.x):
-        pairs, lam, gap = contact.last_pairs
-        return pairs, -lam, gap, contact.touching()
+        last = contact.last
+        return last.pairs, -last.lam, last.gap, contact.touching()
     # a failed run's state is no solve's: the rows' values are unknown, the force alone judges
     force = -run.lam_gap
     largest = float(force.max(initial=0.0))
@@ -209,3 +213,108 @@ def _contact_points(curves, pairs: Pairs) -> np.ndarray:
     if len(pairs) == 0:
         return np.zeros((0, 2))
     return 0.5 * (curves.points(pairs.kA, pairs.sA) + curves.points(pairs.kB, pairs.sB))
+
+
+class ContactEquilibrium(Equilibrium):
+    """The full model of a problem with ``[yarn] radius``: the paper's NLP and IPOPT instance
+    built once (its solutions, reactions and loading paths read as without contact) and the
+    contact NLP grown with the pairs the solves meet (:class:`ContactSolver`). Every solve's
+    contact block and its accepted contact solve (:class:`ContactState`, with its active gap
+    rows) are kept for the last ``keep`` base solutions: the sensitivities and the stability
+    check at a solution hold its active contacts (``sensitivity``). ``polish``: re-solves with
+    the pairs searched on each solution (``ContactSolver.polish``; the inverse problems')."""
+
+    with_contact = True
+
+    def __init__(self, problem: WeftProblem, *, verbose: bool | None = False, keep: int = KEEP,
+                 polish: int = 0) -> None:
+        super().__init__(problem, Full(), verbose=verbose)
+        self.contact = ContactSolver(self.solver, problem.yarn.radius)
+        self.keep, self.polish = keep, polish
+        self.states: OrderedDict[bytes, ContactState | None] = OrderedDict()
+        self.blocks: dict[bytes, dict] = {}
+        self._run: ContactRun | None = None
+
+    @property
+    def build_s(self) -> float:
+        """The paper's NLP and IPOPT instance, every contact NLP built, the KKT Functions."""
+        return self._build_s + self.contact.build_s
+
+    def solve(self, params: WeftParams | np.ndarray | None = None, x0: np.ndarray | None = None,
+              *, continuation: int | None = None, start: str = DEFAULT_START,
+              x0_params: WeftParams | np.ndarray | None = None,
+              origin: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
+        """Solve with contact at ``params``: one load step from ``origin`` (a solved state and
+        its parameters) when given and it succeeds (the path the clamps travel in the control
+        iteration, halved where yarns would cross), else :func:`solve_with_contact` from
+        ``x0`` (load steps from it, at ``x0_params`` if known) or the paper's solution or the
+        natural fabric. ``start`` is the paper's model's own (its multilevel start)."""
+        params = self.as_params(params)
+        p = params.vector()
+        self.forward_solves += 1
+        self.contact.last = None
+        rep = self._from_origin(p, origin) if origin is not None else None
+        if rep is None:
+            p_start = None if x0_params is None else self.as_params(x0_params).vector()
+            rep, block = solve_with_contact(self.nlp, self.solver, self.contact, params,
+                                            continuation, x0, p_start)
+        else:
+            block = contact_block(self.problem, self.contact, self._run,
+                                  "one load step with contact from the last solved state",
+                                  self.problem.solver.tol)
+        if (self.polish and rep.success and self.contact.last is not None
+                and self.contact.polish(p, rep, self.polish)):
+            last = self.contact.last
+            block = contact_block(self.problem, self.contact, ContactRun(rep, last.pairs, last.lam),
+                                  block["route"] + ", polished", self.problem.solver.tol)
+        self._remember(rep, block)
+        return self.solution(rep, params)
+
+    def solution(self, report: SolveReport, params: WeftParams | np.ndarray) -> Solution:
+        """As :meth:`Equilibrium.solution`, with the contact solve behind x (``contact``) and
+        the result JSON's ``contact`` block (empty for an x this equilibrium did not solve)."""
+        sol = super().solution(report, params)
+        key = np.asarray(report.x).tobytes()
+        sol.contact = self.states.get(key)
+        sol.blocks["contact"] = self.blocks.get(key, {})
+        return sol
+
+    def _from_origin(self, p: np.ndarray, origin: tuple[np.ndarray, np.ndarray]
+                     ) -> SolveReport | None:
+        """contact.run from a solved, uncrossed state to p in one load step (halved as needed)."""
+        x, p_from = origin
+        if not self.contact.clean(x):
+            return None
+        self.solver.start_clock()           # the contact solves share its clock
+        report = SolveReport(False, "", x, np.zeros(self.nlp.n_constraints), np.nan, 0, 0.0)
+        self._run = self.contact.run(p, np.asarray(p_from, dtype=float), x, 1, report)
+        return self._run.report if self._run.report.success else None
+
+    def _remember(self, rep: SolveReport, block: dict) -> None:
+        """Keep the contact NLP's solution that belongs to the base solution rep.x."""
+        key = np.asarray(rep.x).tobytes()
+        state = None
+        if rep.success and self.contact.solved_at(rep.x):
+            last = self.contact.last
+            cnlp = last.cnlp
+            active = active_gaps(cnlp.gaps(last.x, last.sigma), last.required,
+                                 cnlp.gap_multipliers(last.lam_g), last.used,
+                                 self.problem.solver.tol, 2 * self.contact.radius)
+            state = ContactState(cnlp, last.params, last.x, last.lam_g, active, block)
+        self.states[key] = state
+        self.blocks[key] = block
+        while len(self.states) > self.keep:
+            old, _ = self.states.popitem(last=False)
+            self.blocks.pop(old, None)
+
+    def state(self, x: np.ndarray) -> ContactState | None:
+        """The contact solve behind base solution x (None: no contact solve, none active).
+        A ValueError for an x this equilibrium did not solve (or forgot: ``keep``): its
+        sensitivities would silently miss the contacts."""
+        key = np.asarray(x).tobytes()
+        if key not in self.states:
+            raise ValueError(f"no contact solve of this equilibrium ends at this state (it "
+                             f"keeps the last {self.keep}): solve it here first")
+        return self.states[key]
+
+    contact_state = state
