@@ -24,7 +24,7 @@ import numpy as np
 from ...model.contact.crossings import Crossings, Verdict, designed_zones, find_crossings, judge
 from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
-from ...model.contact.pairs import Grid, Pairs, find_pairs, reseat
+from ...model.contact.pairs import Grid, Pairs, find_pairs, pair_samples, reseat
 from ...model.contact.zones import Zones
 from ...model.parametrisation import Full
 from ...transcription.contact import ContactNLP, Slots
@@ -196,7 +196,7 @@ class ContactSolver:
         self.base_solver = solver
         self.base, self.radius = base, float(radius)
         self.fabric = NaturalFabric.of(pr, radius)
-        per_loop = per_loop or max(16, int(np.ceil(pr.L / radius)))
+        per_loop = per_loop or pair_samples(pr.L, radius)     # the rule check shares
         self.grid = Grid(pr.courses, pr.wales, pr.L, per_loop)
         self.reach = REACH * pr.L
         self.cnlp: ContactNLP | None = None
