@@ -113,6 +113,9 @@ def check_compare(problem: WeftProblem, grids: Sequence[int] = ()) -> list[int]:
     (:func:`check_grids`, returned)."""
     if problem.yarn is not None:
         from .solving.contact.solve import refuse     # scipy.spatial only with contact
+        if problem.yarn.spatial:
+            from .transcription.spatial import planar_only
+            raise planar_only(problem, "compare")
         raise refuse(problem, "compare (its reduced model)")
     return check_grids(grids, problem)
 

@@ -32,6 +32,7 @@ from .solving.contact.rounds import ContactSolver
 from .solving.contact.solve import refuse, solve_with_contact
 from .solving.solve import DEFAULT_START, SolveReport, WeftSolver, solve
 from .transcription.factory import transcribe
+from .transcription.spatial import planar_only
 
 
 class WeftStudy:
@@ -151,7 +152,9 @@ def study(problem: WeftProblem, parametrisation: Parametrisation | None = None, 
     transcription built once, the adaptive strategy, or the full model with yarn contact
     (``[yarn] radius``; the reduced models refuse it, :func:`refuse`)."""
     param = problem.parametrisation if parametrisation is None else parametrisation
-    if problem.yarn is not None:
+    if problem.yarn is not None and problem.yarn.spatial and isinstance(param, (Reduced, Adaptive)):
+        raise planar_only(problem, "the reduced model")
+    if problem.yarn is not None and not problem.yarn.spatial:
         if isinstance(param, (Reduced, Adaptive)):
             own = " (the file's [reduction])" if parametrisation is None else ""
             raise refuse(problem, f"the reduced model{own}")

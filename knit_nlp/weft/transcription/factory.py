@@ -15,6 +15,7 @@ from .condensed.nlp import build_condensed
 from .derivatives import closed_form_derivatives
 from .full import FullNLP, build_nlp
 from .protocol import WeftNLP
+from .spatial import build_spatial
 
 DERIVATIVES = ("closed_form", "casadi")
 
@@ -34,6 +35,10 @@ def transcribe(problem: WeftProblem, parametrisation: Parametrisation | None = N
     if isinstance(param, Adaptive):
         raise ValueError("Adaptive() chooses representatives by solving: use "
                          "knit_nlp.weft.solve(problem, Adaptive(...)), not transcribe")
+    if problem.yarn is not None and problem.yarn.spatial:      # [yarn] geometry = "3d"
+        if not isinstance(param, Full):
+            raise ValueError("the reduced model is planar: the 3-D model is solved in full")
+        return build_spatial(problem)
     if isinstance(param, Full):
         return _full(problem, derivatives)
     if isinstance(param, Reduced):
