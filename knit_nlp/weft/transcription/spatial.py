@@ -223,8 +223,10 @@ class SpatialNLP(WeftNLP):
                          "separation": float(h), "compression": float(state["compression"][c]),
                          "force": float(state["force"][c]),
                          "sin_angle": float(state["sin_angle"][c])})
+        sig = np.concatenate([state["sigma_upper"], state["sigma_lower"]])
         return {**out, "crossings": rows, "smallest_separation": float(np.min(state["h"])),
-                "flipped": int(np.sum(state["h"] <= 0))}
+                "flipped": int(np.sum(state["h"] <= 0)),
+                "slid_off_loop": int(np.sum((sig < 0) | (sig > self.problem.L)))}
 
     def _lifted_names(self) -> list[str]:
         return [name for name in LIFTED if name in self.x.blocks]
