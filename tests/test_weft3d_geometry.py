@@ -49,6 +49,14 @@ def test_helix_positions_and_bending_have_their_closed_forms() -> None:
     assert bending3d_numpy(a, b, zero_a, zero_b, L, T, Q, B) == pytest.approx(closed, rel=1e-12)
 
 
+def test_an_elevation_wave_bends_by_its_closed_form() -> None:
+    """θ constant, φ = β sin(2πs/L): U_bend = ½ B ∫ φ′² ds = ½ B β² (2π/L)² L/2 (S4)."""
+    a, b = np.zeros(n_coeffs(T)), np.zeros(n_coeffs(Q))
+    a[-1], b[0] = 0.3, 0.5
+    closed = 0.5 * 1.3 * 0.5 ** 2 * (2 * np.pi / L) ** 2 * L / 2
+    assert float(bending3d(L, T, Q, 8)(a, b, a, np.zeros_like(b), 1.3)) == pytest.approx(closed, rel=1e-12)
+
+
 def test_flat_loops_are_the_papers_loops() -> None:
     """φ = 0: positions are eq. (1)'s and bending is eq. (11)'s exact diagonal form."""
     rng = np.random.default_rng(3)
