@@ -91,7 +91,8 @@ def test_natural_3d_loop_touches_in_the_plain_knit_order(problem3d) -> None:
     np.testing.assert_allclose(sh.separations(), 2 * 0.15, rtol=1e-9)
     up = sh.xyz(sh.s_upper) + [0.0, sh.course_spacing, 0.0]
     dz = up[:, 2] - sh.xyz(sh.s_lower)[:, 2]
-    assert [np.sign(v) for v in dz] == [order for _, _, order in PAIRS]
+    assert [np.sign(v) for v in dz] == [-1, 1, 1, -1]       # A/D, C/F, Q/G, S/P
+    assert [order for _, _, order in PAIRS] == [-1, 1, 1, -1]
     end = sh.xyz([sh.length])[0]
     np.testing.assert_allclose(end, [problem3d.natural.wale_spacing, 0.0, 0.0], atol=1e-9)
     assert sh.projection_rms < 0.05 * sh.length
