@@ -95,11 +95,11 @@ class SpatialNLP(WeftNLP):
     signs: np.ndarray
     n_parameters: int
     x0: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    # CasADi's AD on the expression graph expanded to scalars (measured 2x faster per
-    # iteration on 4 x 4); a trial step into a yarn's core evaluates to NaN, which IPOPT's line
+    # CasADi's AD (expanding the graph to scalars cost 16-53 s of set-up on 6 x 6 for the same
+    # time per iteration); a trial step into a yarn's core evaluates to NaN, which IPOPT's line
     # search cuts back (expected: not a warning for the user)
     nlpsol_options: dict[str, Any] = field(default_factory=lambda: {
-        "show_eval_warnings": False, "expand": True})
+        "show_eval_warnings": False})
     parametrisation: Full = Full()
     model: str = "full3d"
 
@@ -327,8 +327,11 @@ class _Builder:
         D = loop_displacements3d(pr.L, pr.t, self.shape.modes, np.array(self.evals),
                                  pr.quadrature_nodes).map(N, "serial")(A, Bel)
 
-        def at(s: float, loops: np.ndarray) -> ca.MX:
-            return X[:, loops.tolist()] + D[:, (loops * P + self.col[float(s)]).tolist()]
+        def at(s: float | np.ndarray, loops: np.ndarray) -> ca.MX:
+            """Positions of material points s (one, or one per loop) on the given loops:
+            start + per-loop integral (one indexing operation each)."""
+            cols = np.vectorize(lambda v: self.col[float(v)])(np.broadcast_to(s, loops.shape))
+            return X[:, loops.tolist()] + D[:, (loops * P + cols).tolist()]
 
         left = np.array([k for k in range(N) if k % n != n - 1], dtype=int)
         if left.size:
@@ -343,7 +346,8 @@ class _Builder:
         if self.opt.contacts:
             lifted["cp"] = self._contact_points(A, Bel, xb["sigma"], at, up, low)
         if self.specials:
-            lifted["PC"] = ca.horzcat(*[at(sp.s, np.array([sp.k])) for sp in self.specials])
+            lifted["PC"] = at(np.array([sp.s for sp in self.specials]),
+                              np.array([sp.k for sp in self.specials]))
         for name, expr in lifted.items():
             rows.add(f"lift_{name}", xb[name] - expr)
         if n > 1:
@@ -377,8 +381,7 @@ class _Builder:
         parts = []
         for loops, s0, sig in ((ku, s0u, sigma[0, :]), (kl, s0l, sigma[1, :])):
             delta, tang = seg(A[:, loops.tolist()], Bel[:, loops.tolist()], ca.DM(s0).T, sig)
-            base = ca.horzcat(*[at(s, np.array([k])) for s, k in zip(s0, loops)])
-            parts += [base + delta, tang]
+            parts += [at(s0, loops) + delta, tang]
         return ca.vertcat(*parts)
 
     def _signs(self) -> np.ndarray:

@@ -58,7 +58,7 @@ def loop_displacements3d(L: float, t: int, q: int, points: np.ndarray,
     """Function (a, b) -> D (3 × P): displacement from the loop start to each point s_p (S2)
     by the panel rule of the planar model (``kinematics.loop_displacements``)."""
     rule = panel_rule(points, L, nodes_per_panel)
-    a, b = ca.MX.sym("a", n_coeffs(t)), ca.MX.sym("b", n_coeffs(q))
+    a, b = ca.SX.sym("a", n_coeffs(t)), ca.SX.sym("b", n_coeffs(q))
     theta = ca.mtimes(ca.DM(phi(rule.nodes, L, t)), a)
     elev = ca.mtimes(ca.DM(phi(rule.nodes, L, q)), b)
     disp = ca.mtimes(ca.DM(rule.cumulative), ca.horzcat(*tangent(theta, elev, ca))).T
