@@ -17,12 +17,15 @@ import time
 from knit_nlp.weft.api import solve
 from knit_nlp.weft.model.problem import parse_problem
 
+MAX_TIME = 900.0          # s of wall clock per solve
+
 
 def document(n: int, spatial: bool) -> dict:
     doc = {"name": f"bench3d_{n}", "fabric": {"courses": n, "wales": n},
            "loop": {"length": 11.28, "harmonics": 3}, "material": {"R_f": 0.045},
            "clamp": [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
-                     {"loop": [1, n], "point": "H", "displacement": [n / 2, n / 2]}]}
+                     {"loop": [1, n], "point": "H", "displacement": [n / 2, n / 2]}],
+           "solver": {"max_time": MAX_TIME}}
     if spatial:
         doc["yarn"] = {"radius": 0.74, "geometry": "3d", "elevation_modes": 4}
     return doc
