@@ -39,7 +39,7 @@ from ..model.spatial.crossing_contact import crossing_terms, separation
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
 from ..model.spatial.natural3d import PAIRS, Natural3D, flat
 from ..model.centrelines import SAMPLES
-from .full import _Constraints
+from .full import Constraints
 from .protocol import WeftNLP
 from .rows import (SPRINGS, ClampRows, SpecialPoint, add_clamp_rows, held_dims, loop_index,
                    rigid_natural_points, rigid_targets, special_points)
@@ -277,7 +277,7 @@ class _Builder:
         ps = ca.MX.sym("p", pl.size)
         pb = {name: ca.reshape(ps[pl.slice(name)], *shape)
               for name, (_, _, shape) in pl.blocks.items()}
-        rows = _Constraints()
+        rows = Constraints()
         lifted = self._rows(xb, rows)
         clamp_rows, rigid_rows, z_rows = self._clamps(xb, pb, rows)
         spring, contact, bend, work, h, sin_a = self._energy(xb, pb)
@@ -318,7 +318,7 @@ class _Builder:
               for name, (_, _, shape) in xl.blocks.items()}
         return xl, xs, xb
 
-    def _rows(self, xb: dict[str, ca.MX], rows: _Constraints) -> dict[str, ca.MX]:
+    def _rows(self, xb: dict[str, ca.MX], rows: Constraints) -> dict[str, ca.MX]:
         """Chaining (S2), the lifted blocks' rows, continuity, the crossings' closest points
         (S5); returns each lifted block's expression in the primary variables."""
         pr, N, n, P = self.pr, self.N, self.n, len(self.evals)
@@ -397,7 +397,7 @@ class _Builder:
         h, _ = separation(up, tang[0], low, tang[1], np.ones(4))
         return np.tile(np.sign(h), self.K // 4)
 
-    def _clamps(self, xb: dict[str, ca.MX], pb: dict[str, ca.MX], rows: _Constraints
+    def _clamps(self, xb: dict[str, ca.MX], pb: dict[str, ca.MX], rows: Constraints
                 ) -> tuple[list[ClampRows], list[slice], dict[int, int]]:
         """The planar clamp rows (``rows.add_clamp_rows``) on x, y, and z held at its natural
         value at every held point (unless φ is frozen: then each course's start)."""
