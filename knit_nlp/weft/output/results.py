@@ -219,13 +219,14 @@ class WeftResult(Outcome):
         js = write_json(out(".json"), self.to_json())
         s = np.linspace(0.0, self.problem.L, samples)
         natural, deformed = self.natural_centrelines(samples), self.centrelines(samples)
-        arrays = {"natural": natural, "deformed": deformed, "starts": self.starts}
+        arrays = {"natural": natural, "deformed": deformed, "coefficients": self.coefficients,
+                  "starts": self.starts}
         if hasattr(self.nlp, "centrelines3d"):      # the 3-D model: z as a third coordinate
-            arrays = {"natural": self.nlp.natural_centrelines3d(samples),
-                      "deformed": self.nlp.centrelines3d(self.x, samples),
-                      "starts": self.nlp.starts3d(self.x), "elevations": self.nlp.elevations(self.x)}
+            arrays.update(natural=self.nlp.natural_centrelines3d(samples),
+                          deformed=self.nlp.centrelines3d(self.x, samples),
+                          starts=self.nlp.starts3d(self.x), elevations=self.nlp.elevations(self.x))
             natural = arrays["natural"][..., :2]
-        paths = [js, write_npz(out(".npz"), s=s, coefficients=self.coefficients, **arrays),
+        paths = [js, write_npz(out(".npz"), s=s, **arrays),
                  plot_solution(out(".png"), self, natural, deformed, colour, yarn)]
         if "csv" in export:
             paths.append(write_centreline_csv(out(".csv"), deformed, s))
