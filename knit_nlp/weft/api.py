@@ -23,6 +23,7 @@ from .output.comparison import Comparison, grid_row
 from .output.results import WeftResult
 from .solving.contact.equilibrium import refuse
 from .study import study
+from .transcription.spatial import planar_only
 
 
 def solve(problem: WeftProblem, parametrisation: Parametrisation | None = None, *,
@@ -112,6 +113,8 @@ def check_compare(problem: WeftProblem, grids: Sequence[int] = ()) -> list[int]:
     model has no contact: :func:`~.solving.contact.equilibrium.refuse`) and the grids
     (:func:`check_grids`, returned)."""
     if problem.yarn is not None:
+        if problem.yarn.spatial:
+            raise planar_only(problem, "compare")
         raise refuse(problem, "compare (its reduced model)")
     return check_grids(grids, problem)
 

@@ -6,7 +6,7 @@ The contract is docs/weft_files.md; every rule a bad file can break raises
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -18,10 +18,17 @@ from ...tomlio import Table, finite_number, load_toml
 from ...outcome import SolverOptions as BaseSolverOptions
 from ...units import Units, read_units
 from .basis import n_coeffs
+from .compression import ACRYLIC, SoftShell
 from .reach import unreachable
 from .crossing_points import LABELS, CrossingError, Crossings, find_crossings
 from .parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .natural_loop import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
+from .spatial.natural3d import NaturalShapeError, flat, natural_3d
+
+GEOMETRIES = ("planar", "3d")
+SPATIAL_KEYS = ("core_radius", "contact_rigidity", "contact_exponent", "elevation_modes",
+                "crossing_springs")
+MAX_ELEVATION_MODES = 12
 
 # Gauss-Legendre nodes per panel. Panels break at every material point the model needs and are
 # at most L/4 long; on the 10 x 10 diagonal pull 8 nodes give energy within 7e-12 (relative) and
@@ -87,9 +94,31 @@ class Load:
 @dataclass(frozen=True)
 class Yarn:
     """The yarn's thickness (an extension of the paper's model, docs/contact.md): centrelines
-    of yarn pieces that do not cross in the natural fabric stay 2·radius apart."""
+    of yarn pieces that do not cross in the natural fabric stay 2·radius apart.
+
+    ``geometry = "3d"`` (docs/weft3d.md): loops are space curves, the designed crossings
+    persistent sliding contacts with the soft-shell law (``compression.SoftShell``: the
+    other fields), ``elevation_modes`` harmonics q of the elevation angle, the paper's
+    crossing springs only with ``crossing_springs``; ``natural3d`` the natural 3-D loop."""
 
     radius: float
+    geometry: str = "planar"
+    core_radius: float | None = None
+    contact_rigidity: float | None = None
+    contact_exponent: float | None = None
+    elevation_modes: int = 0
+    crossing_springs: bool = False
+    natural3d: Any = field(default=None, compare=False, repr=False)
+
+    @property
+    def spatial(self) -> bool:
+        """True for the 3-D model."""
+        return self.geometry == "3d"
+
+    def shell(self) -> SoftShell:
+        """The compression law of the 3-D model's crossings."""
+        return SoftShell(self.radius, self.core_radius, self.contact_rigidity,
+                         self.contact_exponent)
 
 
 @dataclass(frozen=True)
@@ -158,8 +187,11 @@ class WeftProblem:
         return [[q for q, nm in enumerate(names) if nm == name] for name in dict.fromkeys(names)]
 
     def natural_position(self, loop: tuple[int, int], s: float) -> np.ndarray:
-        """Natural position of the material point s of a 1-based loop."""
+        """Natural position of the material point s of a 1-based loop (in the 3-D model the
+        projection of the natural 3-D loop, docs/weft3d.md)."""
         i, j = loop
+        if self.yarn is not None and self.yarn.spatial:
+            return self.natural_starts()[i - 1, j - 1] + self.yarn.natural3d.xyz([s])[0, :2]
         return self.natural_starts()[i - 1, j - 1] + self.natural.xy([s])[0]
 
 
@@ -198,12 +230,25 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
     reduction = _read_reduction(top, m, n) if top.has("reduction") else None
     solver = _read_solver(top.table("solver"))
     units = read_units(top.table("units"))
-    yarn = _read_yarn(top.table("yarn"), natural) if top.has("yarn") else None
+    yarn = _read_yarn(top.table("yarn"), natural, crossings) if top.has("yarn") else None
+    if yarn is not None and yarn.spatial:
+        if reduction is not None:
+            raise ProblemError(source, "yarn", "geometry", 'the reduced model is planar: remove '
+                               '[reduction] to solve the 3-D model, or remove geometry = "3d"')
+        clamps = tuple(_rebased(c, natural, yarn.natural3d) for c in clamps)
     top.finish()
     pr = WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
                      clamps, loads, rigid, reduction, solver, str(source), units, yarn)
     _check_reach(pr)
     return pr
+
+
+def _rebased(c: Clamp, planar: NaturalLoop, shape: Any) -> Clamp:
+    """A clamp given by a displacement (not a position) moves from the natural 3-D loop's
+    projection instead of the paper's loop (the 3-D model's natural state)."""
+    if c.key == "position":
+        return c
+    return replace(c, target=c.target + shape.xyz([c.s])[0, :2] - planar.xy([c.s])[0])
 
 
 def _check_reach(pr: WeftProblem) -> None:
@@ -217,8 +262,10 @@ def _check_reach(pr: WeftProblem) -> None:
         raise ProblemError(pr.source, *found)
 
 
-def _read_yarn(tab: Table, natural: NaturalLoop) -> Yarn:
-    """``[yarn] radius`` (length units): positive, below a quarter of the loop length."""
+def _read_yarn(tab: Table, natural: NaturalLoop, crossings: Crossings | None) -> Yarn:
+    """``[yarn]``: ``radius`` (length units: positive, below a quarter of the loop length);
+    ``geometry`` "planar" (default) or "3d", and for "3d" the keys of :data:`SPATIAL_KEYS`
+    (docs/weft_files.md, "[yarn]")."""
     radius = tab.number("radius", positive=True)
     if radius >= natural.length / 4:
         raise tab.error("radius", f"{radius:g} is not below a quarter of the loop length "
@@ -226,8 +273,30 @@ def _read_yarn(tab: Table, natural: NaturalLoop) -> Yarn:
     from .contact.rule import refusal           # the radii the contact rule can judge
     if (why := refusal(natural, radius)) is not None:
         raise tab.error("radius", why)
+    geometry = tab.string("geometry", "planar", choices=GEOMETRIES)
+    if geometry == "planar":
+        for key in SPATIAL_KEYS:
+            if tab.has(key):
+                raise tab.error(key, 'only with geometry = "3d"')
+        tab.finish()
+        return Yarn(radius)
+    core = tab.number("core_radius", radius * ACRYLIC.core_radius / ACRYLIC.radius,
+                      positive=True)
+    if core >= radius:
+        raise tab.error("core_radius", f"{core:g} must be below the radius {radius:g}")
+    rigidity = tab.number("contact_rigidity", ACRYLIC.rigidity, positive=True)
+    exponent = tab.number("contact_exponent", ACRYLIC.exponent)
+    if not exponent > 1.0:
+        raise tab.error("contact_exponent", f"must exceed 1, got {exponent:g}")
+    modes = tab.integer("elevation_modes", 4, minimum=2, maximum=MAX_ELEVATION_MODES)
+    springs = tab.boolean("crossing_springs", False)
     tab.finish()
-    return Yarn(radius)
+    try:
+        shape = (natural_3d(natural, crossings, modes, radius) if crossings is not None
+                 else flat(natural, modes, radius))
+    except NaturalShapeError as err:
+        raise tab.error("radius", f"{err}; try a smaller radius or more elevation_modes") from None
+    return Yarn(radius, geometry, core, rigidity, exponent, modes, springs, shape)
 
 
 def _read_loop(tab: Table, fab: Table, m: int,

@@ -207,6 +207,9 @@ class WeftResult(Outcome):
         reps = self.representatives()
         if reps is not None:
             result["representatives"] = reps
+        spatial = getattr(self.nlp, "spatial_block", None)    # the 3-D model (docs/weft3d.md)
+        if spatial is not None:
+            result["spatial"] = spatial(self.x, self.params.vector())
         source = source_record(self.problem.source)
         if source:
             result["source"] = source
@@ -232,8 +235,14 @@ class WeftResult(Outcome):
         js = write_json(out(".json"), self.to_json())
         s = np.linspace(0.0, self.problem.L, samples)
         natural, deformed = self.natural_centrelines(samples), self.centrelines(samples)
-        paths = [js, write_npz(out(".npz"), s=s, natural=natural, deformed=deformed,
-                               coefficients=self.coefficients, starts=self.starts),
+        arrays = {"natural": natural, "deformed": deformed, "coefficients": self.coefficients,
+                  "starts": self.starts}
+        if hasattr(self.nlp, "centrelines3d"):      # the 3-D model: z as a third coordinate
+            arrays.update(natural=self.nlp.natural_centrelines3d(samples),
+                          deformed=self.nlp.centrelines3d(self.x, samples),
+                          starts=self.nlp.starts3d(self.x), elevations=self.nlp.elevations(self.x))
+            natural = arrays["natural"][..., :2]
+        paths = [js, write_npz(out(".npz"), s=s, **arrays),
                  plot_solution(out(".png"), self, natural, deformed, colour, yarn)]
         if "csv" in export:
             paths.append(write_centreline_csv(out(".csv"), deformed, s))

@@ -9,16 +9,20 @@ fit and calibrate:
 - ``ContactEquilibrium`` (``contact/equilibrium.py``): the full model of a problem with
   ``[yarn] radius`` (the reduced models refuse a radius: their loops are interpolated);
 - ``AdaptiveEquilibrium`` (``adaptive.py``): the adaptive-representatives strategy, which
-  refines its grid afresh at every solve and has no sensitivities.
+  refines its grid afresh at every solve and has no sensitivities;
+- the 3-D model (``[yarn] geometry = "3d"``): an ``Equilibrium`` of its full transcription
+  (``transcription.spatial``, through ``transcribe``); its crossings are persistent contacts
+  in the NLP itself, so it needs no contact rounds; the reduced models are planar and refuse it.
 
 A new model variant (a new transcription, or a new kind of contact) joins here.
 """
 from __future__ import annotations
 
-from ..model.parametrisation import Adaptive, Parametrisation, Reduced
+from ..model.parametrisation import Adaptive, Full, Parametrisation, Reduced
 from ..model.problem import WeftProblem
 from .adaptive import AdaptiveEquilibrium
 from .contact.equilibrium import KEEP, ContactEquilibrium, refuse
+from ..transcription.spatial import planar_only
 from .solve import Equilibrium
 
 ForwardEquilibrium = Equilibrium | AdaptiveEquilibrium
@@ -34,6 +38,10 @@ def equilibrium(problem: WeftProblem, parametrisation: Parametrisation | None = 
     contact solves remembered for their sensitivities and the re-solves that smooth x(p)
     (``ContactEquilibrium``)."""
     param = problem.parametrisation if parametrisation is None else parametrisation
+    if problem.yarn is not None and problem.yarn.spatial:
+        if isinstance(param, (Reduced, Adaptive)):
+            raise planar_only(problem, "the reduced model")
+        return Equilibrium(problem, Full(), verbose=verbose)
     if problem.yarn is not None:
         if isinstance(param, (Reduced, Adaptive)):
             own = " (the file's [reduction])" if parametrisation is None else ""

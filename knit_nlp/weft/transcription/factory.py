@@ -17,6 +17,7 @@ from .contact import Slots, build_contact_nlp
 from .derivatives import closed_form_derivatives
 from .full import FullNLP, build_nlp
 from .protocol import WeftNLP
+from .spatial import build_spatial
 
 DERIVATIVES = ("closed_form", "casadi")
 
@@ -39,6 +40,10 @@ def transcribe(problem: WeftProblem, parametrisation: Parametrisation | None = N
     if isinstance(param, Adaptive):
         raise ValueError("Adaptive() chooses representatives by solving: use "
                          "knit_nlp.weft.solve(problem, Adaptive(...)), not transcribe")
+    if problem.yarn is not None and problem.yarn.spatial:      # [yarn] geometry = "3d"
+        if not isinstance(param, Full):
+            raise ValueError("the reduced model is planar: the 3-D model is solved in full")
+        return build_spatial(problem)
     if contact is not None:
         if not isinstance(param, Full):
             raise ValueError("yarn contact is built on the full model: use Full()")

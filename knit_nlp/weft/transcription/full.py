@@ -202,6 +202,9 @@ class _Constraints:
         return self._bound(2)
 
 
+Constraints = _Constraints       # the 3-D NLP's rows are kept the same way (transcription.spatial)
+
+
 def _constraints(pr: WeftProblem, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
                  specials: list[SpecialPoint], rows: _Constraints) -> ca.MX:
     """The equality rows g = 0 of chaining (eq. 1), the lifted spring vectors and points and

@@ -1,0 +1,48 @@
+"""The designed crossings as persistent sliding contacts (docs/weft3d.md, eqs. S5-S7; after
+Cirio, Lopez-Moreno, Miraut and Otaduy, *Yarn-level simulation of woven cloth*, 2014: a contact
+between two yarns is kept for good, at material coordinates that are unknowns, so yarns slide
+through it).
+
+At a crossing the upper yarn's point p_u = x_u(σ_u) and the lower's p_l = x_l(σ_l), with unit
+tangents t_u, t_l there, are the closest points of the two centrelines (S5):
+
+    (p_u − p_l)·t_u = 0,    (p_u − p_l)·t_l = 0.
+
+Their signed separation along the common normal n = t_u × t_l is (S6)
+
+    h = ς (p_u − p_l)·n / |n|,    sin α = |n|,
+
+with ς = ±1 fixed once, from the natural state, so that h = +2r there: the topology (which yarn
+is over) fixes the sign, and h cannot pass through 0 while the energy (S7), the soft-shell
+crossing energy ``SoftShell.crossing_energy(h, sin α)`` (eq. C1 of ``compression``), is finite
+(it is +∞, NaN in CasADi, at h ≤ 2R_c). No inequality rows and no active set: every crossing is
+two equality rows and one energy term, whether its yarns touch (h < 2r) or not (energy 0).
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..compression import SoftShell
+
+
+def crossing_terms(shell: SoftShell) -> ca.Function:
+    """Function (p_u, t_u, p_l, t_l, ς) -> (E (S7), closest-point rows (S5, 2), h, sin α)."""
+    pu, tu, pl, tl = (ca.SX.sym(n, 3) for n in ("p_u", "t_u", "p_l", "t_l"))
+    sign = ca.SX.sym("sign")
+    d = pu - pl
+    n = ca.cross(tu, tl)
+    sin_a = ca.norm_2(n)
+    h = sign * ca.dot(d, n) / sin_a
+    energy = shell.casadi_crossing_energy(h, sin_a)
+    rows = ca.vertcat(ca.dot(d, tu), ca.dot(d, tl))
+    return ca.Function("crossing_terms", [pu, tu, pl, tl, sign], [energy, rows, h, sin_a],
+                       ["p_u", "t_u", "p_l", "t_l", "sign"], ["E", "rows", "h", "sin_angle"])
+
+
+def separation(pu: np.ndarray, tu: np.ndarray, pl: np.ndarray, tl: np.ndarray,
+               sign: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(h, sin α) of (S6) on numbers, points and tangents as (K, 3) arrays."""
+    n = np.cross(tu, tl)
+    sin_a = np.linalg.norm(n, axis=1)
+    return sign * np.einsum("ki,ki->k", pu - pl, n) / sin_a, sin_a

@@ -1,0 +1,453 @@
+"""The 3-D weft NLP (docs/weft3d.md): minimise U_bend (S4) + U_crossings (S7) [+ U_spring,
+eqs. 6-10, when asked] − W_loads subject to the chaining of eq. (1) in space (S2), continuity
+(18)-(19) of θ and of the elevation φ, the closest-point rows of every designed crossing (S5)
+and the clamps (x, y as the planar model; z held at its natural value at every held point).
+
+Decision variables, by block (``Layout``):
+- ``coeffs`` (2t+2 × N) and ``elev`` (2q+2 × N): every loop's θ and φ coefficients;
+- ``starts`` (3 × N): every loop's start point;
+- ``SL``, ``SR`` (2 × loops of courses 2..m): the paper's spring vectors, only with springs;
+- ``sigma`` (2 × K): each crossing's material coordinate on its upper and lower loop
+  (K = 4 crossings per loop of courses 2..m) and ``cp`` (12 × K): the lifted closest points
+  and tangents (p_u, t_u, p_l, t_l) there, each tied to one loop's coefficients by (S3);
+- ``PC`` (3 × specials): the clamped and loaded points.
+Every nonlinear function of the coefficients belongs to one loop (its integrals to the panel
+points, its bending, its crossing segments), as in ``full``: the Lagrangian Hessian is block
+diagonal in the loops (with their σ's) plus 12 × 12 blocks per crossing. The sparsity is fixed
+by the fabric's topology: no inequality rows, no active set.
+
+``Spatial(elevation=False, contacts=False, springs=True)`` is the paper's limit (φ frozen at 0,
+each course's start held at z = 0): the planar full model's NLP in other variables (tested).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from ...errors import ProblemError
+from ...layout import Layout
+from ..model.basis import continuity_rows, n_coeffs, phi
+from ..model.compression import ACRYLIC
+from ..model.energy import spring_pair_energy
+from ..model.parametrisation import Full
+from ..model.params import WeftParams, param_layout
+from ..model.problem import WeftProblem
+from ..model.spatial.crossing_contact import crossing_terms, separation
+from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
+from ..model.spatial.natural3d import PAIRS, Natural3D, flat
+from ..model.centrelines import SAMPLES
+from .full import Constraints
+from .protocol import WeftNLP
+from .rows import (SPRINGS, ClampRows, SpecialPoint, add_clamp_rows, held_dims, loop_index,
+                   rigid_natural_points, rigid_targets, special_points)
+
+class PlanarOnly(ProblemError, ValueError):
+    """A model or option that exists only in the plane (one line; exit 2 on the command line)."""
+
+
+def planar_only(problem: WeftProblem, what: str) -> PlanarOnly:
+    """The refusal of ``what`` (the reduced model, ``compare``) for a 3-D problem."""
+    return PlanarOnly(problem.source, "yarn", "geometry", f"{what}: the reduced model is planar; "
+                      'solve the 3-D model in full, or remove geometry = "3d"')
+
+
+SEGMENT_NODES = 8          # Gauss nodes on [s0, σ] (S3)
+LIFTED = ("SL", "SR", "cp", "PC")
+
+
+@dataclass(frozen=True)
+class Spatial:
+    """Switches of the 3-D builder: ``elevation`` (False: φ frozen at 0), ``contacts`` (the
+    crossings' persistent contacts), ``springs`` (the paper's k_a, k_b; None: the file's
+    ``[yarn] crossing_springs``)."""
+
+    elevation: bool = True
+    contacts: bool = True
+    springs: bool | None = None
+
+
+@dataclass
+class SpatialNLP(WeftNLP):
+    """The 3-D NLP (module docstring), with the members of the ``WeftNLP`` protocol."""
+
+    problem: WeftProblem
+    options: Spatial
+    shape: Natural3D
+    nlp: dict[str, ca.MX]
+    x: Layout
+    p: Layout
+    g: Layout
+    lbg: np.ndarray
+    ubg: np.ndarray
+    params: WeftParams
+    specials: list[SpecialPoint]
+    clamp_points: list[int]
+    load_points: list[int]
+    rigid_points: list[list[int]]
+    clamp_rows: list[ClampRows]
+    rigid_rows: list[slice]
+    z_rows: dict[int, int]                 # special point -> its z row (held points)
+    terms: ca.Function                     # (x, p) -> spring, contact, bend, work, h, sin α
+    lifted: ca.Function                    # primary blocks -> lifted blocks
+    signs: np.ndarray
+    n_parameters: int
+    x0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # CasADi's AD (expanding the graph to scalars cost 16-53 s of set-up on 6 x 6 for the same
+    # time per iteration); a trial step into a yarn's core evaluates to NaN, which IPOPT's line
+    # search cuts back (expected: not a warning for the user)
+    nlpsol_options: dict[str, Any] = field(default_factory=lambda: {
+        "show_eval_warnings": False})
+    parametrisation: Full = Full()
+    model: str = "full3d"
+
+    # -- the protocol ----------------------------------------------------------------
+    def energy(self, x: np.ndarray, p: np.ndarray) -> tuple[float, float, float]:
+        """(U_spring + U_crossings, U_bend, W_loads): in 3-D the crossings' contact energy
+        (S7) is reported with the springs, the fabric's interlock energy."""
+        spring, contact, bend, work = (float(v) for v in self.terms(x, p)[:4])
+        return spring + contact, bend, work
+
+    def coefficients(self, x: np.ndarray) -> np.ndarray:
+        pr = self.problem
+        return self.x.get(x, "coeffs").T.reshape(pr.courses, pr.wales, n_coeffs(pr.t))
+
+    def elevations(self, x: np.ndarray) -> np.ndarray:
+        """Every loop's elevation coefficients (m, n, 2q+2) (zeros when φ is frozen)."""
+        pr, nq = self.problem, n_coeffs(self.shape.modes)
+        if "elev" not in self.x.blocks:
+            return np.zeros((pr.courses, pr.wales, nq))
+        return self.x.get(x, "elev").T.reshape(pr.courses, pr.wales, nq)
+
+    def starts(self, x: np.ndarray) -> np.ndarray:
+        return self.starts3d(x)[..., :2]
+
+    def starts3d(self, x: np.ndarray) -> np.ndarray:
+        """Every loop's start point (m, n, 3)."""
+        pr = self.problem
+        return self.x.get(x, "starts").T.reshape(pr.courses, pr.wales, 3)
+
+    def special_positions(self, x: np.ndarray) -> np.ndarray:
+        return self.x.get(x, "PC")[:2] if self.specials else np.zeros((2, 0))
+
+    def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        """Loops with planar coefficients and starts (2-D: z = 0), the natural elevation and
+        the natural crossing coordinates; every lifted block computed from them."""
+        pr = self.problem
+        if starts.shape[-1] == 2:
+            starts = np.concatenate([starts, np.zeros(starts.shape[:-1] + (1,))], axis=-1)
+        elev = np.broadcast_to(self.shape.elevation, (pr.courses, pr.wales, n_coeffs(self.shape.modes)))
+        return self.lift3d(coeffs, elev, starts)
+
+    def lift3d(self, coeffs: np.ndarray, elev: np.ndarray, starts: np.ndarray,
+               sigma: np.ndarray | None = None) -> np.ndarray:
+        """The decision vector of loops (m, n, ·) with coefficients, elevations and 3-D starts
+        and crossing coordinates ``sigma`` (2 × K; None: natural)."""
+        pr, N = self.problem, self.problem.n_loops
+        xv = np.zeros(self.x.size)
+        self.x.put(xv, "coeffs", coeffs.reshape(N, -1).T)
+        if "elev" in self.x.blocks:
+            self.x.put(xv, "elev", elev.reshape(N, -1).T)
+        self.x.put(xv, "starts", starts.reshape(N, 3).T)
+        if "sigma" in self.x.blocks:
+            if sigma is None:
+                K = self.x.blocks["sigma"][2][1]
+                sigma = np.vstack([np.tile(self.shape.s_upper, K // 4),
+                                   np.tile(self.shape.s_lower, K // 4)])
+            self.x.put(xv, "sigma", sigma)
+        for name, value in zip(self._lifted_names(), self.lifted.call([xv])):
+            self.x.put(xv, name, np.asarray(value))
+        return xv
+
+    def representatives(self) -> None:
+        return None
+
+    def centrelines(self, x: np.ndarray, samples: int = SAMPLES) -> np.ndarray:
+        """The deformed centrelines' projection (m, n, samples, 2) (planar readers)."""
+        return self.centrelines3d(x, samples)[..., :2]
+
+    # -- 3-D readers -----------------------------------------------------------------
+    def centrelines3d(self, x: np.ndarray, samples: int = SAMPLES) -> np.ndarray:
+        """Sampled deformed centrelines (m, n, samples, 3) (S2)."""
+        return self._curves(self.coefficients(x), self.elevations(x), self.starts3d(x), samples)
+
+    def natural_centrelines3d(self, samples: int = SAMPLES) -> np.ndarray:
+        """Sampled natural 3-D centrelines (m, n, samples, 3)."""
+        pr, sh = self.problem, self.shape
+        nq = n_coeffs(sh.modes)
+        return self._curves(np.broadcast_to(sh.coeffs, (pr.courses, pr.wales, n_coeffs(pr.t))),
+                            np.broadcast_to(sh.elevation if self.options.elevation else
+                                            np.zeros(nq), (pr.courses, pr.wales, nq)),
+                            sh.starts(pr.courses, pr.wales), samples)
+
+    def _curves(self, A: np.ndarray, B: np.ndarray, X: np.ndarray, samples: int) -> np.ndarray:
+        pr, sh = self.problem, self.shape
+        s = np.linspace(0.0, pr.L, samples)
+        d = positions3d(A.reshape(pr.n_loops, -1), B.reshape(pr.n_loops, -1), s, pr.L, pr.t,
+                        sh.modes)
+        return d.reshape(pr.courses, pr.wales, samples, 3) + X[:, :, None, :]
+
+    def crossing_state(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        """Per crossing (K): σ_u, σ_l, h, sin α, the compression h − 2r and the contact force
+        F(h, α) of eq. (C2) (``SoftShell.crossing_force``)."""
+        if "cp" not in self.x.blocks:
+            return {}
+        cp, sig = self.x.get(x, "cp"), self.x.get(x, "sigma")
+        h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T, self.signs)
+        shell = self.problem.yarn.shell()
+        return {"sigma_upper": sig[0], "sigma_lower": sig[1], "h": h, "sin_angle": sin_a,
+                "compression": h - 2 * shell.radius,
+                "force": np.where(h < 2 * shell.radius, shell.crossing_force(h, sin_a), 0.0)}
+
+    def spatial_block(self, x: np.ndarray, p: np.ndarray) -> dict[str, Any]:
+        """The result JSON's ``spatial`` block (docs/weft3d.md, "Results")."""
+        spring, contact = (float(v) for v in self.terms(x, p)[:2])
+        state = self.crossing_state(x)
+        out: dict[str, Any] = {"geometry": "3d", "elevation_modes": self.shape.modes,
+                               "contact_energy": contact, "spring_energy": spring,
+                               "natural_projection_rms": self.shape.projection_rms}
+        if not state:
+            return {**out, "crossings": [], "smallest_separation": None, "flipped": 0}
+        n = self.problem.wales
+        rows = []
+        for c, h in enumerate(state["h"]):
+            k, pair = divmod(c, 4)
+            i, j = divmod(k + n, n)
+            rows.append({"upper": [i + 1, j + 1], "lower": [i, j + 1],
+                         "pair": f"{PAIRS[pair][0]}/{PAIRS[pair][1]}",
+                         "upper_over": bool(PAIRS[pair][2] > 0),
+                         "s_upper": float(state["sigma_upper"][c]),
+                         "s_lower": float(state["sigma_lower"][c]),
+                         "separation": float(h), "compression": float(state["compression"][c]),
+                         "force": float(state["force"][c]),
+                         "sin_angle": float(state["sin_angle"][c])})
+        sig = np.concatenate([state["sigma_upper"], state["sigma_lower"]])
+        return {**out, "crossings": rows, "smallest_separation": float(np.min(state["h"])),
+                "flipped": int(np.sum(state["h"] <= 0)),
+                "slid_off_loop": int(np.sum((sig < 0) | (sig > self.problem.L)))}
+
+    def _lifted_names(self) -> list[str]:
+        return [name for name in LIFTED if name in self.x.blocks]
+
+
+def build_spatial(pr: WeftProblem, options: Spatial = Spatial()) -> SpatialNLP:
+    """Assemble the 3-D NLP of a problem (module docstring)."""
+    yarn = pr.yarn
+    springs = options.springs if options.springs is not None else bool(
+        yarn is not None and yarn.crossing_springs)
+    springs = springs and pr.courses > 1 and pr.crossings is not None
+    modes = yarn.elevation_modes if yarn is not None and yarn.spatial else 2
+    if options.elevation:
+        if yarn is None or not yarn.spatial:
+            raise ValueError('the 3-D model with elevation needs [yarn] geometry = "3d"')
+        shape = yarn.natural3d
+    else:
+        shape = flat(pr.natural, modes, yarn.radius if yarn is not None else 0.0)
+    contacts = options.contacts and pr.courses > 1 and shape.s_upper.size == 4
+    if options.contacts and contacts and not options.elevation:
+        raise ValueError("crossing contacts need the elevation (a planar fabric's crossings "
+                         "have h = 0)")
+    return _Builder(pr, Spatial(options.elevation, contacts, springs), shape).build()
+
+
+class _Builder:
+    """The blocks of :func:`build_spatial`, in order."""
+
+    def __init__(self, pr: WeftProblem, options: Spatial, shape: Natural3D) -> None:
+        self.pr, self.opt, self.shape = pr, options, shape
+        self.N, self.n = pr.n_loops, pr.wales
+        self.nc, self.nq = n_coeffs(pr.t), n_coeffs(shape.modes)
+        self.K = 4 * (self.N - self.n) if options.contacts else 0
+        self.specials, self.clamp_pts, self.load_pts, self.rigid_pts = special_points(pr)
+        pts = [pr.L]
+        if options.contacts:
+            pts += [*shape.s_upper, *shape.s_lower]
+        if options.springs:
+            pts += [pr.crossings.s[k] for k in ("B", "R", "E", "H")]
+        pts += [sp.s for sp in self.specials]
+        self.evals = list(dict.fromkeys(float(v) for v in pts))
+        self.col = {s: q for q, s in enumerate(self.evals)}
+
+    def build(self) -> SpatialNLP:
+        pr = self.pr
+        xl, xs, xb = self._variables()
+        pl = param_layout(pr)
+        ps = ca.MX.sym("p", pl.size)
+        pb = {name: ca.reshape(ps[pl.slice(name)], *shape)
+              for name, (_, _, shape) in pl.blocks.items()}
+        rows = Constraints()
+        lifted = self._rows(xb, rows)
+        clamp_rows, rigid_rows, z_rows = self._clamps(xb, pb, rows)
+        spring, contact, bend, work, h, sin_a = self._energy(xb, pb)
+        nlp = {"x": xs, "p": ps, "f": spring + contact + bend - work, "g": rows.expression()}
+        terms = ca.Function("terms", [xs, ps], [spring, contact, bend, work, h, sin_a])
+        names = [n for n in LIFTED if n in xl.blocks]
+        lift_fn = ca.Function("lifted", [xs], [lifted[n] for n in names])
+        npar = pr.courses * pr.wales * (self.nc + (self.nq if self.opt.elevation else 0)) + 3 * pr.courses
+        out = SpatialNLP(pr, self.opt, self.shape, nlp, xl, pl, rows.layout, rows.lower(),
+                         rows.upper(), WeftParams.of(pr), self.specials, self.clamp_pts,
+                         self.load_pts, self.rigid_pts, clamp_rows, rigid_rows, z_rows, terms,
+                         lift_fn, self.signs, npar)
+        out.x0 = out.lift3d(np.broadcast_to(self.shape.coeffs, (pr.courses, pr.wales, self.nc)),
+                            np.broadcast_to(self._b0(), (pr.courses, pr.wales, self.nq)),
+                            self.shape.starts(pr.courses, pr.wales))
+        return out
+
+    def _b0(self) -> np.ndarray:
+        return self.shape.elevation if self.opt.elevation else np.zeros(self.nq)
+
+    def _variables(self) -> tuple[Layout, ca.MX, dict[str, ca.MX]]:
+        N, n = self.N, self.n
+        xl = Layout()
+        xl.add("coeffs", self.nc, N)
+        if self.opt.elevation:
+            xl.add("elev", self.nq, N)
+        xl.add("starts", 3, N)
+        if self.opt.springs:
+            for name, _, _ in SPRINGS:
+                xl.add(name, 2, N - n)
+        if self.opt.contacts:
+            xl.add("sigma", 2, self.K)
+            xl.add("cp", 12, self.K)
+        if self.specials:
+            xl.add("PC", 3, len(self.specials))
+        xs = ca.MX.sym("x", xl.size)
+        xb = {name: ca.reshape(xs[xl.slice(name)], *shape)
+              for name, (_, _, shape) in xl.blocks.items()}
+        return xl, xs, xb
+
+    def _rows(self, xb: dict[str, ca.MX], rows: Constraints) -> dict[str, ca.MX]:
+        """Chaining (S2), the lifted blocks' rows, continuity, the crossings' closest points
+        (S5); returns each lifted block's expression in the primary variables."""
+        pr, N, n, P = self.pr, self.N, self.n, len(self.evals)
+        A, X = xb["coeffs"], xb["starts"]
+        Bel = xb["elev"] if self.opt.elevation else ca.DM.zeros(self.nq, N)
+        D = loop_displacements3d(pr.L, pr.t, self.shape.modes, np.array(self.evals),
+                                 pr.quadrature_nodes).map(N, "serial")(A, Bel)
+
+        def at(s: float | np.ndarray, loops: np.ndarray) -> ca.MX:
+            """Positions of material points s (one, or one per loop) on the given loops:
+            start + per-loop integral (one indexing operation each)."""
+            cols = np.vectorize(lambda v: self.col[float(v)])(np.broadcast_to(s, loops.shape))
+            return X[:, loops.tolist()] + D[:, (loops * P + cols).tolist()]
+
+        left = np.array([k for k in range(N) if k % n != n - 1], dtype=int)
+        if left.size:
+            rows.add("chain", X[:, (left + 1).tolist()] - at(pr.L, left))
+        if not self.opt.elevation:
+            rows.add("course_z", X[2, list(range(0, N, n))])
+        lifted: dict[str, ca.MX] = {}
+        up, low = np.arange(n, N), np.arange(0, N - n)
+        if self.opt.springs:
+            for name, upper, lower in SPRINGS:
+                lifted[name] = (at(pr.crossings.s[lower], low) - at(pr.crossings.s[upper], up))[:2, :]
+        if self.opt.contacts:
+            lifted["cp"] = self._contact_points(A, Bel, xb["sigma"], at, up, low)
+        if self.specials:
+            lifted["PC"] = at(np.array([sp.s for sp in self.specials]),
+                              np.array([sp.k for sp in self.specials]))
+        for name, expr in lifted.items():
+            rows.add(f"lift_{name}", xb[name] - expr)
+        if n > 1:
+            E, S = continuity_rows(pr.L, pr.t)
+            rows.add("continuity", ca.mtimes(ca.DM(E), A[:, left.tolist()])
+                     - ca.mtimes(ca.DM(S), A[:, (left + 1).tolist()]))
+            if self.opt.elevation:
+                E, S = continuity_rows(pr.L, self.shape.modes)
+                rows.add("continuity_elev", ca.mtimes(ca.DM(E), Bel[:, left.tolist()])
+                         - ca.mtimes(ca.DM(S), Bel[:, (left + 1).tolist()]))
+        if self.opt.contacts:
+            cp = xb["cp"]
+            self.crossing = crossing_terms(self.pr.yarn.shell()).map(self.K, "serial")
+            self.signs = self._signs()
+            out = self.crossing(cp[0:3, :], cp[3:6, :], cp[6:9, :], cp[9:12, :],
+                                ca.DM(self.signs).T)
+            rows.add("closest", out[1])
+        else:
+            self.signs = np.zeros(0)
+        return lifted
+
+    def _contact_points(self, A: ca.MX, Bel: ca.MX, sigma: ca.MX, at: Any, up: np.ndarray,
+                        low: np.ndarray) -> ca.MX:
+        """(p_u, t_u, p_l, t_l) of every crossing (12 × K): the panel position at the natural
+        crossing coordinate s0 plus the Gauss segment to σ (S3)."""
+        sh, pr = self.shape, self.pr
+        ku = np.repeat(up, 4)
+        kl = np.repeat(low, 4)
+        s0u, s0l = np.tile(sh.s_upper, len(up)), np.tile(sh.s_lower, len(up))
+        seg = segment(pr.L, pr.t, sh.modes, SEGMENT_NODES).map(self.K, "serial")
+        parts = []
+        for loops, s0, sig in ((ku, s0u, sigma[0, :]), (kl, s0l, sigma[1, :])):
+            delta, tang = seg(A[:, loops.tolist()], Bel[:, loops.tolist()], ca.DM(s0).T, sig)
+            parts += [at(s0, loops) + delta, tang]
+        return ca.vertcat(*parts)
+
+    def _signs(self) -> np.ndarray:
+        """ς per crossing (S6): h = +2r in the natural state (the same on every loop)."""
+        sh = self.shape
+        up = sh.xyz(sh.s_upper) + [0.0, sh.course_spacing, 0.0]
+        low = sh.xyz(sh.s_lower)
+        L, t, q = sh.length, sh.harmonics, sh.modes
+        tang = []
+        for s in (sh.s_upper, sh.s_lower):
+            th, el = phi(s, L, t) @ sh.coeffs, phi(s, L, q) @ sh.elevation
+            tang.append(np.stack([np.cos(el) * np.cos(th), np.cos(el) * np.sin(th), np.sin(el)], 1))
+        h, _ = separation(up, tang[0], low, tang[1], np.ones(4))
+        return np.tile(np.sign(h), self.K // 4)
+
+    def _clamps(self, xb: dict[str, ca.MX], pb: dict[str, ca.MX], rows: Constraints
+                ) -> tuple[list[ClampRows], list[slice], dict[int, int]]:
+        """The planar clamp rows (``rows.add_clamp_rows``) on x, y, and z held at its natural
+        value at every held point (unless φ is frozen: then each course's start)."""
+        pr = self.pr
+        clamp_rows, rigid_rows = add_clamp_rows(rows.layout, pr)
+        n_angle = 0
+        for q, (c, sp) in enumerate(zip(pr.clamps, self.clamp_pts)):
+            dims = list(held_dims(c.fix))
+            if dims:
+                rows.put(f"clamp{q}_pos", xb["PC"][dims, sp] - pb["targets"][dims, q])
+            if c.angle is not None:
+                angle = ca.mtimes(ca.DM(phi(c.s, pr.L, pr.t)), xb["coeffs"][:, loop_index(pr, c.loop)])
+                rows.put(f"clamp{q}_angle", angle - pb["angles"][n_angle])
+                n_angle += 1
+        for q, (rc, idx, p0) in enumerate(zip(pr.rigid_clamps, self.rigid_pts,
+                                              rigid_natural_points(pr))):
+            motion = pb["rigid"][:, q]
+            rows.put(f"rigid{q}", xb["PC"][:2, idx] - rigid_targets(rc, p0, motion[0], motion[1],
+                                                                    motion[2]))
+        held = sorted({sp for sp in self.clamp_pts} | {i for idx in self.rigid_pts for i in idx})
+        z_rows: dict[int, int] = {}
+        if self.opt.elevation and held:
+            z0 = [self.shape.xyz([self.specials[k].s])[0, 2] for k in held]
+            sl = rows.add("clamp_z", xb["PC"][2, held] - ca.DM(z0).T)
+            z_rows = {k: sl.start + r for r, k in enumerate(held)}
+        return clamp_rows, rigid_rows, z_rows
+
+    def _energy(self, xb: dict[str, ca.MX], pb: dict[str, ca.MX]) -> tuple[ca.MX, ...]:
+        pr, sh = self.pr, self.shape
+        A = xb["coeffs"]
+        Bel = xb["elev"] if self.opt.elevation else ca.DM.zeros(self.nq, self.N)
+        bend = ca.sum2(bending3d(pr.L, pr.t, sh.modes, pr.quadrature_nodes).map(self.N)(
+            A, Bel, ca.DM(sh.coeffs), ca.DM(self._b0()), pb["R_f"]))
+        spring = ca.MX(0)
+        if self.opt.springs:
+            k = ca.vertcat(pb["k_a"], pb["k_b"])
+            pair = spring_pair_energy().map(self.N - self.n)
+            c = pr.crossings
+            spring = (ca.sum2(pair(xb["SL"], ca.DM(c.rest_left), ca.DM(c.frame_left), k))
+                      + ca.sum2(pair(xb["SR"], ca.DM(c.rest_right), ca.DM(c.frame_right), k)))
+        contact, h, sin_a = ca.MX(0), ca.MX(0, 1), ca.MX(0, 1)
+        if self.opt.contacts:
+            cp = xb["cp"]
+            out = self.crossing(cp[0:3, :], cp[3:6, :], cp[6:9, :], cp[9:12, :],
+                                ca.DM(self.signs).T)
+            contact, h, sin_a = ca.sum2(out[0]), out[2].T, out[3].T
+        work = ca.MX(0)
+        for q, (ld, sp) in enumerate(zip(pr.loads, self.load_pts)):
+            work += ca.dot(pb["forces"][:, q], xb["PC"][:2, sp] - ca.DM(pr.natural_position(ld.loop, ld.s)))
+            dtheta = ca.mtimes(ca.DM(phi(ld.s, pr.L, pr.t)),
+                               A[:, loop_index(pr, ld.loop)] - ca.DM(sh.coeffs))
+            work += pb["moments"][q] * dtheta
+        return spring, contact, bend, work, h, sin_a

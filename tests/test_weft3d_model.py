@@ -1,0 +1,121 @@
+"""The 3-D weft NLP (transcription/spatial.py) against the paper's model, finite differences
+and the envelope theorem."""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from knit_nlp.weft.model.problem import load_problem, parse_problem
+from knit_nlp.weft.model.params import WeftParams
+from knit_nlp.weft.solving.solve import WeftSolver
+from knit_nlp.weft.transcription.factory import transcribe
+from knit_nlp.weft.transcription.spatial import Spatial, build_spatial
+from knit_nlp.problems import resolve
+from knit_nlp.weft.model.basis import phi
+from knit_nlp.weft.model.spatial.crossing_contact import separation
+from knit_nlp.weft.model.spatial.curve3d import bending3d_numpy, positions3d
+
+ACRYLIC_2x2 = {"fabric": {"courses": 2, "wales": 2},
+               "loop": {"length": 11.28, "harmonics": 3}, "material": {"R_f": 0.045},
+               "yarn": {"radius": 0.74, "geometry": "3d", "elevation_modes": 4},
+               "clamp": [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
+                         {"loop": [1, 2], "point": "H", "displacement": [0.0, 0.8]}]}
+
+
+def test_the_papers_limit_is_the_planar_full_model() -> None:
+    """φ frozen at 0, crossing contacts off, the paper's springs on: eq. 28 (wada_fig7) solved
+    by the 3-D builder gives the planar full model's coefficients and energy to 1e-8."""
+    pr = load_problem(resolve("wada_fig7"))
+    full = transcribe(pr)
+    planar = WeftSolver(full, tol=1e-12, verbose=None).once(full.p0, full.x0)
+    sp = build_spatial(pr, Spatial(elevation=False, contacts=False, springs=True))
+    spatial = WeftSolver(sp, tol=1e-12, verbose=None).once(sp.p0, sp.x0)
+    assert planar.success and spatial.success
+    np.testing.assert_allclose(sp.coefficients(spatial.x), full.coefficients(planar.x), atol=1e-8)
+    assert spatial.objective == pytest.approx(planar.objective, abs=1e-8)
+    assert np.abs(sp.starts3d(spatial.x)[..., 2]).max() == 0.0
+
+
+@pytest.fixture(scope="module")
+def small():
+    pr = parse_problem(ACRYLIC_2x2, "small3d.toml")
+    return pr, transcribe(pr)
+
+
+def test_objective_equals_an_independent_evaluation(small) -> None:
+    """f at a perturbed consistent state (every lifted block recomputed) equals the bending of
+    each loop by numpy quadrature (S4) plus the crossing energy (C1) of the separations
+    measured on numpy centrelines at the crossings' material coordinates (S2, S6)."""
+    pr, nlp = small
+    rng = np.random.default_rng(5)
+    A = nlp.coefficients(nlp.x0) + 0.02 * rng.normal(size=nlp.coefficients(nlp.x0).shape)
+    B = nlp.elevations(nlp.x0) + 0.02 * rng.normal(size=nlp.elevations(nlp.x0).shape)
+    X = nlp.starts3d(nlp.x0) + 0.02 * rng.normal(size=(2, 2, 3))
+    sig = nlp.x.get(nlp.x0, "sigma") + 0.05 * rng.normal(size=(2, 8))
+    x = nlp.lift3d(A, B, X, sig)
+    sh, shell = nlp.shape, pr.yarn.shell()
+    bend = sum(bending3d_numpy(A[i, j], B[i, j], sh.coeffs, sh.elevation, pr.L, pr.t, sh.modes,
+                               pr.R_f) for i in range(2) for j in range(2))
+    contact = 0.0
+    for c in range(8):                      # crossings of loops (2, j) over (1, j), 4 each
+        j = c // 4
+        ends = []
+        for (i, s) in ((1, sig[0, c]), (0, sig[1, c])):
+            pos = X[i, j] + positions3d(A[i, j], B[i, j], [s], pr.L, pr.t, sh.modes)[0]
+            th = phi(s, pr.L, pr.t)[0] @ A[i, j]
+            el = phi(s, pr.L, sh.modes)[0] @ B[i, j]
+            ends.append((pos, np.array([np.cos(el) * np.cos(th), np.cos(el) * np.sin(th), np.sin(el)])))
+        h, sin_a = separation(ends[0][0][None], ends[0][1][None], ends[1][0][None],
+                              ends[1][1][None], nlp.signs[c:c + 1])
+        contact += float(shell.crossing_energy(h, sin_a)[0])
+    assert contact > 0
+    spring_contact, bending, work = nlp.energy(x, nlp.p0)
+    assert bending == pytest.approx(bend, rel=1e-8)          # 8 against 16 Gauss nodes
+    assert spring_contact == pytest.approx(contact, rel=1e-7)
+
+
+def test_derivatives_against_finite_differences(small) -> None:
+    """The gradient of f and the Jacobian of g that IPOPT gets, against central differences
+    at a perturbed state (every block moved, crossings pressed)."""
+    pr, nlp = small
+    rng = np.random.default_rng(7)
+    x = nlp.x0 + 1e-3 * rng.normal(size=nlp.x0.size)
+    p = nlp.p0
+    f = ca.Function("f", [nlp.nlp["x"], nlp.nlp["p"]], [nlp.nlp["f"], nlp.nlp["g"]])
+    grad = ca.Function("j", [nlp.nlp["x"], nlp.nlp["p"]],
+                       [ca.gradient(nlp.nlp["f"], nlp.nlp["x"]), ca.jacobian(nlp.nlp["g"], nlp.nlp["x"])])
+    gf, jg = (np.asarray(v) for v in grad(x, p))
+    eps = 1e-6
+    for k in rng.choice(x.size, 25, replace=False):
+        e = np.zeros(x.size)
+        e[k] = eps
+        (fp, gp), (fm, gm) = f(x + e, p), f(x - e, p)
+        assert float(fp - fm) / (2 * eps) == pytest.approx(gf[k, 0], rel=1e-5, abs=1e-9)
+        np.testing.assert_allclose(np.asarray(gp - gm).ravel() / (2 * eps),
+                                   np.asarray(jg[:, k]).ravel(), rtol=1e-5, atol=1e-8)
+
+
+def test_envelope_theorem_with_crossing_contacts(small) -> None:
+    """dV/dtarget = reaction (−multiplier of the clamp row) at a minimum with pressed
+    crossings: a central difference of the minimum over re-solves."""
+    pr, nlp = small
+    solver = WeftSolver(nlp, tol=1e-12, verbose=None)
+    params = WeftParams.of(pr)
+    base = solver.continuation(params.vector(), nlp.x0, 4)
+    assert base.success
+    state = nlp.crossing_state(base.x)
+    assert np.any(state["h"] < 2 * 0.74)                     # some crossing is pressed
+    row = nlp.clamp_rows[1].position
+    reaction = -base.lam_g[row]
+    target = params.targets[1]
+    step = 1e-4
+    for d in range(2):
+        values = []
+        for sgn in (1, -1):
+            moved = target.copy()
+            moved[d] += sgn * step
+            rep = solver.once(params.with_(targets={2: moved}).vector(), base.x)
+            assert rep.success
+            values.append(rep.objective)
+        assert (values[0] - values[1]) / (2 * step) == pytest.approx(reaction[d], rel=1e-5, abs=1e-9)

@@ -1,0 +1,67 @@
+"""A 3-D problem through the front door: knit_nlp.solve, the result JSON's spatial block, the
+3-D NPZ arrays, and the reduced model and compare refused."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import knit_nlp
+from knit_nlp.weft.api import compare
+from knit_nlp.weft.model.cases import diagonal_pull
+from knit_nlp.weft.model.parametrisation import Reduced
+from knit_nlp.weft.model.problem import parse_problem
+from knit_nlp.weft.transcription.factory import transcribe
+from knit_nlp.weft.transcription.full import FullNLP
+from knit_nlp.weft.transcription.spatial import PlanarOnly
+
+DOC = {"name": "small3d", "fabric": {"courses": 2, "wales": 2}, "units": {"length": "mm", "force": "N"},
+       "loop": {"length": 11.28, "harmonics": 3}, "material": {"R_f": 0.045},
+       "yarn": {"radius": 0.74, "geometry": "3d", "elevation_modes": 4},
+       "clamp": [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
+                 {"loop": [1, 2], "point": "H", "displacement": [0.0, 0.8]}]}
+
+
+@pytest.fixture(scope="module")
+def solved(tmp_path_factory):
+    pr = parse_problem(DOC, "small3d.toml")
+    result = knit_nlp.solve(pr)
+    out = tmp_path_factory.mktemp("out3d")
+    result.save(out)
+    return pr, result, out
+
+
+def test_solve_reports_crossings_and_writes_3d_arrays(solved) -> None:
+    pr, result, out = solved
+    assert result.success and result.model == "full3d"
+    doc = json.loads((out / "small3d.full3d.json").read_text())
+    sp = doc["spatial"]
+    assert len(sp["crossings"]) == 8 and sp["flipped"] == 0
+    h = np.array([c["separation"] for c in sp["crossings"]])
+    assert sp["smallest_separation"] == pytest.approx(h.min())
+    assert 2 * pr.yarn.core_radius < h.min() < 2 * pr.yarn.radius        # pressed, not through
+    pressed = [c for c in sp["crossings"] if c["compression"] < 0]
+    assert pressed and all(c["force"] > 0 for c in pressed)
+    assert sum(c["force"] == 0.0 for c in sp["crossings"]) == len(sp["crossings"]) - len(pressed)
+    arrays = np.load(out / "small3d.full3d.npz")
+    assert arrays["natural"].shape[-1] == 3 and arrays["deformed"].shape == arrays["natural"].shape
+    assert np.ptp(arrays["deformed"][..., 2]) > pr.yarn.radius             # out of the plane
+    # x, y forces balance: contacts are internal, z rows carry no x, y force
+    total = sum(np.array(c["reaction"]) for c in doc["clamps"])
+    np.testing.assert_allclose(total, 0.0, atol=1e-9)
+
+
+def test_the_reduced_model_and_compare_are_refused() -> None:
+    pr = parse_problem(DOC, "small3d.toml")
+    with pytest.raises(PlanarOnly, match="reduced model is planar"):
+        knit_nlp.weft.solve(pr, Reduced())
+    with pytest.raises(PlanarOnly, match="reduced model is planar"):
+        compare(pr)
+
+
+def test_planar_yarn_is_todays_model() -> None:
+    """[yarn] radius without geometry: the paper's full NLP (its contact solver on top)."""
+    doc = diagonal_pull(3)
+    doc["yarn"] = {"radius": 0.15}
+    assert isinstance(transcribe(parse_problem(doc, "planar.toml")), FullNLP)
