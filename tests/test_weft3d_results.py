@@ -65,3 +65,29 @@ def test_planar_yarn_is_todays_model() -> None:
     doc = diagonal_pull(3)
     doc["yarn"] = {"radius": 0.15}
     assert isinstance(transcribe(parse_problem(doc, "planar.toml")), FullNLP)
+
+
+def test_the_check_and_the_3d_files_speak_of_the_3d_answer(solved) -> None:
+    """The result's check is the 3-D model's (crossing order and core, from its spatial block;
+    the planar projection's crossings do not apply), the marked contact points lie where the
+    two yarns touch (r from each centreline at a touching crossing: red with a tangent taken
+    for a point), and the .3d.png, .yarn.vtu and .tube.ply are written."""
+    import meshio
+
+    pr, result, out = solved
+    doc = json.loads((out / "small3d.full3d.json").read_text())
+    assert doc["check"]["model"] == "3d" and doc["check"]["ok"] is True
+    assert doc["check"]["flipped"] == 0 and "not checked in 3-D yet" in doc["check"]["verdict"]
+    nlp, x = result.nlp, result.x
+    touch = nlp.contact_points(x)
+    lines = nlp.centrelines3d(x, 4001)                        # dense: nearest point to ~1e-3 r
+    h = np.array([c["separation"] for c in doc["spatial"]["crossings"]])
+    for k, c in enumerate(doc["spatial"]["crossings"]):
+        (iu, ju), (il, jl) = c["upper"], c["lower"]
+        for i, j in ((iu, ju), (il, jl)):
+            d = np.linalg.norm(lines[i - 1, j - 1] - touch[k], axis=1).min()
+            assert d == pytest.approx(h[k] / 2, rel=2e-3, abs=2e-3 * pr.yarn.radius)
+    for suffix in (".3d.png", ".yarn.vtu", ".tube.ply"):
+        assert (out / f"small3d.full3d{suffix}").stat().st_size > 0
+    mesh = meshio.read(out / "small3d.full3d.yarn.vtu")
+    np.testing.assert_allclose(mesh.point_data["radius"], pr.yarn.radius)

@@ -305,6 +305,28 @@ def own_check(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray
     return report, report.block()
 
 
+def spatial_check(block: dict[str, Any], core_radius: float, unit: str) -> dict[str, Any]:
+    """The 3-D model's own check (docs/weft3d.md), from its result's ``spatial`` block: every
+    designed crossing keeps its over/under order (signed separation > 0) and stays outside the
+    yarns' hard core (separation > 2R_c). The planar check above (crossings and gaps of the
+    projected centrelines) does not apply to yarns that pass over and under each other, and
+    pieces other than the designed crossings are not searched in 3-D yet: the verdict says so."""
+    flipped = int(block.get("flipped", 0))
+    smallest = block.get("smallest_separation")
+    inside = smallest is not None and smallest <= 2 * core_radius
+    ok = flipped == 0 and not inside
+    sep = "no crossings" if smallest is None else (
+        f"smallest separation {smallest:.4g} {unit} (core {2 * core_radius:.4g} {unit})")
+    slid = int(block.get("slid_off_loop", 0))
+    verdict = (f"designed crossings: {flipped} flipped, {sep}"
+               + (f", {slid} crossing points slid past their loop's end" if slid else "")
+               + ("" if ok else ": the answer is not physical")
+               + "; other pairs of yarn pieces are not checked in 3-D yet")
+    return {"model": "3d", "ok": ok, "flipped": flipped, "smallest_separation": smallest,
+            "core": 2 * core_radius, "slid_off_loop": slid, "other_pairs_checked": False,
+            "verdict": verdict}
+
+
 def load_result_json(path: Path) -> Any:
     """A result JSON file (any JSON value; ``check`` judges its shape)."""
     try:

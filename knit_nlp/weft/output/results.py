@@ -172,8 +172,29 @@ class WeftResult(Outcome):
         """The answer's own check (``output.check``: new crossings against the natural fabric,
         with a radius gaps below their requirement), made once: the result JSON's ``check``
         block, which the summary and the picture's title also state."""
-        from .check import own_check        # the contact package, only when a result is told
+        from .check import own_check, spatial_check   # the contact package, only when told
+        yarn = self.problem.yarn
+        if yarn is not None and yarn.spatial:           # the 3-D model checks its crossings
+            return spatial_check(self._spatial, yarn.core_radius, self.problem.units.length)
         return own_check(self.problem, self.coefficients, self.starts)[1]
+
+    @cached_property
+    def _spatial(self) -> dict[str, Any] | None:
+        """The 3-D model's ``spatial`` block (docs/weft3d.md), None for the planar models."""
+        spatial = getattr(self.nlp, "spatial_block", None)
+        return None if spatial is None else spatial(self.x, self.params.vector())
+
+    def _save_3d(self, stem: Path, deformed: np.ndarray) -> list[Path]:
+        """The 3-D model's yarn as tubes of its radius: ``.3d.png`` (oblique and side views,
+        the designed crossings' contact points marked), ``.yarn.vtu`` (ParaView) and
+        ``.tube.ply`` (Blender), docs/weft3d.md."""
+        from .files3d import write_yarn_3d
+        from .picture3d import plot_tubes
+        radius, touch = self.problem.yarn.radius, self.nlp.contact_points(self.x)
+        title = f"{self.problem.name} (3-D): {self.message}; check: {self.checked['verdict']}"
+        png = plot_tubes(stem.with_name(stem.name + ".3d.png"), deformed, radius, touch,
+                         self.problem.units.length, title)
+        return [png, *write_yarn_3d(stem, deformed, radius, touch)]
 
     def _repr_fields(self) -> dict[str, object]:
         return {"model": self.model, "n_parameters": self.nlp.n_parameters,
@@ -207,9 +228,8 @@ class WeftResult(Outcome):
         reps = self.representatives()
         if reps is not None:
             result["representatives"] = reps
-        spatial = getattr(self.nlp, "spatial_block", None)    # the 3-D model (docs/weft3d.md)
-        if spatial is not None:
-            result["spatial"] = spatial(self.x, self.params.vector())
+        if self._spatial is not None:                        # the 3-D model (docs/weft3d.md)
+            result["spatial"] = self._spatial
         source = source_record(self.problem.source)
         if source:
             result["source"] = source
@@ -248,6 +268,8 @@ class WeftResult(Outcome):
             paths.append(write_centreline_csv(out(".csv"), deformed, s))
         if "svg" in export:
             paths.append(write_centreline_svg(out(".svg"), deformed, self.problem.units.length))
+        if hasattr(self.nlp, "centrelines3d"):      # the yarn as tubes: PNG, .vtu, .ply
+            paths += self._save_3d(stem, arrays["deformed"])
         paths += write_path(stem, self.problem, self.loading_path())
         steps = self.loading_path()
         if animate and steps:

@@ -201,6 +201,13 @@ class SpatialNLP(WeftNLP):
                 "compression": h - 2 * shell.radius,
                 "force": np.where(h < 2 * shell.radius, shell.crossing_force(h, sin_a), 0.0)}
 
+    def contact_points(self, x: np.ndarray) -> np.ndarray:
+        """Per crossing, the midpoint of its two closest points (K, 3): where the yarns touch."""
+        if "cp" not in self.x.blocks:
+            return np.zeros((0, 3))
+        cp = self.x.get(x, "cp")
+        return 0.5 * (cp[0:3].T + cp[6:9].T)          # rows: x_u, t_u, x_l, t_l
+
     def spatial_block(self, x: np.ndarray, p: np.ndarray) -> dict[str, Any]:
         """The result JSON's ``spatial`` block (docs/weft3d.md, "Results")."""
         spring, contact = (float(v) for v in self.terms(x, p)[:2])
