@@ -48,10 +48,14 @@ class PlanarOnly(ProblemError, ValueError):
     """A model or option that exists only in the plane (one line; exit 2 on the command line)."""
 
 
-def planar_only(problem: WeftProblem, what: str) -> PlanarOnly:
-    """The refusal of ``what`` (the reduced model, ``compare``) for a 3-D problem."""
-    return PlanarOnly(problem.source, "yarn", "geometry", f"{what}: the reduced model is planar; "
-                      'solve the 3-D model in full, or remove geometry = "3d"')
+REDUCED_IS_PLANAR = "the reduced model is planar; solve the 3-D model in full"
+
+
+def planar_only(problem: WeftProblem, what: str, why: str = REDUCED_IS_PLANAR) -> PlanarOnly:
+    """The refusal of ``what`` (the reduced model, ``compare``, the inverse problems, ``check``)
+    for a 3-D problem, with the reason ``why``."""
+    return PlanarOnly(problem.source, "yarn", "geometry", f"{what}: {why}, or remove "
+                      'geometry = "3d"')
 
 
 SEGMENT_NODES = 8          # Gauss nodes on [s0, σ] (S3)
