@@ -14,7 +14,7 @@ as *new crossings*: the designed pair of loops (1, 1)-(2, 1) (the loop and the o
 In 3-D every designed crossing's signed separation h (S6) must stay positive and outside the
 hard core (the ``spatial`` block's ``flipped == 0`` and ``smallest_separation > 2 R_c``), and,
 read independently of the transcription's fixed signs ς, the yarn that the plain-knit order
-puts over (``natural3d.PAIRS``) is still the higher one at its closest point.
+puts over is still the higher one at its closest point.
 """
 from __future__ import annotations
 
@@ -22,10 +22,12 @@ import numpy as np
 
 import knit_nlp
 from knit_nlp.weft.model.problem import parse_problem
-from knit_nlp.weft.model.spatial.natural3d import PAIRS
 from knit_nlp.weft.output.check import check
 
 PUSH = [-3.0, -3.0]          # mm, H of loop (1, 2) towards loop (1, 1)'s held start
+# plain knit (docs/weft3d.md, "The order"): the upper course's legs over the head below (C/F,
+# Q/G), its sinker loop under the legs below (A/D, S/P); +1: the upper loop's yarn over
+PLAIN_KNIT = {"A/D": -1, "C/F": +1, "Q/G": +1, "S/P": -1}
 
 
 def _doc(spatial: bool) -> dict:
@@ -60,7 +62,7 @@ def test_the_3d_model_keeps_every_designed_crossings_order() -> None:
     # independent of ς: the upper loop's closest point is above (z) the lower's exactly where
     # the plain-knit order puts the upper course's yarn over (C/F, Q/G), below elsewhere
     cp = result.nlp.x.get(result.x, "cp")             # rows: x_u, t_u, x_l, t_l
-    order = np.tile([p[2] for p in PAIRS], cp.shape[1] // 4)
+    order = [PLAIN_KNIT[c["pair"]] for c in sp["crossings"]]
     np.testing.assert_array_equal(np.sign(cp[2] - cp[8]), order)
     # pressed, not merely left apart: the push reaches the crossings
     assert sp["smallest_separation"] < 2 * pr.yarn.radius
