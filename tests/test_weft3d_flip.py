@@ -1,0 +1,69 @@
+"""A push that passes yarns through each other in the plane keeps every crossing's order in 3-D
+(issue 39, "Tests that bite"; docs/weft3d.md).
+
+The fabric: a 2 x 2 acrylic stockinette (L = 11.28 mm, R_f = 0.045 N·mm², r = 0.74 mm), loop
+(1, 1)'s start held and H of loop (1, 2) pushed by (-3, -3) mm towards it (a diagonal
+compression).
+
+"Flip" in the plane: the paper's model has no over/under, so a designed crossing changes its
+order only by a yarn passing through the other. The package's crossing count
+(``contact.crossings.find_crossings`` judged by ``judge``, through ``output.check``) sees that
+as *new crossings*: the designed pair of loops (1, 1)-(2, 1) (the loop and the one above it,
+4 crossings in the natural fabric) crosses more often than 4 times.
+
+In 3-D every designed crossing's signed separation h (S6) must stay positive and outside the
+hard core (the ``spatial`` block's ``flipped == 0`` and ``smallest_separation > 2 R_c``), and,
+read independently of the transcription's fixed signs ς, the yarn that the plain-knit order
+puts over is still the higher one at its closest point.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+import knit_nlp
+from knit_nlp.weft.model.problem import parse_problem
+from knit_nlp.weft.output.check import check
+
+PUSH = [-3.0, -3.0]          # mm, H of loop (1, 2) towards loop (1, 1)'s held start
+# plain knit (docs/weft3d.md, "The order"): the upper course's legs over the head below (C/F,
+# Q/G), its sinker loop under the legs below (A/D, S/P); +1: the upper loop's yarn over
+PLAIN_KNIT = {"A/D": -1, "C/F": +1, "Q/G": +1, "S/P": -1}
+
+
+def _doc(spatial: bool) -> dict:
+    doc = {"name": "flip2", "fabric": {"courses": 2, "wales": 2},
+           "units": {"length": "mm", "force": "N"},
+           "loop": {"length": 11.28, "harmonics": 3}, "material": {"R_f": 0.045},
+           "clamp": [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
+                     {"loop": [1, 2], "point": "H", "displacement": PUSH}]}
+    if spatial:
+        doc["yarn"] = {"radius": 0.74, "geometry": "3d", "elevation_modes": 4}
+    return doc
+
+
+def test_the_paper_model_passes_a_designed_pair_of_loops_through_each_other() -> None:
+    pr = parse_problem(_doc(False), "flip2.toml")
+    result = knit_nlp.solve(pr)
+    assert result.success
+    report = check(result.to_json(), pr)
+    designed = [c for c in report.new_crossings if c["loops"] == [[1, 1], [2, 1]]]
+    assert designed and designed[0]["natural"] == 4 and designed[0]["count"] > 4
+
+
+def test_the_3d_model_keeps_every_designed_crossings_order() -> None:
+    pr = parse_problem(_doc(True), "flip2.toml")
+    result = knit_nlp.solve(pr)
+    assert result.success, result.status
+    sp = result.to_json()["spatial"]
+    assert len(sp["crossings"]) == 8
+    assert sp["flipped"] == 0
+    assert sp["smallest_separation"] > 2 * pr.yarn.core_radius
+    assert sp["slid_off_loop"] == 0
+    # independent of ς: the upper loop's closest point is above (z) the lower's exactly where
+    # the plain-knit order puts the upper course's yarn over (C/F, Q/G), below elsewhere
+    cp = result.nlp.x.get(result.x, "cp")             # rows: x_u, t_u, x_l, t_l
+    order = [PLAIN_KNIT[c["pair"]] for c in sp["crossings"]]
+    np.testing.assert_array_equal(np.sign(cp[2] - cp[8]), order)
+    # pressed, not merely left apart: the push reaches the crossings
+    assert sp["smallest_separation"] < 2 * pr.yarn.radius
+    assert sp["contact_energy"] > 0
