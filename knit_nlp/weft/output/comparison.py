@@ -202,8 +202,9 @@ class Comparison:
                 **({"frontier": {"grids": [g.to_json() for g in self.frontier],
                                  "fastest_ok": None if (best := self.fastest_ok) is None
                                  else best.k}} if self.frontier else {}),
-                **({"adaptive": {**self.reduced.extra["adaptive"], "true_rms": self.distance_rms}}
-                   if "adaptive" in self.reduced.extra else {})}
+                **({"adaptive": {**self.reduced.adaptive.to_json(),
+                                 "true_rms": self.distance_rms}}
+                   if self.reduced.adaptive is not None else {})}
 
     def save(self, out_dir: Path | str) -> list[Path]:
         """``DIR/<problem>.compare.json`` and the overlay ``.compare.png``."""
