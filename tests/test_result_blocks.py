@@ -70,3 +70,71 @@ def test_adaptive_and_warm_started_solves_write_their_typed_blocks(tmp_path):
     assert js["warm_start"]["from"] == "reduced" and js["warm_start"]["reduced_success"]
     assert js["warm_start"]["reduced_iterations"] == warm.warm_start.reduced_iterations > 0
     assert "warm_start" not in _written(solve(pr, Full()), tmp_path / "cold")
+
+
+SQUEEZE = """name = "squeeze"
+[fabric]
+courses = 1
+wales = 1
+[[rigid_clamp]]
+points = [{loop = [1, 1], point = "start"}]
+[[rigid_clamp]]
+points = [{loop = [1, 1], point = "end"}]
+translation = [-0.5, 0.0]
+[[clamp]]
+loop = [1, 1]
+point = "start"
+fix = []
+angle = 0.0
+[[clamp]]
+loop = [1, 1]
+point = "end"
+fix = []
+angle = 0.0
+[yarn]
+radius = 0.15
+"""
+
+
+def test_a_check_report_takes_the_contract_and_saves_the_commands_file(write_problem, tmp_path):
+    """``knit-nlp check``'s file is ``CheckReport.save``'s: the same bytes, named after the
+    result; ``success``/``status``/``message`` follow the check (clean with contact, violations
+    for the paper's model judged at the radius: its squeezed loop's legs come within 0.4 x 2r)."""
+    from knit_nlp.cli import main
+    from knit_nlp.weft.output.check import check
+    problem_file = write_problem(SQUEEZE, "squeeze.toml")
+    with_r = squeezed(0.5, 0.15)
+    for res, ok in ((solve(squeezed(0.5, None)), False), (solve(with_r), True)):
+        path = res.save(tmp_path / ("contact" if ok else "paper"))[0]
+        report = check(json.loads(path.read_text()), with_r)
+        assert report.success is report.ok is ok
+        assert report.status == ("Clean" if ok else "Violations_Found")
+        assert report.message == report.verdict() and ("clean" in report.message) is ok
+        mine = report.save(path.parent, path)
+        assert mine == [path.parent / f"{path.stem}.check.json"]
+        # the command's file, with the same problem (a file now): the same bytes
+        code = main(["check", str(path), "--problem", str(problem_file),
+                     "--out", str(tmp_path / "cmd")])
+        assert code == (0 if ok else 1)
+        written, = (tmp_path / "cmd").rglob(f"{path.stem}.check.json")
+        assert written.read_bytes() == mine[0].read_bytes()
+        written.unlink()
+
+
+def test_a_comparison_takes_the_contract_and_names_the_model_that_failed(tmp_path):
+    import dataclasses
+    from knit_nlp.weft.api import compare
+    from knit_nlp.weft.output.comparison import Comparison
+    pr = parse_problem(diagonal_pull(4), "d4")
+    cmp = compare(pr)
+    assert cmp.success and cmp.status == "Solve_Succeeded" == cmp.full.status
+    assert cmp.message == "converged: full and reduced models"
+    js = json.loads(cmp.save(tmp_path)[0].read_text())
+    assert js == json.loads(json.dumps(cmp.to_json())) and "status" not in js
+    # the reduced model stopped by its iteration limit (its report so marked): it is named
+    stopped = dataclasses.replace(cmp.reduced, report=dataclasses.replace(
+        cmp.reduced.report, success=False, status="Maximum_Iterations_Exceeded"))
+    bad = Comparison(cmp.full, stopped)
+    assert not bad.success and bad.status == "Maximum_Iterations_Exceeded"
+    assert bad.message == ("the reduced model: the iteration limit ([solver] max_iter) was "
+                           "reached")
