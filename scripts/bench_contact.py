@@ -38,13 +38,13 @@ def timed_pull(n: int, radius: float | None, budget: float) -> dict:
     r = solve(pr, Full())
     row = {"n": n, "contact": radius is not None, "seconds": time.perf_counter() - t0,
            "success": r.success, "status": r.status}
-    if "contact" in r.extra:
+    if r.contact is not None:
         from knit_nlp.weft.output.check import check
         rep = check(r.to_json(), pr)            # the independent checker, outside the timing
         row["checked"] = (f"check: {len(rep.new_crossings)} new crossings, "
                           f"{rep.n_short} gaps below 2r(1-1e-3), smallest "
                           f"{rep.smallest_gap / (2 * radius) if rep.smallest_gap else None}")
-        c = r.extra["contact"]
+        c = r.contact.to_json()
         row.update(active=c["active"], gap_over_2r=c["smallest_gap_over_2r"],
                    new_crossings=c["new_crossings"], solves=c["solves"],
                    nlp_vars=c["contact_nlp"]["n_variables"])
@@ -90,7 +90,7 @@ def curve(n: int, strain: float, steps: int, radius: float | None, budget: float
     for e in np.linspace(0.0, strain, steps + 1)[1:]:
         r = st.run(st.params.with_(rigid={2: (e * width, 0.0, 0.0)}), x0=x)
         force = r.rigid_clamps[1].force[0]
-        active = r.extra.get("contact", {}).get("active")
+        active = None if r.contact is None else r.contact.active
         rows.append((e, force, r.success, active))
         print(f"  strain {e:5.3f}: force {force:9.4g} {pr.units.force}, "
               f"{'ok' if r.success else 'NOT CONVERGED'}"

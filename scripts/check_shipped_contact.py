@@ -50,7 +50,7 @@ def check_one(name: str, radius_l: float, budget: float, out: str | None = None)
     after = check(res.to_json(), with_r)
     if out is not None:
         res.save(out, yarn=True)
-    block = res.extra.get("contact", {})
+    block = res.blocks().get("contact", {})
     return {"name": name, "radius": r, "seconds": seconds, "success": res.success,
             "status": res.status, "active": block.get("active"),
             "gap_over_2r": block.get("smallest_gap_over_2r"),

@@ -65,11 +65,11 @@ def test_straight_rods_stop_at_2r_and_carry_the_push():
     push, r = 0.3, 0.2
     res = solve(rods(push, r))
     assert res.success
-    block = res.extra["contact"]
-    assert block["smallest_gap"] == pytest.approx(2 * r, rel=1e-6)
+    block = res.contact
+    assert block.smallest_gap == pytest.approx(2 * r, rel=1e-6)
     assert res.starts[1, 0, 1] == pytest.approx(2 * r, abs=1e-5)     # B's start, above A's
     assert res.clamps[0].reaction[1] == pytest.approx(push, rel=1e-8)
-    assert sum(c["force"] for c in block["contacts"]) == pytest.approx(push, rel=2e-3)
+    assert sum(c.force for c in block.contacts) == pytest.approx(push, rel=2e-3)
     assert check(res.to_json(), res.problem).ok
 
 
@@ -82,7 +82,7 @@ def test_a_loop_pressed_between_rigid_clamps_keeps_its_legs_2r_apart():
     before, after = check(free.to_json(), squeezed(d, r)), check(jammed.to_json(), squeezed(d, r))
     assert before.short_gaps and before.smallest_gap < 0.5 * 2 * r
     assert after.ok and after.smallest_gap >= 2 * r * (1 - 1e-3)
-    assert jammed.extra["contact"]["active"] >= 1
+    assert jammed.contact.active >= 1
     assert jammed.rigid_clamps[0].force[0] > 10 * free.rigid_clamps[0].force[0] > 0
 
 
@@ -327,7 +327,7 @@ def test_without_a_radius_nothing_changes(monkeypatch):
     assert not made and "contact" not in free.to_json() and free.success
     loose = solve(squeezed(0.5, 0.05))
     assert made and loose.success
-    assert loose.extra["contact"]["route"] == "paper's model: no contact needed"
+    assert loose.contact.route == "paper's model: no contact needed"
     np.testing.assert_array_equal(loose.coefficients, free.coefficients)
     np.testing.assert_array_equal(loose.starts, free.starts)
     tight = solve(squeezed(0.5, 0.15))

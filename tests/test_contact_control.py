@@ -93,7 +93,7 @@ def test_control_with_a_radius_reaches_a_goal_that_needs_the_loop_jammed():
     assert ans.state.u[0] == pytest.approx(-0.5, abs=1e-5)
     assert ans.stability.stable and ans.forward_distance < 1e-5
     result = ans.equilibrium
-    assert result.extra["contact"]["active"] >= 1
+    assert result.contact.active >= 1
     verdict = check(result.to_json(), ctl.cp.problem)
     assert verdict.ok and verdict.smallest_gap >= 0.3 * (1 - 1e-3)
     assert ans.to_json()["equilibrium"]["contact"]["new_crossings"] == 0

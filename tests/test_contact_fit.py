@@ -87,7 +87,7 @@ def test_a_contact_curve_steps_from_its_last_state_and_its_nodes_are_fresh_solve
     equilibria that contact solves from the natural fabric reach: same clamp force and lateral
     width (measured: at most 1.1e-7 relative; red when the curve solves from x0 alone)."""
     model, c, jammed = pulled
-    routes = {model.eq.blocks[np.asarray(x).tobytes()]["route"] for x in c.xs[1:]}
+    routes = {model.eq.blocks[np.asarray(x).tobytes()].route for x in c.xs[1:]}
     assert all(r.startswith("one load step with contact from the last solved state")
                for r in routes), routes
     fresh = SpecimenModel(model.specimen)

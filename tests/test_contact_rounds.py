@@ -44,9 +44,9 @@ def test_a_step_that_meets_new_pairs_deep_inside_their_gap_restarts_from_its_sta
 
     st.contact.solve_once = spy
     res = st.run()
-    block = res.extra["contact"]
-    assert res.success and block["new_crossings"] == 0
-    assert block["smallest_gap_over_2r"] >= 1 - 1e-4
+    block = res.contact
+    assert res.success and block.new_crossings == 0
+    assert block.smallest_gap_over_2r >= 1 - 1e-4
     again = [(a, b) for a, b in zip(starts, starts[1:]) if b[0] == a[0] + ", round 2"
              and np.array_equal(a[1], b[1])]
     assert again and again[0][1][2] > again[0][0][2]
@@ -92,10 +92,10 @@ def test_a_step_still_deep_after_its_restarts_fails_and_is_retried_not_continued
     said: list[str] = []
     st.contact.log = lambda m: said.append(m if isinstance(m, str) else "")
     res = st.run()
-    block = res.extra["contact"]
+    block = res.contact
     assert any("still deep inside their gap" in m for m in said)
-    assert res.success and block["new_crossings"] == 0
-    assert block["smallest_gap_over_2r"] >= 1 - 1e-4
+    assert res.success and block.new_crossings == 0
+    assert block.smallest_gap_over_2r >= 1 - 1e-4
 
 
 def test_rounds_do_not_cycle_when_the_search_loses_a_pushing_contact():
@@ -104,10 +104,10 @@ def test_rounds_do_not_cycle_when_the_search_loses_a_pushing_contact():
     the pull did not converge in 200 s; now it converges in a few solves."""
     st = _study(5, 60.0)
     res = st.run()
-    block = res.extra["contact"]
-    assert res.success and block["new_crossings"] == 0
-    assert block["smallest_gap_over_2r"] >= 1 - 1e-4
-    assert block["solves"] <= 10
+    block = res.contact
+    assert res.success and block.new_crossings == 0
+    assert block.smallest_gap_over_2r >= 1 - 1e-4
+    assert block.solves <= 10
 
 
 def test_a_held_contact_is_reseated_to_the_foot_of_its_point():
@@ -254,13 +254,13 @@ def test_the_result_lists_contacts_that_touch_not_the_barriers_remnants():
     moving contacts are the same set."""
     st = _study(4, 60.0)
     res = st.run()
-    block = res.extra["contact"]
-    assert res.success and block["active"] == len(block["contacts"]) >= 5
-    for c in block["contacts"]:
-        assert c["force"] > 0
-        assert abs(c["gap"] - c["required"]) <= 1e-3 * 2 * R, c
+    block = res.contact
+    assert res.success and block.active == len(block.contacts) >= 5
+    for c in block.contacts:
+        assert c.force > 0
+        assert abs(c.gap - c.required) <= 1e-3 * 2 * R, c
     # the rounds hold and watch the same contacts (their last solve ended at the result)
-    assert st.contact.touching().sum() == block["active"]
+    assert st.contact.touching().sum() == block.active
 
 
 def test_a_warm_start_whose_contact_rounds_fail_takes_a_load_step_from_it():
@@ -292,11 +292,11 @@ def test_a_warm_start_whose_contact_rounds_fail_takes_a_load_step_from_it():
     first = st.run(st.params.with_(rigid={2: (0.05 * width, 0.0, 0.0)}))
     assert first.success
     second = st.run(st.params.with_(rigid={2: (0.10 * width, 0.0, 0.0)}), x0=first.x)
-    route = second.extra["contact"]["route"]
+    route = second.contact.route
     assert second.success, (second.status, route)
     assert route.startswith("load steps with contact from the start (yarns crossed in the "
                             "paper's solution)")
-    assert second.extra["contact"]["new_crossings"] == 0
+    assert second.contact.new_crossings == 0
     assert second.rigid_clamps[1].force[0] > first.rigid_clamps[1].force[0] > 0
 
 
@@ -347,7 +347,7 @@ def test_the_listed_active_contacts_alone_hold_the_answer():
     assert res.success
     pairs = st.contact.last.pairs
     listed = pairs.select(st.contact.touching())
-    assert len(listed) == res.extra["contact"]["active"] >= 10
+    assert len(listed) == res.contact.active >= 10
     fresh = _study(6, 120.0)
     c, base = fresh.contact, fresh.nlp
     c.deadline = np.inf

@@ -25,8 +25,8 @@ def _clean(result, radius: float) -> None:
     assert result.success
     assert report.new_crossings == [] and report.short_gaps == []
     assert report.smallest_gap is None or report.smallest_gap >= 2 * radius * GAP
-    block = result.extra["contact"]
-    assert block["new_crossings"] == 0
+    block = result.contact
+    assert block.new_crossings == 0
 
 
 def test_12x12_stretched_half_its_width_between_rigid_edges():
@@ -44,7 +44,7 @@ def test_12x12_stretched_half_its_width_between_rigid_edges():
     assert not check(free.to_json(), with_r).ok
     res = solve(with_r, Full())
     _clean(res, r)
-    assert res.extra["contact"]["active"] > 100
+    assert res.contact.active > 100
     assert res.rigid_clamps[1].force[0] > free.rigid_clamps[1].force[0] > 0
 
 

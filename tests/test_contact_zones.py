@@ -135,9 +135,9 @@ def test_a_pull_whose_interlocks_slide_needs_no_restart(n):
     said: list[str] = []
     st.contact.log = lambda m: said.append(m if isinstance(m, str) else "")
     res = st.run()
-    block = res.extra["contact"]
-    assert res.success and block["new_crossings"] == 0
-    assert block["smallest_gap_over_2r"] >= 1 - 1e-4
+    block = res.contact
+    assert res.success and block.new_crossings == 0
+    assert block.smallest_gap_over_2r >= 1 - 1e-4
     assert not any("restart" in m or "deep inside" in m for m in said)
     checked = check(res.to_json(), pr)          # the checker applies the same zones
     assert not checked.new_crossings and not checked.short_gaps

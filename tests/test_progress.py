@@ -83,7 +83,7 @@ def test_study_workers_keep_their_contact_solves_quiet(monkeypatch, capsys):
     monkeypatch.setattr("knit_nlp.weft.solving.solve.QUIET_FOR", 0.0)
     built = prepare_point({**diagonal_pull(4), "yarn": {"radius": 0.15}})
     result = built.run()
-    assert result.extra["contact"]["solves"] > 0 and capsys.readouterr().err == ""
+    assert result.contact.solves > 0 and capsys.readouterr().err == ""
 
 
 def test_a_long_control_reports_each_outer_iteration(monkeypatch, capsys, tmp_path):

@@ -140,7 +140,7 @@ def test_warm_from_reduced_reaches_the_cold_start_minimum():
     warm = solve(pr, Full(), warm_from_reduced=True)
     red = solve(pr, pr.reduction or Reduced())          # the reduced solve warm_from_reduced ran
     assert cold.success and red.success and warm.success
-    assert warm.extra["warm_start"]["reduced_iterations"] == red.iterations
+    assert warm.warm_start.reduced_iterations == red.iterations
     x0 = warm.nlp.lift(red.coefficients, red.starts)
     lifted = sum(float(v) for v in warm.nlp.energy(x0, warm.nlp.p0)[:2])
     assert lifted == pytest.approx(red.energy.total, rel=1e-9)

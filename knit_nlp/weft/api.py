@@ -21,6 +21,7 @@ from .model.params import WeftParams
 from .model.problem import MAX_CONTINUATION, WeftProblem
 from .output.comparison import Comparison, grid_row
 from .output.results import WeftResult
+from .solving.blocks import WarmStart
 from .solving.contact.equilibrium import refuse
 from .study import study
 from .transcription.spatial import planar_only
@@ -82,9 +83,7 @@ def _warm_from_reduced(problem: WeftProblem, params: WeftParams | None,
                 verbose=verbose)
     full = solve(problem, Full(), params=params, continuation=continuation, start=red,
                  verbose=verbose)
-    full.extra["warm_start"] = {"from": "reduced", "reduced_success": red.success,
-                                "reduced_iterations": red.iterations,
-                                "reduced_solve_s": red.report.solve_s}
+    full.warm_start = WarmStart(red.success, red.iterations, red.report.solve_s)
     return red, full
 
 

@@ -26,7 +26,7 @@ from .model.problem import MAX_CONTINUATION, WeftProblem, parse_problem
 from .model.reach import overstretch
 from .model.resize import parse_size, resized
 from .transcription.spatial import planar_only
-from .output.check import SAMPLES, check, load_result_json, write_check
+from .output.check import SAMPLES, check, load_result_json
 from .output.export import COLOURINGS, EXPORTS
 
 
@@ -176,7 +176,7 @@ def run_check(args: Namespace) -> int:
                           "the 3-D model's own check (its JSON's check block), and the 3-D "
                           "check of all pairs of yarn pieces is not built yet")
     report = check(result, problem, args.samples, str(result_path))
-    write_check(report, result_path, prepare_out(args.out, problem.name, ()))
+    report.save(prepare_out(args.out, problem.name, ()), result_path)
     print(report.line())
     return 0 if report.ok else 1
 

@@ -74,6 +74,21 @@ class CheckReport:
     def ok(self) -> bool:
         return not self.new_crossings and not self.n_short
 
+    # the results contract (knit_nlp/outcome.py): the answer passes its check
+    @property
+    def success(self) -> bool:
+        return self.ok
+
+    @property
+    def status(self) -> str:
+        """``Clean`` (``ok``) or ``Violations_Found`` (new crossings or short gaps)."""
+        return "Clean" if self.ok else "Violations_Found"
+
+    @property
+    def message(self) -> str:
+        """One sentence: the check's verdict."""
+        return self.verdict()
+
     def line(self) -> str:
         """The one-line summary."""
         text = (f"{self.problem}: {'clean' if self.ok else 'VIOLATIONS'}: {self.n_new} new "
@@ -152,6 +167,13 @@ class CheckReport:
                 "thick_yarn_pairs_below_2r": self.thick_below_2r,
                 "interlock_pairs_below_2r": self.interlock_below_2r,
                 "smallest_gap": self.smallest_gap, "notes": self.notes}
+
+    def save(self, out_dir: Path | str, result_path: Path | str | None = None) -> list[Path]:
+        """``<result stem>.check.json`` in ``out_dir`` (``knit-nlp check``'s file), named after
+        the checked result file ``result_path`` (``<problem>.check.json`` without one)."""
+        stem = (self.problem if result_path is None
+                else Path(result_path).name.removesuffix(".json"))
+        return [write_json(Path(out_dir) / f"{stem}.check.json", self.to_json())]
 
 
 def loops_of(result: Any, problem: WeftProblem, where: str = "result"
@@ -341,9 +363,3 @@ def load_result_json(path: Path) -> Any:
 def _reject_constant(name: str) -> float:
     """JSON's NaN and Infinity are read as NaN, so the shape check names them."""
     return math.nan
-
-
-def write_check(report: CheckReport, result_path: Path, out: Path) -> Path:
-    """``<result stem>.check.json`` in ``out`` (the report's JSON)."""
-    return write_json(out / f"{result_path.name.removesuffix('.json')}.check.json",
-                      report.to_json())

@@ -157,9 +157,27 @@ class Comparison:
         when the clamped ones were added), as in its result JSON."""
         return self.reduced.representatives()
 
+    # the results contract (knit_nlp/outcome.py): every model solved converged
     @property
     def success(self) -> bool:
         return all(r.success for r in self.models().values())
+
+    def _failed(self) -> dict[str, WeftResult]:
+        return {name: r for name, r in self.models().items() if not r.success}
+
+    @property
+    def status(self) -> str:
+        """The first model that did not converge's status (full, reduced, warm-started), or
+        the full model's (``Solve_Succeeded``) when all did."""
+        return next(iter(self._failed().values()), self.full).status
+
+    @property
+    def message(self) -> str:
+        """One sentence: every model converged, or which did not and why."""
+        failed = self._failed()
+        if not failed:
+            return "converged: " + " and ".join(self.models()) + " models"
+        return "; ".join(f"the {name} model: {r.message}" for name, r in failed.items())
 
     def models(self) -> dict[str, WeftResult]:
         """The models solved: full, reduced and, when asked for, full_warm_from_reduced."""
@@ -202,8 +220,9 @@ class Comparison:
                 **({"frontier": {"grids": [g.to_json() for g in self.frontier],
                                  "fastest_ok": None if (best := self.fastest_ok) is None
                                  else best.k}} if self.frontier else {}),
-                **({"adaptive": {**self.reduced.extra["adaptive"], "true_rms": self.distance_rms}}
-                   if "adaptive" in self.reduced.extra else {})}
+                **({"adaptive": {**self.reduced.adaptive.to_json(),
+                                 "true_rms": self.distance_rms}}
+                   if self.reduced.adaptive is not None else {})}
 
     def save(self, out_dir: Path | str) -> list[Path]:
         """``DIR/<problem>.compare.json`` and the overlay ``.compare.png``."""

@@ -5,7 +5,7 @@ files ``knit-nlp solve`` writes (``save``: the writing and drawing are the outpu
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 from typing import Any, Sequence
@@ -19,6 +19,7 @@ from ..model.basis import phi
 from ..model.centrelines import SAMPLES, natural_centrelines
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
+from ..solving.blocks import AdaptiveBlock, ContactBlock, WarmStart
 from ..solving.solve import Solution, SolveReport
 from ..transcription.protocol import WeftNLP
 from .export import write_centreline_csv, write_centreline_svg
@@ -40,14 +41,16 @@ class WeftResult(Outcome):
     params: WeftParams
     build_s: float
     violation: float
-    extra: dict[str, Any] = field(default_factory=dict)
+    contact: ContactBlock | None = None
+    adaptive: AdaptiveBlock | None = None
+    warm_start: WarmStart | None = None
 
     @classmethod
     def of(cls, solution: Solution) -> "WeftResult":
         """The typed result of a forward solve (``Equilibrium.solve``), with its variant's
-        blocks (``contact``, ``adaptive``) under ``extra``."""
+        blocks (``contact``, ``adaptive``: ``solving.blocks``)."""
         return cls(solution.nlp, solution, solution.params, solution.build_s,
-                   solution.violation, dict(solution.blocks))
+                   solution.violation, solution.contact_block, solution.adaptive)
 
     @property
     def problem(self) -> WeftProblem:
@@ -233,8 +236,23 @@ class WeftResult(Outcome):
         source = source_record(self.problem.source)
         if source:
             result["source"] = source
-        result.update(self.extra)
+        result.update(self.blocks())
         return result
+
+    def blocks(self) -> dict[str, Any]:
+        """The result JSON's blocks of the solve's variant, in this order: ``contact`` (``{}``
+        for a solve with a yarn radius of an x its equilibrium did not solve), ``adaptive``,
+        ``warm_start``."""
+        out: dict[str, Any] = {}
+        if self.contact is not None:
+            out["contact"] = self.contact.to_json()
+        elif self.problem.yarn is not None and not self.problem.yarn.spatial:
+            out["contact"] = {}
+        for name in ("adaptive", "warm_start"):
+            block = getattr(self, name)
+            if block is not None:
+                out[name] = block.to_json()
+        return out
 
     def save(self, out_dir: Path | str, samples: int = SAMPLES, *, colour: str = "course",
              export: Sequence[str] = (), animate: bool = False, yarn: bool = False

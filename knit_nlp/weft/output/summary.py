@@ -37,14 +37,14 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
         lines.append(f"  rigid clamp {rc.number} ({len(rc.points)} points): force "
                      f"({rc.force[0]:.4g}, {rc.force[1]:.4g}) [{u.force}], moment "
                      f"{rc.moment:.4g} [{u.energy}]")
-    contact = r.extra.get("contact")
-    if contact:
-        gap = contact["smallest_gap"]
-        lines.append(f"  yarn contact (r = {contact['radius']:g} {u.length}): "
-                     f"{contact['active']} active, largest force {contact['largest_force']:.4g} "
+    contact = r.contact
+    if contact is not None:
+        gap = contact.smallest_gap
+        lines.append(f"  yarn contact (r = {contact.radius:g} {u.length}): "
+                     f"{contact.active} active, largest force {contact.largest_force:.4g} "
                      f"[{u.force}], smallest gap " + (f"{gap:.6g} [{u.length}] = "
-                     f"{contact['smallest_gap_over_2r']:.6g} x 2r" if gap is not None
-                     else "none within reach") + f", {contact['new_crossings']} new crossings")
+                     f"{contact.smallest_gap_over_2r:.6g} x 2r" if gap is not None
+                     else "none within reach") + f", {contact.new_crossings} new crossings")
     lines.append("  check: " + r.checked["verdict"])
     lines += implausible(r)                     # springs beyond L, folds, loops inside out
     if not r.success:

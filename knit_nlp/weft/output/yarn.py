@@ -43,8 +43,8 @@ def draw_yarn(ax: Axes, result: Any, deformed: np.ndarray) -> None:
                                      edgecolors=edges, linewidths=YARN_EDGE, zorder=YARN_ZORDER,
                                      label=f"yarn, radius {yarn.radius:g} "
                                      f"{result.problem.units.length}"))
-    contacts = result.extra.get("contact", {}).get("contacts", [])
+    contacts = () if result.contact is None else result.contact.contacts
     if contacts:
-        pts = np.array([c["point"] for c in contacts])
+        pts = np.array([c.point for c in contacts])
         ax.plot(pts[:, 0], pts[:, 1], "o", ms=3.5, mfc="white", mec=CONTACT, mew=1.0, zorder=5,
                 label=f"active contact ({len(contacts)})")

@@ -48,6 +48,7 @@ from ..model.params import WeftParams
 from ..model.problem import WeftProblem
 from ..transcription.protocol import WeftNLP
 from ..transcription.rows import n_parameters
+from .blocks import AdaptiveBlock
 from .solve import DEFAULT_START, Equilibrium, Solution, SolveReport, WeftSolver
 
 MARK = 0.25
@@ -277,8 +278,8 @@ class AdaptiveEquilibrium:
         self.build_s = run.build_s
         return Solution.of(run.report, nlp=run.cnlp, params=p, build_s=run.build_s,
                            violation=run.solver.violation(run.report.x, p.vector()),
-                           blocks={"adaptive": {"steps": [st.as_dict() for st in run.steps],
-                                                "estimate": run.steps[-1].estimate}})
+                           adaptive=AdaptiveBlock(tuple(st.as_dict() for st in run.steps),
+                                                  run.steps[-1].estimate))
 
     def done(self) -> None:
         """Nothing to close: each grid's solver ends its own progress line."""

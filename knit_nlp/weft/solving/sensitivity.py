@@ -48,6 +48,7 @@ import numpy as np
 from ..model.basis import n_coeffs
 from ..transcription.contact import VARS, ContactNLP, basis_mx
 from ..transcription.protocol import WeftNLP
+from .blocks import ContactBlock
 
 SHIFT = -1e-6               # σ of the shift-invert Lanczos: just below zero
 RHO = 1e3                   # first penalty of the inertia test, times max|H| / max|JᵀJ|
@@ -78,7 +79,7 @@ class ContactState:
     x: np.ndarray
     lam: np.ndarray
     active: np.ndarray
-    block: dict
+    block: ContactBlock
 
     @property
     def n_active(self) -> int:

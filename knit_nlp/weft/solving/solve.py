@@ -38,6 +38,7 @@ from ..model.params import WeftParams
 from ..model.problem import WeftProblem
 from ..transcription.factory import transcribe
 from ..transcription.protocol import WeftNLP
+from .blocks import AdaptiveBlock, ContactBlock
 from .sensitivity import KKT, ContactState, Stability
 from .starts import (STARTS, coarse_chain, needs_perturbation, perturbed_starts, prolong,
                      prolong_multipliers, rigid_start)
@@ -212,14 +213,15 @@ class Solution(SolveReport):
     ``nlp`` (x, multipliers, status, effort, attempts, loading path), the parameters solved
     at, the largest violation of the rows' bounds at x, the time the equilibrium took to
     build, and what its variant adds: ``contact`` (the contact solve behind x, None without
-    one) and the result JSON's blocks (``contact``, ``adaptive``) in ``blocks``."""
+    one) and the result JSON's typed blocks (``contact_block``, ``adaptive``: ``blocks``)."""
 
     nlp: WeftNLP | None = None
     params: WeftParams | None = None
     violation: float = 0.0
     build_s: float = 0.0
     contact: "ContactState | None" = None
-    blocks: dict[str, Any] = field(default_factory=dict)
+    contact_block: ContactBlock | None = None
+    adaptive: AdaptiveBlock | None = None
 
     @classmethod
     def of(cls, report: SolveReport, **more: Any) -> "Solution":

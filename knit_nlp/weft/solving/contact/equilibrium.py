@@ -24,6 +24,7 @@ from ...model.parametrisation import Full
 from ...model.params import WeftParams
 from ...model.problem import WeftProblem
 from ...transcription.full import FullNLP
+from ..blocks import Contact, ContactBlock
 from ..sensitivity import ContactState
 from ..solve import (DEFAULT_START, Equilibrium, Solution, SolveReport, WeftSolver,
                      solve_nlp, start_point)
@@ -53,7 +54,7 @@ def refuse(problem: WeftProblem, what: str, why: str = REDUCED_WHY) -> ContactRe
 def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver,
                        params: WeftParams, continuation: int | None = None,
                        x_start: np.ndarray | None = None, p_start: np.ndarray | None = None
-                       ) -> tuple[SolveReport, dict]:
+                       ) -> tuple[SolveReport, ContactBlock]:
     """Solve the full model of a problem with ``[yarn] radius`` (module docstring) at
     ``params``, from ``x_start`` (a vector of ``base``, at parameters ``p_start``: load steps
     from there; unknown, the target's) if given: the report and the result JSON's ``contact``
@@ -150,7 +151,7 @@ def _keep_path(report: SolveReport, first: SolveReport) -> None:
 
 
 def contact_block(problem, contact: ContactSolver, run: ContactRun, route: str,
-                  tol: float) -> dict:
+                  tol: float) -> ContactBlock:
     """The result JSON's ``contact``: radius, pairs in reach, active contacts with their
     forces (minus the gap rows' multipliers, in the problem's force unit), smallest gaps,
     the thick-yarn pairs, crossings against the natural fabric, and the effort."""
@@ -165,30 +166,26 @@ def contact_block(problem, contact: ContactSolver, run: ContactRun, route: str,
     found = run.pairs
     free = found.required >= two_r
     thick = (found.required > 0) & ~free
-    return {
-        "radius": contact.radius,
-        "route": route,
-        "pairs_in_reach": len(found),
-        "active": int(active.sum()),
-        "smallest_gap": float(found.gap[free].min()) if free.any() else None,
-        "smallest_gap_over_2r": float(found.gap[free].min() / two_r) if free.any() else None,
-        "thick_pairs": int(thick.sum()),
-        "thick_smallest_gap_over_required": float(np.min(found.gap[thick] / found.required[
+    return ContactBlock(
+        radius=contact.radius, route=route, pairs_in_reach=len(found),
+        active=int(active.sum()),
+        smallest_gap=float(found.gap[free].min()) if free.any() else None,
+        smallest_gap_over_2r=float(found.gap[free].min() / two_r) if free.any() else None,
+        thick_pairs=int(thick.sum()),
+        thick_smallest_gap_over_required=float(np.min(found.gap[thick] / found.required[
             thick])) if thick.any() else None,
-        "interlock_pairs": int(np.sum(found.required <= 0)),
-        "largest_force": largest if active.any() else 0.0,
-        "force_unit": problem.units.force,
-        "new_crossings": verdict.n_new,
-        "lost_designed_crossings": verdict.lost,
-        "contacts": [{"loops": [[int(a // n) + 1, int(a % n) + 1], [int(b // n) + 1, int(b % n) + 1]],
-                      "s": [float(sa), float(sb)], "point": pt.tolist(), "force": float(f),
-                      "gap": float(g), "required": float(q)}
-                     for a, sa, b, sb, pt, f, g, q in zip(
-                         pairs.kA[active], pairs.sA[active], pairs.kB[active], pairs.sB[active],
-                         pts, force[active], gap[active], pairs.required[active])],
-        "solves": len(run.rounds),
-        "contact_nlp": {"n_variables": run.n_variables, "n_constraints": run.n_constraints},
-    }
+        interlock_pairs=int(np.sum(found.required <= 0)),
+        largest_force=largest if active.any() else 0.0, force_unit=problem.units.force,
+        new_crossings=verdict.n_new, lost_designed_crossings=verdict.lost,
+        contacts=tuple(Contact(((int(a // n) + 1, int(a % n) + 1),
+                                (int(b // n) + 1, int(b % n) + 1)),
+                               (float(sa), float(sb)), tuple(pt.tolist()), float(f), float(g),
+                               float(q))
+                       for a, sa, b, sb, pt, f, g, q in zip(
+                           pairs.kA[active], pairs.sA[active], pairs.kB[active], pairs.sB[active],
+                           pts, force[active], gap[active], pairs.required[active])),
+        solves=len(run.rounds),
+        contact_nlp={"n_variables": run.n_variables, "n_constraints": run.n_constraints})
 
 
 def _active(contact: ContactSolver, run: ContactRun, tol: float
@@ -232,7 +229,7 @@ class ContactEquilibrium(Equilibrium):
         self.contact = ContactSolver(self.solver, problem.yarn.radius)
         self.keep, self.polish = keep, polish
         self.states: OrderedDict[bytes, ContactState | None] = OrderedDict()
-        self.blocks: dict[bytes, dict] = {}
+        self.blocks: dict[bytes, ContactBlock] = {}
         self._run: ContactRun | None = None
 
     @property
@@ -266,17 +263,17 @@ class ContactEquilibrium(Equilibrium):
                 and self.contact.polish(p, rep, self.polish)):
             last = self.contact.last
             block = contact_block(self.problem, self.contact, ContactRun(rep, last.pairs, last.lam),
-                                  block["route"] + ", polished", self.problem.solver.tol)
+                                  block.route + ", polished", self.problem.solver.tol)
         self._remember(rep, block)
         return self.solution(rep, params)
 
     def solution(self, report: SolveReport, params: WeftParams | np.ndarray) -> Solution:
         """As :meth:`Equilibrium.solution`, with the contact solve behind x (``contact``) and
-        the result JSON's ``contact`` block (empty for an x this equilibrium did not solve)."""
+        the result JSON's ``contact`` block (None for an x this equilibrium did not solve)."""
         sol = super().solution(report, params)
         key = np.asarray(report.x).tobytes()
         sol.contact = self.states.get(key)
-        sol.blocks["contact"] = self.blocks.get(key, {})
+        sol.contact_block = self.blocks.get(key)
         return sol
 
     def _from_origin(self, p: np.ndarray, origin: tuple[np.ndarray, np.ndarray]
@@ -290,7 +287,7 @@ class ContactEquilibrium(Equilibrium):
         self._run = self.contact.run(p, np.asarray(p_from, dtype=float), x, 1, report)
         return self._run.report if self._run.report.success else None
 
-    def _remember(self, rep: SolveReport, block: dict) -> None:
+    def _remember(self, rep: SolveReport, block: ContactBlock) -> None:
         """Keep the contact NLP's solution that belongs to the base solution rep.x."""
         key = np.asarray(rep.x).tobytes()
         state = None
