@@ -4,6 +4,7 @@ check`` says of their equilibria (``WeftResult.checked``); a converged control s
 calibrate's exit follows its targets."""
 from __future__ import annotations
 
+import importlib
 import json
 
 import numpy as np
@@ -15,9 +16,14 @@ from knit_nlp.cli import main
 from knit_nlp.weft.inverse.fit import Fitter
 from knit_nlp.weft.inverse.observations import Observation
 from knit_nlp.weft.model.problem import load_problem
+from knit_nlp.weft.model.centrelines import centrelines, natural_centrelines
+from knit_nlp.weft.output.check import own_check
 from knit_nlp.weft.inverse.spec import load_control
 from knit_nlp.weft.output.check import check
 from test_inverse_control import FABRIC
+
+# the module (the package exports its function of the same name)
+calibrate_module = importlib.import_module("knit_nlp.weft.inverse.calibration.calibrate")
 
 BEND = """
 name = "bend"
@@ -100,10 +106,24 @@ def test_a_fit_checks_each_case_at_the_fitted_values_as_a_solve_there_does(
     assert " ".join(panel.split("\n")[1:]) == f"check: {block['verdict']}"
 
 
-def test_calibrate_checks_each_test_at_its_largest_load(tmp_path, capsys, titles):
+def _stretch(problem, coeffs, starts) -> float:
+    """How much longer along x the fabric's centrelines (eq. 1) are than its natural ones."""
+    span = np.ptp(centrelines(coeffs, starts, problem.L, problem.t, 41)[0][..., 0])
+    return float(span - np.ptp(natural_centrelines(problem, 41)[..., 0]))
+
+
+def test_calibrate_checks_each_test_at_its_largest_load(tmp_path, capsys, titles, monkeypatch):
     """The synthetic 2 x 3 course pull at its true values (nothing fitted): each test's answer
     at the model curve's last node (the largest force in ``curves.csv``) is checked; the JSON,
-    the summary and the test's panel say it, and the exit still follows the target."""
+    the summary and the test's panel say it, and the exit still follows the target. The loops
+    checked are stretched along x by that node's travel (axial strain x gauge) over the
+    natural fabric's extent."""
+    seen = []
+
+    def spy(problem, coeffs, starts):
+        seen.append(_stretch(problem, coeffs, starts))
+        return own_check(problem, coeffs, starts)
+    monkeypatch.setattr(calibrate_module, "own_check", spy)
     width = synthetic_columns(tmp_path / "synthetic.csv", rows=400)
     spec = synthetic_spec(tmp_path, width, "[]", SYNTH_TRUTH, tables="",
                           extra="[calibrate.targets]\nfit_axial = 0.003\n")
@@ -118,3 +138,5 @@ def test_calibrate_checks_each_test_at_its_largest_load(tmp_path, capsys, titles
             f"largest load): {block['verdict']}")
     assert f"\n    {line}\n" in capsys.readouterr().out
     assert any(t.endswith("\n" + line) for t, _ in titles)
+    travel = block["at"]["axial_strain"] * doc["tests"][0]["specimen"]["gauge"]
+    assert seen == [pytest.approx(travel, rel=1e-6)], (seen, travel)
