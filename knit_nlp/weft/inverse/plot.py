@@ -20,17 +20,19 @@ from ..output.plot import (DPI, KEY_WIDTH, _figure, colour_key, course_lines, dr
 from ..output.reactions import SolvedFabric
 
 GOAL, TRAVEL, OPENING = "darkorange", "darkorange", "magenta"
-CHECK_CHARS = 80
+CHECK_CHARS = 80            # a check's words per title line: control's picture
+PANEL_CHARS = 55            # ... a fit's panel (4.8 inches wide, 9 pt)
 
 
-def told(title: str, check: dict[str, Any] | None) -> tuple[str, str]:
+def told(title: str, check: dict[str, Any] | None, chars: int = CHECK_CHARS
+         ) -> tuple[str, str]:
     """A title with the answer's own check under it (a result JSON's ``check`` block, as a
     solve's picture says it: ``output.plot.solution_figure``), in lines of at most
-    ``CHECK_CHARS`` characters (a line as wide as the figure ran under the colour bar), and its
+    ``chars`` characters (a line as wide as the figure ran under the colour bar), and its
     colour: red when the check refutes the answer."""
     if not check:
         return title, "black"
-    return (f"{title}\n" + textwrap.fill(f"check: {check['verdict']}", CHECK_CHARS),
+    return (f"{title}\n" + textwrap.fill(f"check: {check['verdict']}", chars),
             "tab:red" if check.get("ok") is False else "black")
 
 
@@ -109,7 +111,7 @@ def plot_fit(path: Path, cases: list[tuple[str, SolvedFabric, np.ndarray, np.nda
                 label="model point at the fitted values")
         ax.update_datalim(np.concatenate([observed, fitted]))
         ax.autoscale()
-        text, colour = told(f"load case {name}", (checks or {}).get(name))
+        text, colour = told(f"load case {name}", (checks or {}).get(name), PANEL_CHARS)
         ax.set_title(text, fontsize=9, color=colour, wrap=True)
     if not cases:
         axes[0].set(xlabel=f"x [{units.length}]", ylabel=f"y [{units.length}]")
