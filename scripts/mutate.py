@@ -12,6 +12,11 @@ run against it (``pytest -x``, with a time limit); a mutant the tests pass is a 
     python scripts/mutate.py --list                   # print the mutants, run nothing
     python scripts/mutate.py --lines 40-60 --json results/mutate.json
     python scripts/mutate.py knit_nlp/weft/transcription/full.py --only 12 40   # re-run two mutants
+    python scripts/mutate.py knit_nlp/weft/model/contact/*.py --sample 6 --budget 600
+
+``GUARDS`` names the test files of a module or of a pattern of modules (calibration, contact,
+the checker, control); ``--sample K`` takes K mutants evenly spread over each module's list,
+``--budget S`` starts no mutant after S seconds (the rest are reported as not run).
 
 Docstrings, type annotations and the numbers in ``raise``/error messages are not mutated.
 Mutants whose source is unchanged by ``ast.unparse`` (equivalent spellings) are skipped.
@@ -21,6 +26,7 @@ from __future__ import annotations
 import argparse
 import ast
 import copy
+import fnmatch
 import json
 import os
 import shutil
@@ -33,7 +39,12 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
-# The test files that guard each module (run in this order; the fast, specific ones first).
+# The modules mutated when none is named.
+DEFAULT = ["knit_nlp/weft/output/results.py", "knit_nlp/weft/transcription/full.py",
+           "knit_nlp/jacquard/springs.py"]
+
+# The test files that guard each module, or each module matching a pattern (run in this order;
+# the fast, specific ones first; ``guards`` takes a module's own entry before a pattern's).
 GUARDS = {
     "knit_nlp/weft/output/results.py": ["tests/test_envelope.py", "tests/test_weft_rigid.py",
                                  "tests/test_weft_equilibrium.py", "tests/test_cli.py",
@@ -48,7 +59,46 @@ GUARDS = {
                                      "tests/test_jacquard_pull.py",
                                      "tests/test_jacquard_cli.py",
                                      "tests/test_jacquard_images.py"],
+    "knit_nlp/weft/output/check.py": ["tests/test_contact_check_input.py",
+                                      "tests/test_contact_zones.py",
+                                      "tests/test_contact_bounded.py",
+                                      "tests/test_contact_told.py", "tests/test_contact_radii.py",
+                                      "tests/test_inverse_told.py"],
+    "knit_nlp/weft/inverse/control.py": ["tests/test_inverse_control.py",
+                                         "tests/test_inverse_told.py",
+                                         "tests/test_check_control.py",
+                                         "tests/test_contact_control.py"],
+    "knit_nlp/weft/model/contact/*.py": ["tests/test_contact_zones.py",
+                                         "tests/test_contact_check_input.py",
+                                         "tests/test_contact_bounded.py",
+                                         "tests/test_contact_radii.py",
+                                         "tests/test_contact_told.py", "tests/test_contact.py"],
+    "knit_nlp/weft/inverse/calibration/*.py": ["tests/test_calibration_input.py",
+                                               "tests/test_calibration_checks.py",
+                                               "tests/test_calibration_verdict.py",
+                                               "tests/test_calibration_compression.py",
+                                               "tests/test_calibration_model.py",
+                                               "tests/test_inverse_told.py"],
 }
+
+
+def guards(rel: str) -> list[str] | None:
+    """The test files that guard a module: its own ``GUARDS`` entry, else the first pattern
+    it matches (None: no entry; the whole suite is run)."""
+    if rel in GUARDS:
+        return GUARDS[rel]
+    return next((tests for pattern, tests in GUARDS.items() if fnmatch.fnmatch(rel, pattern)),
+                None)
+
+
+def sample(todo: list, k: int | None) -> list:
+    """``k`` of a module's mutants evenly spread over its list (first and last included), or
+    all of them."""
+    if k is None or len(todo) <= k:
+        return todo
+    if k <= 1:
+        return todo[:k]
+    return [todo[round(q * (len(todo) - 1) / (k - 1))] for q in range(k)]
 
 BINOP_SWAP = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult,
               ast.FloorDiv: ast.Mult, ast.Pow: ast.Mult}
@@ -206,28 +256,36 @@ def run_tests(workdir: Path, tests: list[str], timeout: float) -> tuple[str, flo
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("files", nargs="*", default=list(GUARDS), help="modules, relative to the checkout")
+    ap.add_argument("files", nargs="*", default=DEFAULT, help="modules, relative to the checkout")
     ap.add_argument("--tests", nargs="+", help="test files to run (default: GUARDS[module])")
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per mutant")
     ap.add_argument("--lines", help="only mutants on lines A-B")
     ap.add_argument("--only", type=int, nargs="+", help="only the mutants with these #indices")
+    ap.add_argument("--sample", type=int, help="only K mutants per module, evenly spread")
+    ap.add_argument("--budget", type=float, help="start no mutant after this many seconds")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--json", type=Path, help="write every mutant's outcome here")
     args = ap.parse_args(argv)
     lo, hi = (int(v) for v in args.lines.split("-")) if args.lines else (0, 10 ** 9)
-    todo = [(m, text) for rel in args.files for m, text in mutants(rel) if lo <= m.line <= hi
-            and (args.only is None or m.index in args.only)]
+    todo = [pair for rel in args.files for pair in sample(
+        [(m, text) for m, text in mutants(rel) if lo <= m.line <= hi
+         and (args.only is None or m.index in args.only)], args.sample)]
     if args.list:
         for m, _ in todo:
             print(f"{m.file}:{m.line}: #{m.index} {m.description}")
         print(f"{len(todo)} mutants")
         return 0
     done: list[Mutant] = []
+    start, skipped = time.perf_counter(), 0
     with tempfile.TemporaryDirectory(prefix="knit_mutate_") as tmp:
         work = Path(tmp)
         _copy_checkout(work)
         for rel in args.files:
-            tests = args.tests or GUARDS.get(rel, ["tests"])
+            tests = args.tests or guards(rel) or ["tests"]
+            mine = [x for x in todo if x[0].file == rel]
+            if args.budget is not None and time.perf_counter() - start > args.budget:
+                skipped += len(mine)
+                continue
             original = (work / rel).read_text()
             (work / rel).write_text(ast.unparse(ast.parse(original)))   # baseline: same spelling as mutants
             outcome, seconds, _ = run_tests(work, tests, args.timeout)
@@ -236,7 +294,10 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"  the unmutated tests do not pass; skipping {rel}", flush=True)
                 (work / rel).write_text(original)
                 continue
-            for m, text in (x for x in todo if x[0].file == rel):
+            for m, text in mine:
+                if args.budget is not None and time.perf_counter() - start > args.budget:
+                    skipped += 1
+                    continue
                 (work / rel).write_text(text)
                 m.outcome, m.seconds, m.failed_test = run_tests(work, tests, args.timeout)
                 (work / rel).write_text(original)
@@ -247,7 +308,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\n{len(done)} mutants: {len(done) - len(survivors)} killed, "
           f"{sum(m.outcome == 'survived' for m in done)} survived, "
           f"{sum(m.outcome == 'timeout' for m in done)} timed out, "
-          f"{sum(m.outcome == 'error' for m in done)} errors")
+          f"{sum(m.outcome == 'error' for m in done)} errors"
+          + (f"; {skipped} not run (--budget {args.budget:g} s)" if skipped else "")
+          + f"; {time.perf_counter() - start:.0f} s")
     for m in survivors:
         print(f"  {m.outcome}: {m.file}:{m.line} #{m.index} {m.description}")
     if args.json:

@@ -89,3 +89,14 @@ def test_a_strain_never_reached_has_no_force():
     assert force_at(np.array([0.0, 0.05, 0.2]), np.array([0.0, 1.0, 3.0]), 0.3) is None
     assert force_at(np.array([0.0, 0.05, 0.2]), np.array([0.0, 1.0, 3.0]), 0.1) == pytest.approx(
         1.0 + 2.0 * 0.05 / 0.15)
+
+
+@pytest.mark.parametrize("strain, force", [(-0.1, 0.5), (0.0, 0.5), (0.05, 0.875), (0.1, 1.25),
+                                           (0.3, 4.0), (0.5, None)])
+def test_force_at_interpolates_between_the_points_that_bracket_the_strain(strain, force):
+    """F(ε) on a broken line through (0, 0.5), (0.2, 2), (0.4, 6): linear between its
+    points, the first point's force where ε is reached at once, None beyond the last (red
+    with the first point's case taken at the second point, a survivor of scripts/mutate.py:
+    no read fell between the first two points)."""
+    axial, forces = np.array([0.0, 0.2, 0.4]), np.array([0.5, 2.0, 6.0])
+    assert force_at(axial, forces, strain) == (None if force is None else pytest.approx(force))

@@ -74,6 +74,12 @@ def test_a_fabric_at_rest_says_clean(tmp_path, capsys, titles, yarn, words):
     result, summary = _solve(path, tmp_path / "out", capsys)
     assert result["check"]["ok"] is True and result["check"]["verdict"].startswith(words)
     assert f"  check: {words}" in summary
+    if yarn:                                    # the block's gap is check's, over 2r
+        from knit_nlp.weft.model.problem import load_problem
+        again = check(result, load_problem(path))
+        assert again.smallest_gap is not None
+        assert result["check"]["smallest_gap_over_2r"] == pytest.approx(
+            again.smallest_gap / 0.3, rel=1e-12)
     assert titles[-1][0].split("\ncheck: ")[1].startswith(words) and titles[-1][1] == "black"
 
 

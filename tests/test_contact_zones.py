@@ -163,22 +163,27 @@ def _natural_result(pr) -> dict:
                       "course_starts": pr.natural_starts()[:, 0].tolist()}}
 
 
-def test_check_names_the_pairs_of_loops_that_lost_designed_crossings_and_where():
-    """A 5 x 5 jersey: natural, nothing lost. Its middle course moved 100 L away: every
-    interlock of course 3 with courses 2 and 4 is lost, listed per pair of loops (natural
-    count, count now, lost), the pairs with a loop in wale 1 or 5 marked at the edge and the
-    others inside the fabric, the line saying how many pairs are inside; the listed losses
-    add up to the count."""
+@pytest.mark.parametrize("moved", [3, 4])
+def test_check_names_the_pairs_of_loops_that_lost_designed_crossings_and_where(moved):
+    """A 5 x 5 jersey: natural, nothing lost. Its course ``moved`` (the middle one, or the
+    one under the last course, whose losses with course 5 are at the edge: red when the last
+    course is not an edge, which the middle course alone never showed) moved 100 L away: every
+    interlock of that course with its neighbours is lost, listed per pair of loops (natural
+    count, count now, lost), the pairs with a loop in wale 1 or 5 or course 1 or 5 marked at
+    the edge and the others inside the fabric, the line saying how many pairs are inside; the
+    listed losses add up to the count."""
     pr = parse_problem(unclamped(5, 5), "five")
     result = _natural_result(pr)
     natural = check(result, pr)
     assert natural.lost_crossings == 0 and natural.lost == [] and "(between" not in natural.line()
-    result["loops"]["course_starts"][2][0] += 100 * L
+    result["loops"]["course_starts"][moved - 1][0] += 100 * L
     report = check(result, pr)
     assert report.ok                           # nothing crossed anew: losses are not violations
     assert sum(p["lost"] for p in report.lost) == report.lost_crossings > 0
     courses = {tuple(sorted((p["loops"][0][0], p["loops"][1][0]))) for p in report.lost}
-    assert courses <= {(2, 3), (3, 4), (1, 3), (3, 5)} and (2, 3) in courses
+    c = moved
+    assert courses <= {(c - 1, c), (c, c + 1), (c - 2, c), (c, c + 2)}
+    assert (c - 1, c) in courses and (c, c + 1) in courses
     for p in report.lost:
         wales = {p["loops"][0][1], p["loops"][1][1]}
         courses_of = {p["loops"][0][0], p["loops"][1][0]}

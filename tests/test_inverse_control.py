@@ -222,3 +222,17 @@ def test_a_control_answer_that_tears_the_fabric_says_so(write_problem, tmp_path,
     main(["control", str(path), "--out", str(tmp_path)])
     line = next(ln for ln in capsys.readouterr().out.splitlines() if "IMPLAUSIBLE" in ln)
     assert "crossing springs stretched beyond a loop length" in line
+
+
+def test_the_bound_named_is_the_one_each_unknown_stopped_on(write_problem):
+    """A goal above the fabric (B of (3, 2) at y = 20) with the gripper's y capped at 16:
+    the answer names exactly ``target y = 16 (upper bound)`` (red when each unknown's bounds
+    are compared with the first unknown's value, a survivor of scripts/mutate.py: the x
+    bound alone was tested)."""
+    from knit_nlp.weft.inverse.control import at_bounds
+    box = "bounds = [[-100.0, 100.0], [0.0, 16.0]]"
+    ans = control(load_control(write_problem(FABRIC.format(bounds=box, gx=4.0, gy=20.0),
+                                             "up.toml")))
+    assert ans.state.u[1] == pytest.approx(16.0, abs=1e-9)
+    assert -100.0 < ans.state.u[0] < 100.0
+    assert at_bounds(ans) == ["clamp[2] target y = 16 (upper bound)"]

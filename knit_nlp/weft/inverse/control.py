@@ -17,6 +17,7 @@ from __future__ import annotations
 import sys
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -94,9 +95,10 @@ class ControlResult(Outcome):
     def problem(self) -> WeftProblem:
         return self.ctl.cp.problem
 
-    @property
+    @cached_property
     def equilibrium(self) -> WeftResult:
-        """The forward model's result at the answer (its clamps, loops, energy)."""
+        """The forward model's result at the answer (its clamps, loops, energy and own check,
+        ``WeftResult.checked``), made once: the JSON, the summary and the picture read it."""
         return WeftResult.of(self.ctl.eq.solution(self.state.report, self.p))
 
     @property
@@ -137,7 +139,7 @@ class ControlResult(Outcome):
                            f"{'stable' if result['stable'] else 'NOT STABLE'}"
                            + ("" if self.problem.yarn is None else
                               f"; yarn contact, r = {self.problem.yarn.radius:g} "
-                              f"{self.problem.units.length}"))
+                              f"{self.problem.units.length}"), result["check"])
         return [js, png]
 
 
@@ -185,6 +187,7 @@ def control_summary(ans: ControlResult, paths: list[Path]) -> str:
                  f"{r['min_reduced_hessian_eigenvalue']:.3g}); forward check: "
                  f"{r['forward_check']['success']} (max distance "
                  f"{r['forward_check']['max_distance']:.2e})")
+    lines.append("  check: " + r["check"]["verdict"])   # the equilibrium's own check
     lines += implausible(ans.equilibrium)       # springs beyond L, folds, loops inside out
     lines.append(f"  wrote {', '.join(map(str, paths))}")
     return "\n".join(lines)
@@ -428,4 +431,5 @@ def control_json(ans: ControlResult) -> dict[str, Any]:
             "stability_method": ans.stability.method,
             "forward_check": {"success": ans.forward_success, "max_distance": ans.forward_distance},
             "travel_weight": cp.travel_weight,
+            "check": equilibrium.checked,             # the answer's own check (output.check)
             "equilibrium": equilibrium.to_json()}

@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -101,7 +102,14 @@ class FitResult(Outcome):
         title = (f"fit of {', '.join(self.names)}: {result['status']}, rms residual "
                  f"{result['rms_residual']:.3g} {panels[0][1].problem.units.length}"
                  if result["rms_residual"] is not None and panels else f"fit: {result['status']}")
-        return [js, plot_fit(out / f"{name}.fit.png", panels, title)]
+        return [js, plot_fit(out / f"{name}.fit.png", panels, title, self.checks)]
+
+    @cached_property
+    def checks(self) -> dict[str, dict[str, Any]]:
+        """Per load case with an equilibrium, its own check at the fitted values (the result
+        JSON's ``check`` block, ``WeftResult.checked``), made once: the fit JSON's ``check``,
+        the summary and the picture's panel titles say it."""
+        return {c.name: self.case_result(c).checked for c in self.cases if c.x is not None}
 
     def case_result(self, c: _Case) -> WeftResult:
         """A load case's equilibrium at the fitted values, as a solve's result (its clamps and
@@ -290,8 +298,9 @@ def fit(problems: Sequence[WeftProblem], observations: Sequence[Observation],
 
 
 def fit_json(ans: FitResult) -> dict[str, Any]:
-    """The contract's ``fit.json`` (written as ``<name>.fit.json``; plus ``message``, ``energy``, ``warnings`` and, when known,
-    ``cases_files``)."""
+    """The contract's ``fit.json`` (written as ``<name>.fit.json``; plus ``message``, ``energy``,
+    ``warnings``, ``check`` (per load case, its equilibrium's own check at the fitted values)
+    and, when known, ``cases_files``)."""
     res = {k: np.linalg.norm(r, axis=1) for k, r in ans.residuals.items()}
     allres = np.concatenate(list(res.values())) if res else np.zeros(0)
     return {"success": ans.success, "status": ans.status, "message": ans.message,
@@ -302,5 +311,5 @@ def fit_json(ans: FitResult) -> dict[str, Any]:
             "rms_residual": float(np.sqrt(np.mean(allres ** 2))) if allres.size else None,
             "cases": [{"case": k, "rms_residual": float(np.sqrt(np.mean(d ** 2))),
                        "max_residual": float(d.max())} for k, d in res.items()],
-            "warnings": ans.warnings, "timings": ans.timings,
+            "warnings": ans.warnings, "timings": ans.timings, "check": ans.checks,
             **({"cases_files": ans.files} if ans.files else {})}

@@ -5,19 +5,35 @@ answer), fit (observed against fitted points per load case) and overlays on a ph
 (the photograph at its own resolution, with a key under it)."""
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.patches import FancyArrowPatch
 
-from ...figures import legend_below, new_figure, save_figure
+from ...figures import legend_below, new_figure, save_figure, settle_layout
 from ...units import Units
 from ..output.plot import (DPI, KEY_WIDTH, fabric_figure, colour_key, course_lines, draw_solution,
                            reference_arrow)
 from ..output.reactions import SolvedFabric
 
 GOAL, TRAVEL, OPENING = "darkorange", "darkorange", "magenta"
+CHECK_CHARS = 80            # a check's words per title line: control's picture
+PANEL_CHARS = 55            # ... a fit's panel (4.8 inches wide, 9 pt)
+
+
+def told(title: str, check: dict[str, Any] | None, chars: int = CHECK_CHARS
+         ) -> tuple[str, str]:
+    """A title with the answer's own check under it (a result JSON's ``check`` block, as a
+    solve's picture says it: ``output.plot.solution_figure``), in lines of at most
+    ``chars`` characters (a line as wide as the figure ran under the colour bar), and its
+    colour: red when the check refutes the answer."""
+    if not check:
+        return title, "black"
+    return (f"{title}\n" + textwrap.fill(f"check: {check['verdict']}", chars),
+            "tab:red" if check.get("ok") is False else "black")
 
 
 def same_shape(a: np.ndarray, b: np.ndarray, rel: float = 1e-6) -> bool:
@@ -32,7 +48,8 @@ def same_shape(a: np.ndarray, b: np.ndarray, rel: float = 1e-6) -> bool:
 def plot_control(path: Path, result: SolvedFabric, natural: np.ndarray, start: np.ndarray,
                  achieved: np.ndarray, goals: np.ndarray, reached: np.ndarray,
                  travel: list[tuple[np.ndarray, np.ndarray]],
-                 openings: list[tuple[np.ndarray, str]], title: str) -> Path:
+                 openings: list[tuple[np.ndarray, str]], title: str,
+                 check: dict[str, Any] | None = None) -> Path:
     """The equilibrium at the answer drawn as a solve's picture (``result``: its grips, the
     force each clamp applies), with the start shape dashed (or, where it is the natural
     shape, the natural loops named as both), each goal (diamond) and the point
@@ -68,16 +85,21 @@ def plot_control(path: Path, result: SolvedFabric, natural: np.ndarray, start: n
     ax.autoscale()
     colour_key(fig, ax, mapped, "course", len(achieved), units)
     reference_arrow(ax, forces, units)
-    ax.set_title(title, fontsize=10)
+    text, colour = told(title, check)
+    ax.set_title(text, fontsize=10, color=colour, wrap=True)
     legend_below(fig, reserve=KEY_WIDTH if forces else 0.0)
+    settle_layout(fig)                  # the title wrapped to the axes (a solve's picture's way)
     return save_figure(fig, path, dpi=DPI)
 
 
 def plot_fit(path: Path, cases: list[tuple[str, SolvedFabric, np.ndarray, np.ndarray,
-                                           np.ndarray, np.ndarray]], title: str) -> Path:
+                                           np.ndarray, np.ndarray]], title: str,
+             checks: dict[str, dict[str, Any]] | None = None) -> Path:
     """One panel per load case: the natural and the fitted equilibrium's loops with their grips
     (``result``), observed points (crosses) and the model's points at the fitted values
-    (circles). ``cases``: (name, result, natural, fitted loops, observed, fitted points)."""
+    (circles); each panel's title says its equilibrium's own check (``checks``: per case, the
+    ``check`` block). ``cases``: (name, result, natural, fitted loops, observed, fitted
+    points)."""
     units: Units = cases[0][1].problem.units if cases else Units()
     fig = new_figure(figsize=(4.8 * max(len(cases), 1), 5.6), dpi=DPI, layout="constrained")
     axes = fig.subplots(1, max(len(cases), 1), squeeze=False)[0]
@@ -89,13 +111,15 @@ def plot_fit(path: Path, cases: list[tuple[str, SolvedFabric, np.ndarray, np.nda
                 label="model point at the fitted values")
         ax.update_datalim(np.concatenate([observed, fitted]))
         ax.autoscale()
-        ax.set_title(f"load case {name}", fontsize=10)
+        text, colour = told(f"load case {name}", (checks or {}).get(name), PANEL_CHARS)
+        ax.set_title(text, fontsize=9, color=colour, wrap=True)
     if not cases:
         axes[0].set(xlabel=f"x [{units.length}]", ylabel=f"y [{units.length}]")
         axes[0].text(0.5, 0.5, "no load case has a solution to draw", ha="center",
                      transform=axes[0].transAxes)
     fig.suptitle(title, fontsize=10)
     legend_below(fig)
+    settle_layout(fig)                  # each panel's check wrapped to its panel
     return save_figure(fig, path, dpi=DPI)
 
 

@@ -76,6 +76,8 @@ def fit_files(paths: list[Path], observations: Path, params: list[str], out: Pat
     for name, v in result["parameters"].items():
         se = "undetermined" if v["std_error"] is None else f"± {v['std_error']:.3g}"
         print(f"  {name} = {v['value']:.6g} {se} (initial {v['initial']:.4g})")
+    for case, told in result["check"].items():       # each case's equilibrium, checked
+        print(f"  check of {case}: {told['verdict']}")
     for w in result["warnings"]:
         print(f"  warning: {w}")
     print(f"  wrote {js}, {png}")

@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 
+from ...output.check import own_check
 from .checks import HALF, STIFFENING, outcome_checks
 from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives,
                     strains_at)
@@ -195,7 +196,20 @@ class Calibration:
                                 [(r.axial, r.force) for r in tm.measured.runs], tm.width())
         return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
                            c.complete, dict(self.spec.targets.get(tm.test.use, {})), reason,
-                           checks)
+                           checks, final_check(tm, c.xs[-1], curve))
+
+
+def final_check(tm: TestModel, x: np.ndarray, curve: ModelCurve) -> dict:
+    """The own check every weft result carries (``output.check.own_check``, as
+    ``WeftResult.checked``) of a test's answer at the final values and its largest load: the
+    model curve's last node ``x``. Only that node is checked: the check of every node of every
+    curve would cost as many checks as forward solves (``at`` says where it was made)."""
+    wnlp = tm.model.eq.wnlp
+    _, block = own_check(tm.specimen.problem, wnlp.coefficients(x), wnlp.starts(x))
+    return {**block, "at": {"force_N": float(curve.force[-1]),
+                            "axial_strain": float(curve.axial[-1]),
+                            "node": "the model curve's last (largest load); the others are "
+                                    "not checked"}}
 
 
 def calibrate(spec_or_path: CalibrationSpec | str | Path,

@@ -61,6 +61,7 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
         lines.append(f"  {t.test.file} ({t.test.use}, {t.test.direction}, {sp.courses} x "
                      f"{sp.wales} loops): rms strain error axial {axial}{lat}{state}")
         lines.append(f"    checks: {describe(t.checks)}")
+        lines.append(f"    {t.check_line()}")
     for key, ratio in result.checks().items():
         if ratio is not None:
             show = lambda v: "n/a" if v is None else f"{v:.3g}"     # noqa: E731

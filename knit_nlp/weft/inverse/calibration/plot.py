@@ -48,7 +48,8 @@ def _panel(ax, t: Any) -> None:
     sp = t.specimen.problem
     ax.set_title(f"{t.test.file}: pulled along the {t.test.direction} ({t.test.use})\n"
                  f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
-                 f"{axial}{lat}{state}\n{_checks_line(t.checks)}\n{t.verdict()}", fontsize=8)
+                 f"{axial}{lat}{state}\n{_checks_line(t.checks)}\n{t.verdict()}\n"
+                 f"{t.check_line()}", fontsize=8, wrap=True)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     ax.grid(alpha=0.3)
 

@@ -59,6 +59,17 @@ class TestOutcome:
     targets: dict[str, float]      # by strain: the largest RMS strain error allowed (spec)
     reason: str = ""
     checks: dict[str, Any] = field(default_factory=dict)   # checks.outcome_checks
+    check: dict[str, Any] = field(default_factory=dict)    # calibrate.final_check: the answer
+    #                                                        at the curve's largest load
+
+    def check_line(self) -> str:
+        """``check at 12.3 N (axial strain 0.475): clean: ...``: the own check of the model's
+        answer at its largest load (the summary's and the panel's words)."""
+        if not self.check:
+            return "check: not made"
+        at = self.check["at"]
+        return (f"check at {at['force_N']:.4g} N (axial strain {at['axial_strain']:.3g}, the "
+                f"curve's largest load): {self.check['verdict']}")
 
     def errors(self) -> dict[str, float | None]:
         """RMS strain error by strain (None: the model did not reach every metric force)."""
@@ -103,7 +114,7 @@ class TestOutcome:
                             "aspect_source": t.aspect_source, "aspect_model": sp.aspect,
                             "gauge": sp.gauge, "pitch_width": sp.pitch_width,
                             "width": self.width, "width_clamps": t.width_clamps},
-               "checks": self.checks,
+               "checks": self.checks, "check": self.check,
                "runs": len(t.measured.runs), "max_force_measured": t.measured.max_force,
                "max_force_model": float(self.curve.force[-1]) if len(self.curve.force) else 0.0}
         if self.model_se_axial is not None:
