@@ -45,3 +45,17 @@ def saved_figures(monkeypatch):
     figs = SavedFigures()
     figs.install(monkeypatch)
     return figs
+
+
+@pytest.fixture
+def titles(monkeypatch):
+    """Every Axes title set, with its colour (the pictures' titles state the answer's check)."""
+    from matplotlib.axes import Axes
+    seen: list[tuple[str, str]] = []
+    real = Axes.set_title
+
+    def set_title(self, label, *args, **kwargs):
+        seen.append((label, kwargs.get("color", "black")))
+        return real(self, label, *args, **kwargs)
+    monkeypatch.setattr(Axes, "set_title", set_title)
+    return seen

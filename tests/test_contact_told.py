@@ -8,7 +8,6 @@ import json
 from pathlib import Path
 
 import pytest
-from matplotlib.axes import Axes
 
 from knit_nlp.cli import main
 from knit_nlp.weft.output import check as checker
@@ -28,19 +27,6 @@ loop = [1, 1]
 point = "start"
 position = [0.0, 0.0]
 """
-
-
-@pytest.fixture
-def titles(monkeypatch):
-    """Every Axes title set, with its colour."""
-    seen: list[tuple[str, str]] = []
-    real = Axes.set_title
-
-    def set_title(self, label, *args, **kwargs):
-        seen.append((label, kwargs.get("color", "black")))
-        return real(self, label, *args, **kwargs)
-    monkeypatch.setattr(Axes, "set_title", set_title)
-    return seen
 
 
 def _solve(path: Path, out: Path, capsys) -> tuple[dict, str]:

@@ -9,7 +9,6 @@ import json
 
 import numpy as np
 import pytest
-from matplotlib.axes import Axes
 
 from calibration_files import SYNTH_TRUTH, synthetic_columns, synthetic_spec
 from knit_nlp.cli import main
@@ -42,19 +41,6 @@ loop = [1, 3]
 point = "end"
 moment = 0.3
 """
-
-
-@pytest.fixture
-def titles(monkeypatch):
-    """Every Axes title set, with its colour."""
-    seen: list[tuple[str, str]] = []
-    real = Axes.set_title
-
-    def set_title(self, label, *args, **kwargs):
-        seen.append((label, kwargs.get("color", "black")))
-        return real(self, label, *args, **kwargs)
-    monkeypatch.setattr(Axes, "set_title", set_title)
-    return seen
 
 
 def test_a_converged_control_whose_fabric_crosses_itself_says_so_and_exits_0(
