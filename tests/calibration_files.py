@@ -143,3 +143,10 @@ def synthetic_spec(folder: Path, width: float, fit: str, start: dict[str, float]
     use = "fit"
     width = {width}
     {extra}""")
+
+
+def predicted_wale_test(width: float, file: str = "synthetic.csv") -> str:
+    """A second ``[[test]]`` for ``synthetic_spec``'s ``extra``: the same columns file as a wale
+    pull that the calibration predicts (does not fit), on a specimen ``width`` mm wide."""
+    return (f'[[test]]\nfile = "{file}"\nformat = "columns"\ndirection = "wales"\n'
+            f'use = "predict"\nwidth = {width!r}\n')

@@ -209,6 +209,39 @@ def test_no_private_name_is_imported_from_another_module(tmp_path):
     assert private_imports(bad) == [("knit_nlp.b", "_helper")]
 
 
+# third-party objects read where their library has no public accessor (matplotlib's side titles
+# and suptitle, a process pool's size, the interpreter's immediate exit in a watchdog)
+THIRD_PARTY_PRIVATE = {("knit_nlp.figures", "ax._left_title"), ("knit_nlp.figures", "ax._right_title"),
+                       ("knit_nlp.figures", "fig._suptitle"),
+                       ("knit_nlp.studies.executors", "executor._max_workers"),
+                       ("knit_nlp.studies.points", "os._exit")}
+
+
+def private_reads(root: Path = PACKAGE) -> set[tuple[str, str]]:
+    """(module, expression) for every ``obj._name`` whose ``obj`` is not ``self`` or ``cls``:
+    a private attribute read (or written) from outside its object."""
+    found = set()
+    for path in root.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if (isinstance(node, ast.Attribute) and node.attr.startswith("_")
+                    and not node.attr.startswith("__")
+                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))):
+                found.add((module_name(path, root.parent), ast.unparse(node)))
+    return found
+
+
+def test_no_module_reads_another_objects_private_attribute(tmp_path):
+    """An object another needs to read offers it publicly (issue 38: the condensed lifting read
+    ``model._cache``); only third-party objects without a public accessor are read privately.
+    The walk sees a read through any name and any chain (``self.model._cache`` too)."""
+    assert private_reads() == THIRD_PARTY_PRIVATE
+    bad = tmp_path / "knit_nlp"
+    bad.mkdir()
+    (bad / "a.py").write_text("def f(model, self):\n    return model._cache, self.other._x, "
+                              "self._mine\n")
+    assert private_reads(bad) == {("knit_nlp.a", "model._cache"), ("knit_nlp.a", "self.other._x")}
+
+
 def test_few_file_names_are_reused_inside_weft():
     """At most three file names of ``weft/`` name two modules (issue 38: six did, e.g. two
     ``crossings.py`` for the crossing springs' points and for yarns crossing in contact)."""

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from calibration_files import SYNTH_TRUTH, synthetic_columns, synthetic_spec
+from calibration_files import SYNTH_TRUTH, predicted_wale_test, synthetic_columns, synthetic_spec
 from knit_nlp.cli import main
 from knit_nlp.weft.inverse.calibration.checks import force_at
 
@@ -20,14 +20,7 @@ def written(tmp_path_factory):
     to strain 0.6, as a course pull (fit) and as a wale pull (predict)."""
     folder = tmp_path_factory.mktemp("checks")
     width = synthetic_columns(folder / "synthetic.csv", rows=600, strain=0.6)
-    spec = synthetic_spec(folder, width, "[]", SYNTH_TRUTH, extra="""
-    [[test]]
-    file = "synthetic.csv"
-    format = "columns"
-    direction = "wales"
-    use = "predict"
-    width = %r
-    """ % (2 * width))
+    spec = synthetic_spec(folder, width, "[]", SYNTH_TRUTH, extra=predicted_wale_test(2 * width))
     out = folder / "out"
     main(["calibrate", str(spec), "--out", str(out)])
     doc = json.loads((out / "synthetic.calibration.json").read_text())

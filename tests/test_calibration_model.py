@@ -11,8 +11,8 @@ import json
 import numpy as np
 import pytest
 
-from calibration_files import (SPEC_SBS, SYNTH_DOC, SYNTH_TRUTH, ramp_runs, synthetic_columns,
-                               synthetic_spec)
+from calibration_files import (SPEC_SBS, SYNTH_DOC, SYNTH_TRUTH, predicted_wale_test, ramp_runs,
+                               synthetic_columns, synthetic_spec)
 import knit_nlp
 from knit_nlp.cli import main
 from knit_nlp.weft.inverse.calibration import load_spec
@@ -299,14 +299,8 @@ def test_predicted_strains_standard_errors_are_the_values_covariance_propagated(
     errors divided by a wrong factor passed every test)."""
     width = synthetic_columns(tmp_path / "synthetic.csv", rows=400)
     start = {**SYNTH_TRUTH, "k_a": 0.02, "k_b": 0.0015}
-    spec = synthetic_spec(tmp_path, width, '["k_a", "k_b"]', start, extra="""
-    [[test]]
-    file = "synthetic.csv"
-    format = "columns"
-    direction = "wales"
-    use = "predict"
-    width = %r
-    """ % width)
+    spec = synthetic_spec(tmp_path, width, '["k_a", "k_b"]', start,
+                          extra=predicted_wale_test(width))
     res = knit_nlp.calibrate(spec)
     pred = res.tests[1]
     names = ["k_a", "k_b"]

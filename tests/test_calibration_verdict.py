@@ -72,3 +72,31 @@ def test_a_fitted_measured_value_is_reported_beside_its_measurement(synthetic, c
     assert "measured" not in doc["parameters"]["k_b"] and "k_b = 0.001 (held)" in printed
     assert doc["given"]["clamp_width_mm"] == 35.5 and "clampSizeInPhysicalUnits" in doc["given"][
         "clamp_width_source"]
+
+
+def test_a_calibration_result_takes_the_contract_and_saves_the_commands_files(synthetic, capsys):
+    """``CalibrationResult`` (Python API) keeps the results contract: ``success``, ``status``,
+    ``message`` are the JSON's, ``to_json()`` is the JSON ``save`` writes beside the curves CSV
+    and the picture, and the command writes the same files (the same curve bytes; the same JSON
+    but for the wall-clock timings)."""
+    from knit_nlp.weft.inverse.calibration import calibrate
+    from knit_nlp.weft.inverse.calibration.spec import load_spec
+    folder, width = synthetic
+    spec = synthetic_spec(folder, width, "[]", SYNTH_TRUTH, tables="",
+                          extra="[calibrate.targets]\nfit_axial = 0.0003\n")   # missed
+    result = calibrate(load_spec(spec))
+    assert (result.success, result.status) == (False, "Targets_Missed")
+    assert result.message == f"nothing fitted; {result.tests[0].verdict()}"
+    paths = result.save(folder / "api")
+    assert [p.name for p in paths] == ["synthetic.calibration.json", "synthetic.curves.csv",
+                                       "synthetic.calibration.png"]
+    doc = json.loads(paths[0].read_text())
+    assert doc == json.loads(json.dumps(result.to_json()))
+    assert (doc["success"], doc["status"], doc["message"]) == (result.success, result.status,
+                                                               result.message)
+    assert main(["calibrate", str(spec), "--out", str(folder / "cmd")]) == 1
+    printed = capsys.readouterr().out
+    assert all(str(folder / "cmd" / p.name) in printed for p in paths)
+    cmd = json.loads((folder / "cmd" / paths[0].name).read_text())
+    assert {**cmd, "timings": None} == {**doc, "timings": None}
+    assert (folder / "cmd" / paths[1].name).read_bytes() == paths[1].read_bytes()

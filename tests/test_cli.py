@@ -9,20 +9,9 @@ import pytest
 from knit_nlp.cli import main
 
 from imagecheck import check_weft_picture
+from problem_texts import small_pull
 
-GOOD = """
-[fabric]
-courses = 2
-wales = 3
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-[[clamp]]
-loop = [2, 3]
-point = "H"
-displacement = [1.0, 0.5]
-"""
+GOOD = small_pull()
 
 
 def test_solve_writes_contract_json_npz_png(write_problem, tmp_path, capsys, saved_figures):

@@ -12,24 +12,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from knit_nlp.cli import main
+from problem_texts import small_pull
 
 ROOT = Path(__file__).resolve().parent.parent
-PULL = """
-name = "pull"
-[fabric]
-courses = 2
-wales = 3
-[loop]
-length = LENGTH
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-[[clamp]]
-loop = [2, 3]
-point = "H"
-displacement = [1.0, 0.5]
-"""
+PULL = small_pull("pull") + "[loop]\nlength = LENGTH\n"
 
 
 @pytest.fixture(scope="module")

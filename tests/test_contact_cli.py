@@ -15,21 +15,9 @@ from knit_nlp.cli import main
 from knit_nlp.errors import ProblemError
 from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.output.check import check
+from problem_texts import small_pull
 
-SMALL = """
-name = "small"
-[fabric]
-courses = 2
-wales = 3
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-[[clamp]]
-loop = [2, 3]
-point = "H"
-displacement = [1.0, 0.5]
-"""
+SMALL = small_pull("small")
 YARN = "[yarn]\nradius = 0.15\n"
 SETTINGS = settings(max_examples=80, deadline=3000,
                     suppress_health_check=[HealthCheck.too_slow,

@@ -12,21 +12,13 @@ import pytest
 from knit_nlp.cli import main
 from knit_nlp.weft.output import check as checker
 from knit_nlp.weft.output.check import check
+from problem_texts import anchored
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = "158 new crossings between 92 pairs of loops: the paper's model has no yarn contact " \
         "(add [yarn] radius)"
 
-STILL = """
-name = "still"
-[fabric]
-courses = 3
-wales = 3
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-"""
+STILL = anchored(3, 3, "still")
 
 
 def _solve(path: Path, out: Path, capsys) -> tuple[dict, str]:

@@ -10,6 +10,7 @@ from knit_nlp.cli import main
 from knit_nlp.weft.inverse.fit import Fitter, FitOptions, weak_values
 from knit_nlp.weft.inverse.observations import Observation
 from knit_nlp.weft.model.problem import load_problem
+from problem_texts import bend
 
 TRUTH = {"k_a": 1.0, "k_b": 0.01, "R_f": 1.0}
 CASES = {
@@ -95,23 +96,7 @@ def test_one_standard_error_covers_the_truth_in_about_68_percent_of_replicas(wri
 
 def test_a_value_the_loads_do_not_excite_is_flagged(write_problem, tmp_path, capsys):
     """One course bent by an end moment: no crossing springs, so k_b does not act at all."""
-    path = write_problem("""
-name = "bend"
-[fabric]
-courses = 1
-wales = 3
-[material]
-R_f = 0.6
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-angle = 0.0
-[[load]]
-loop = [1, 3]
-point = "end"
-moment = 0.3
-""", "bend.toml")
+    path = write_problem(bend(R_f=0.6), "bend.toml")
     pr = load_problem(path)
     s_vals = [1.0, 2.5, 5.0, 7.5]
     obs = [Observation("bend", (1, j), s, s, np.zeros(2)) for j in (1, 2, 3) for s in s_vals]

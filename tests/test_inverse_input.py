@@ -5,20 +5,9 @@ import json
 import pytest
 
 from knit_nlp.cli import main
+from problem_texts import small_pull
 
-BASE = """
-[fabric]
-courses = 2
-wales = 3
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-[[clamp]]
-loop = [2, 3]
-point = "H"
-displacement = [0.0, 0.0]
-{clamp}
+BASE = small_pull(displacement="[0.0, 0.0]") + """{clamp}
 {extra}
 """
 GOAL = "[[goal]]\nloop = [2, 2]\npoint = \"H\"\ndisplacement = [0.5, 0.0]\n"

@@ -112,3 +112,39 @@ def test_overlay_refuses_pixels_that_fix_no_scale(tiny_result, tmp_path, capsys,
     err = capsys.readouterr().err
     assert err.startswith("knit-nlp: --match") and err.count("\n") == 1 and needle in err, err
     assert not out.exists()
+
+
+def test_an_overlay_answer_takes_the_contract_and_saves_the_commands_files(tiny_result, tmp_path,
+                                                                          capsys):
+    """``knit-nlp overlay``'s files are ``OverlayAnswer.save``'s: the same JSON and PNG bytes
+    under the same names; ``to_json()`` is the JSON; ``success``/``status``/``message`` say the
+    similarity was fitted (refused matches raise before an answer exists). Without the
+    photograph, ``save`` refuses in one line naming the argument."""
+    from knit_nlp.weft.inverse.overlay import FITTED, overlay, parse_match
+    from knit_nlp.weft.inverse.run import read_image
+    shape, reader, problem, folder = tiny_result
+    result, image = folder / "obs.full.json", tmp_path / "img.png"
+    plt.imsave(image, np.zeros((20, 30, 3)))
+    texts = ["1,1,start=2,3", "2,3,H=25,12", "1,2,E=14,6"]
+    ans = overlay(shape, [parse_match(m, reader) for m in texts], result_path=result,
+                  image=image, picture=read_image(image))
+    assert ans.success and ans.status == FITTED
+    assert ans.message.startswith("similarity fitted to 3 matches: scale ")
+    assert f"largest match residual {max(ans.residuals_px):.3g} px" in ans.message
+    mine = ans.save(tmp_path / "api")
+    assert [p.name for p in mine] == ["obs.full.img.overlay.json", "obs.full.img.overlay.png"]
+    written = json.loads(mine[0].read_text())
+    assert written == json.loads(json.dumps(ans.to_json()))
+    assert [m["residual_px"] for m in written["matches"]] == ans.residuals_px.tolist()
+    assert written["transform"]["scale_px_per_unit"] == ans.transform.scale
+    assert (written["result"], written["image"]) == (str(result), str(image))
+    argv = ["overlay", str(result), str(image), "--problem", str(problem), "--out",
+            str(tmp_path / "cmd")]
+    assert main(argv + [a for m in texts for a in ("--match", m)]) == 0
+    assert str(mine[0].relative_to(tmp_path / "api")) in capsys.readouterr().out
+    for path in mine:
+        assert (tmp_path / "cmd" / path.name).read_bytes() == path.read_bytes()
+    bare = overlay(shape, [parse_match(m, reader) for m in texts])
+    with pytest.raises(ValueError, match="^result_path, image: "):
+        bare.save(tmp_path / "bare")
+    assert bare.to_json()["result"] is None and not (tmp_path / "bare").exists()

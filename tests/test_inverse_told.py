@@ -19,28 +19,13 @@ from knit_nlp.weft.model.centrelines import centrelines, natural_centrelines
 from knit_nlp.weft.output.check import own_check
 from knit_nlp.weft.inverse.spec import load_control
 from knit_nlp.weft.output.check import check
+from problem_texts import bend
 from test_inverse_control import FABRIC
 
 # the module (the package exports its function of the same name)
 calibrate_module = importlib.import_module("knit_nlp.weft.inverse.calibration.calibrate")
 
-BEND = """
-name = "bend"
-[fabric]
-courses = 1
-wales = 3
-[material]
-R_f = {R_f}
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-angle = 0.0
-[[load]]
-loop = [1, 3]
-point = "end"
-moment = 0.3
-"""
+BEND = bend()
 
 
 def test_a_converged_control_whose_fabric_crosses_itself_says_so_and_exits_0(

@@ -12,22 +12,11 @@ from knit_nlp.cli import main
 from knit_nlp.weft.inverse.fit import Fitter
 from knit_nlp.weft.inverse.observations import Observation
 from knit_nlp.weft.model.problem import load_problem
+from problem_texts import small_pull
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
 
-GOOD = """
-[fabric]
-courses = 2
-wales = 3
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-[[clamp]]
-loop = [2, 3]
-point = "H"
-displacement = [1.0, 0.5]
-"""
+GOOD = small_pull()
 
 
 def refused(capsys, argv: list[str], *words: str) -> str:

@@ -11,6 +11,7 @@ from knit_nlp.problems import resolve
 from knit_nlp.weft.model.centrelines import natural_centrelines
 from knit_nlp.weft.model.problem import load_problem
 from knit_nlp.weft.output.plot import animate, course_ticks, held_points
+from problem_texts import small_pull
 
 
 @pytest.mark.parametrize("courses", range(1, 160))
@@ -186,20 +187,7 @@ def test_the_yarn_is_drawn_as_wide_as_it_is(tmp_path, saved_figures):
     assert np.median(np.concatenate(ratios)) > 0.5, np.median(np.concatenate(ratios))
 
 
-SMALL_PULL = """
-name = "small"
-[fabric]
-courses = 2
-wales = 3
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-[[clamp]]
-loop = [2, 3]
-point = "H"
-displacement = [1.0, 0.5]
-"""
+SMALL_PULL = small_pull("small")
 
 
 def test_the_solution_pictures_course_key_uses_the_even_ticks():

@@ -12,6 +12,7 @@ from knit_nlp.cli import main
 from knit_nlp.errors import ProblemError
 from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.model.problem import load_problem
+from problem_texts import anchored
 
 ONE_COURSE = """
 [fabric]
@@ -152,19 +153,7 @@ def test_fit_with_a_load_case_that_nothing_holds_is_refused_at_once(write_proble
 
 
 # -- the yarn path through the interlocks (issue 41 item 2) ------------------------------------------
-FAR = """
-[fabric]
-courses = {m}
-wales = {m}
-[[clamp]]
-loop = [1, 1]
-point = "start"
-position = [0.0, 0.0]
-[[clamp]]
-loop = [{m}, {m}]
-point = "H"
-position = [{x}, {x}]
-"""
+FAR = anchored("{m}", "{m}") + '[[clamp]]\nloop = [{m}, {m}]\npoint = "H"\nposition = [{x}, {x}]\n'
 
 
 def _held(pr):

@@ -13,14 +13,18 @@ import math
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ...errors import ProblemError, shown
+from ...jsonio import write_json
 from ...tomlio import Table, load_toml, read_regular_file
 from ..model.problem import WeftProblem, PointReader, parse_problem
 from ..model.quadrature import positions
 from .spec import strip_control_keys
+
+FITTED = "Similarity_Fitted"   # the status of every overlay answer (refused matches raise)
 
 
 @dataclass(frozen=True)
@@ -199,8 +203,24 @@ def parse_match(text: str, reader: PointReader) -> Match:
     return Match(loop, label, s, np.array([px, py]))
 
 
+def overlay_name(result_path: Path, image: Path) -> str:
+    """``<result stem>.<image stem>``: the name of an overlay's files (``.overlay.png``,
+    ``.overlay.json``), so overlays of one result on several photographs do not overwrite
+    each other."""
+    return f"{result_path.name.removesuffix('.json')}.{image.stem}"
+
+
 @dataclass
 class OverlayAnswer:
+    """The similarity fitted to the matches, the centrelines and observations mapped to pixels,
+    and (for ``save``) the result and photograph they were drawn from.
+
+    The results contract (knit_nlp/outcome.py): an answer exists only once the similarity is
+    fixed (matches that fix none are refused with a ``ProblemError``), so ``success`` is always
+    true and ``status`` :data:`FITTED`; ``to_json()`` is ``<stem>.overlay.json`` and
+    ``save(out)`` writes it and ``<stem>.overlay.png`` (``stem``: :func:`overlay_name`).
+    """
+
     transform: Similarity
     residuals_px: np.ndarray
     matches: list[Match]
@@ -208,10 +228,83 @@ class OverlayAnswer:
     observed_rms: float | None
     lines_px: np.ndarray
     observed_px: np.ndarray | None
+    problem: str = ""                       # the result's problem (the picture's caption)
+    result_path: Path | None = None         # the solve result JSON overlaid
+    image: Path | None = None               # the photograph's file ...
+    picture: np.ndarray | None = None       # ... and its pixels (rows, columns[, channels])
+
+    @property
+    def success(self) -> bool:
+        return True
+
+    @property
+    def status(self) -> str:
+        return FITTED
+
+    @property
+    def message(self) -> str:
+        """One sentence: the similarity and its largest match residual."""
+        return (f"similarity fitted to {len(self.matches)} matches: {self._similarity_words()}; "
+                f"largest match residual {self.largest_residual:.3g} px")
+
+    @property
+    def largest_residual(self) -> float:
+        return float(max(self.residuals_px, default=0.0))
+
+    @property
+    def name(self) -> str:
+        """The files' stem, :func:`overlay_name` of the result and the photograph."""
+        result_path, image = self._sources()
+        return overlay_name(result_path, image)
+
+    def _similarity_words(self) -> str:
+        t = self.transform
+        return f"scale {t.scale:.4g} px/unit, rotation {np.degrees(t.rotation):.3f} deg"
+
+    def _sources(self) -> tuple[Path, Path]:
+        if self.result_path is None or self.image is None:
+            raise ValueError("result_path, image: an overlay's files are named after the "
+                             "result and the photograph; pass both to overlay()")
+        return self.result_path, self.image
+
+    def to_json(self) -> dict[str, Any]:
+        """``<stem>.overlay.json``: the files, the similarity, per match its pixel residual, and
+        the RMS misfit of the observations in model units (None without observations)."""
+        return {"result": _path_or_none(self.result_path), "image": _path_or_none(self.image),
+                "transform": self.transform.as_dict(),
+                "matches": [{"loop": list(m.loop), "point": m.point, "pixel": m.pixel.tolist(),
+                             "residual_px": float(r)}
+                            for m, r in zip(self.matches, self.residuals_px)],
+                "observed_rms_model_units": self.observed_rms}
+
+    def save(self, out_dir: Path | str) -> list[Path]:
+        """``DIR/<stem>.overlay.json`` and ``.overlay.png`` (the photograph at its own
+        resolution, the centrelines, matches and observations drawn over it)."""
+        from .plot import plot_on_image     # matplotlib (about 0.4 s) only when drawing
+        out, stem = Path(out_dir), self.name
+        if self.picture is None:
+            raise ValueError("picture: the overlay is drawn on the photograph's pixels; pass "
+                             "them to overlay()")
+        png = plot_on_image(out / f"{stem}.overlay.png", self.picture, self.lines_px,
+                            np.array([m.pixel for m in self.matches]),
+                            self.transform.to_pixels(self.model_points), self.observed_px,
+                            self._caption())
+        return [write_json(out / f"{stem}.overlay.json", self.to_json()), png]
+
+    def _caption(self) -> str:
+        return (f"{self.problem}: similarity {self._similarity_words()}; largest match residual "
+                f"{self.largest_residual:.3g} px")
 
 
-def overlay(shape: SolvedShape, matches: list[Match], observed: list | None = None) -> OverlayAnswer:
-    """Fit the similarity, map the centrelines and report residuals (Python API)."""
+def _path_or_none(path: Path | None) -> str | None:
+    return None if path is None else str(path)
+
+
+def overlay(shape: SolvedShape, matches: list[Match], observed: list | None = None, *,
+            result_path: Path | None = None, image: Path | None = None,
+            picture: np.ndarray | None = None) -> OverlayAnswer:
+    """Fit the similarity, map the centrelines and report residuals (Python API); the result
+    file, the photograph's file and its pixels are kept for ``save``."""
     if len(matches) < 2:
         raise ProblemError("--match", "", "", f"two or more matches are needed, got {len(matches)}")
     model = np.array([shape.position(m.loop, m.s) for m in matches])
@@ -228,7 +321,8 @@ def overlay(shape: SolvedShape, matches: list[Match], observed: list | None = No
         xy = np.array([o.xy for o in observed])
         rms = float(np.sqrt(np.mean(np.sum((comp - xy) ** 2, axis=1))))
         obs_px = sim.to_pixels(xy)
-    return OverlayAnswer(sim, res, matches, model, rms, sim.to_pixels(shape.lines), obs_px)
+    return OverlayAnswer(sim, res, matches, model, rms, sim.to_pixels(shape.lines), obs_px,
+                         str(shape.result.get("problem", "")), result_path, image, picture)
 
 
 def _spread(points: np.ndarray) -> float:

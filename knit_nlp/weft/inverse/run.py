@@ -21,7 +21,6 @@ from .control import control, control_summary
 from .fit import fit, fit_name
 from .observations import load_observations
 from .overlay import check_shape, load_result, overlay, parse_match, point_reader
-from .plot import plot_on_image
 from .spec import note_ignored_reduction, parse_control, strip_control_keys
 
 MAX_IMAGE_BYTES = 64 * 2 ** 20     # a photograph for overlay (docs/limits.md)
@@ -111,10 +110,8 @@ def _check_fittable(path: Path, first: WeftProblem, params: list[str]) -> None:
 
 def overlay_file(result_path: Path, image: Path, matches: list[str], observations: Path | None,
                  problem: Path | None, out: Path) -> int:
-    """``knit-nlp overlay``: write ``<result stem>.<image stem>.overlay.png`` (and
-    ``.overlay.json``), so overlays of one result on several photographs do not overwrite
-    each other."""
-
+    """``knit-nlp overlay``: read and check everything, then write (``OverlayAnswer.save``)
+    ``<result stem>.<image stem>.overlay.json`` and ``.overlay.png`` (``overlay_name``)."""
     shape = load_result(result_path)
     problem = problem or _problem_of(shape.result, result_path)
     reader, pr = point_reader(problem)
@@ -124,21 +121,11 @@ def overlay_file(result_path: Path, image: Path, matches: list[str], observation
     if observations is not None:
         obs = load_observations(observations, {pr.name: pr}, other_cases=True)
     picture = read_image(image)
-    stem = overlay_name(result_path, image)
-    ans = overlay(shape, parsed, obs)               # refused matches: nothing written
-    prepare_out(str(out), stem, ("overlay",))
+    ans = overlay(shape, parsed, obs, result_path=result_path, image=image,
+                  picture=picture)                  # refused matches: nothing written
+    prepare_out(str(out), ans.name, ("overlay",))
+    js, png = ans.save(out)
     t = ans.transform
-    caption = (f"{shape.result.get('problem', '')}: similarity scale {t.scale:.4g} px/unit, "
-               f"rotation {np.degrees(t.rotation):.3f} deg; largest match residual "
-               f"{max(ans.residuals_px, default=0.0):.3g} px")
-    png = plot_on_image(out / f"{stem}.overlay.png", picture, ans.lines_px,
-                        np.array([m.pixel for m in parsed]), ans.transform.to_pixels(ans.model_points),
-                        ans.observed_px, caption)
-    info = {"result": str(result_path), "image": str(image), "transform": ans.transform.as_dict(),
-            "matches": [{"loop": list(m.loop), "point": m.point, "pixel": m.pixel.tolist(),
-                         "residual_px": float(r)} for m, r in zip(parsed, ans.residuals_px)],
-            "observed_rms_model_units": ans.observed_rms}
-    js = write_json(out / f"{stem}.overlay.json", info)
     print(f"similarity: scale {t.scale:.6g} px/unit, rotation {np.degrees(t.rotation):.4f} deg, "
           f"shift ({t.b.real:.3f}, {-t.b.imag:.3f}) px")
     for m, r in zip(parsed, ans.residuals_px):
@@ -173,12 +160,6 @@ def _declared_size(data: bytes) -> tuple[int, int]:
             return im.size
     finally:
         Image.MAX_IMAGE_PIXELS = limit
-
-
-def overlay_name(result_path: Path, image: Path) -> str:
-    """``<result stem>.<image stem>``: the name of an overlay's files (``.overlay.png``,
-    ``.overlay.json``)."""
-    return f"{result_path.name.removesuffix('.json')}.{image.stem}"
 
 
 def _problem_of(result: dict, result_path: Path) -> Path:

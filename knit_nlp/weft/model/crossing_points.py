@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .basis import phi
+from .contact.natural import natural_crossings
 from .natural_loop import NaturalLoop
 
 LABELS = ("A", "C", "B", "D", "F", "E", "Q", "S", "R", "G", "P", "H")
@@ -69,21 +70,11 @@ def _frame(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
 
 
 def _candidate_pairs(loop: NaturalLoop, samples: int, shift: np.ndarray) -> list[tuple[float, float]]:
-    """Polyline segment intersections of the upper and lower loop: approximate (s_up, s_low)."""
+    """Polyline segment intersections of the upper and lower loop: approximate (s_up, s_low)
+    (``contact.natural.natural_crossings``, the intersection of two sampled yarns)."""
     s = np.linspace(0.0, loop.length, samples)
     low = loop.xy(s)
-    up = low + shift
-    p, dp = up[:-1, None, :], np.diff(up, axis=0)[:, None, :]
-    q, dq = low[None, :-1, :], np.diff(low, axis=0)[None, :, :]
-    den = dp[..., 0] * dq[..., 1] - dp[..., 1] * dq[..., 0]
-    r = q - p
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tu = (r[..., 0] * dq[..., 1] - r[..., 1] * dq[..., 0]) / den
-        tl = (r[..., 0] * dp[..., 1] - r[..., 1] * dp[..., 0]) / den
-    hit = (np.abs(den) > 1e-14) & (tu >= 0) & (tu < 1) & (tl >= 0) & (tl < 1)
-    iu, il = np.nonzero(hit)
-    h = s[1] - s[0]
-    return [(s[a] + tu[a, b] * h, s[b] + tl[a, b] * h) for a, b in zip(iu, il)]
+    return [(su, sl) for su, sl, _ in natural_crossings(low + shift, low, s)]
 
 
 def _refine(loop: NaturalLoop, pairs: list[tuple[float, float]], shift: np.ndarray,

@@ -11,7 +11,8 @@ with I(a; s) = ∫₀ˢ (cos θ, sin θ) du, θ = φ(u)·a (eqs. 1, 14-15), by t
 ``curves.py``: I = Σ_{i<j} ΔI_i(a) + ∫_{s_j}^{s}, the whole cells' increments ΔI_i computed
 once per loop and shared by every slot on it (picked by a 0/1 mask per slot, U_i = [i < j],
 also a parameter), the partial cell by NODES nodes per point (8 nodes per point where a rule
-on all of [0, s] took 48); and one inequality row, the signed normal gap
+on all of [0, s] took 48; ``curves.partial_cell``, the definition the numbers use too); and one
+inequality row, the signed normal gap
 
     g_c = σ (P_A − P_B)·N(Θ) ≥ required_c,    N(Θ) = (−sin Θ, cos Θ),
 
@@ -41,7 +42,7 @@ import numpy as np
 from ...layout import Layout
 from ..model.basis import basis_terms, n_coeffs
 from ..model.parametrisation import Full
-from ..model.contact.curves import Curves, cell_of, cell_rule, cell_weights
+from ..model.contact.curves import Curves, cell_of, cell_rule, cell_weights, partial_cell
 from ..model.quadrature import rule_integrals
 from .derivatives import block_triu_sparsity, triu_pairs, closed_form_derivatives
 from .full import FullNLP
@@ -274,18 +275,14 @@ class _Geometry:
         self.sides = []
         Q = len(xi)
         for k, s, U in ((kA, sA, masks[0]), (kB, sB, masks[1])):
-            srow = ca.transpose(s)
-            sj = (L / M) * ca.sum1(U)                                  # cell starts, 1 × n
-            ell = srow - sj
-            nodes = ca.repmat(sj, Q, 1) + ca.mtimes(ca.DM(xi), ell)    # Q × n
-            phis = basis_mx(nodes, L, t)                                 # nc matrices Q × n
-            Ak = A[:, k.tolist()]                                      # nc × n
-            theta = sum(phis[c] * ca.repmat(Ak[c, :], Q, 1) for c in range(nc))
-            cos, sin = ca.cos(theta), ca.sin(theta)
             kl = k.tolist()
+            sj = (L / M) * ca.sum1(U)                                  # cell starts, 1 × n
+            part = partial_cell(sj, ca.transpose(s), A[:, kl], L, t, ca.sin, ca.cos,
+                                ca.mtimes, _repeat_rows)               # as the numbers (curves)
+            ell, phis, cos, sin = part.length, part.terms, part.cos, part.sin
             whole = self.cells
-            I = ca.vertcat(ca.sum1(U * whole.dx[:, kl]) + ell * ca.mtimes(self.w.T, cos),
-                           ca.sum1(U * whole.dy[:, kl]) + ell * ca.mtimes(self.w.T, sin))
+            I = ca.vertcat(ca.sum1(U * whole.dx[:, kl]) + part.dx,
+                           ca.sum1(U * whole.dy[:, kl]) + part.dy)
             ws = ca.repmat(self.w, 1, n) * ca.repmat(ell, Q, 1)         # ℓ·w_q, Q × n
             dIx = ca.vertcat(*[ca.sum1(U * whole.ddx[c][:, kl]) - ca.sum1(ws * sin * phis[c])
                                for c in range(nc)])
@@ -327,6 +324,12 @@ class _Cells:
         coef = ca.mtimes(R, omega_x) * self.cos + ca.mtimes(R, omega_y) * self.sin
         pp = ca.DM(np.stack([self.phi[:, i] * self.phi[:, j] for i, j in zip(iu, ju)]))
         return ca.mtimes(pp, coef)
+
+
+def _repeat_rows(v: ca.MX, nodes: int) -> ca.MX:
+    """``curves.partial_cell``'s ``rows`` for CasADi (which does not broadcast): the row v at
+    each of the nodes."""
+    return ca.repmat(v, nodes, 1)
 
 
 def basis_mx(u: ca.MX, L: float, t: int) -> list[ca.MX]:

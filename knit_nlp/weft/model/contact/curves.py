@@ -6,17 +6,19 @@ P(k, s) = X_k + ∫₀ˢ (cos θ_k, sin θ_k) du with θ_k(u) = φ(u)·a_k (eqs.
 into :func:`cells` equal cells of width h; s lies in cell j = ⌊s/h⌋ (clipped to the first and
 last), and the integral is the sum of the whole cells before j (each by ``NODES`` Gauss nodes,
 shared by every point of the loop) plus the partial cell [j h, s] by ``NODES`` Gauss nodes
-scaled to it. s may lie a little outside [0, L] (the formula continues the loop smoothly);
+scaled to it (:func:`partial_cell`, written once for these numbers and the contact rows'
+CasADi expressions). s may lie a little outside [0, L] (the formula continues the loop smoothly);
 contact uses that for feet just past a loop's end.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
+from typing import Any, Callable
 
 import numpy as np
 
-from ..basis import basis_at, dbasis_at
+from ..basis import basis_at, basis_terms, dbasis_at
 from ..quadrature import rule_integrals
 
 NODES = 8           # Gauss-Legendre nodes per cell
@@ -65,6 +67,44 @@ def cell_of(s: np.ndarray, L: float, t: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class PartialCell:
+    """The partial cell [start, s] of eq. (1) at n points (rows 1 × n, nodes × points Q × n):
+    its length ℓ = s − start, φ's terms at the nodes start + ℓ·ξ_q (eq. 15, one Q × n matrix
+    per coefficient), cos θ and sin θ there, and the integral ℓ·Σ_q w_q (cos θ_q, sin θ_q)."""
+
+    length: Any
+    terms: list
+    cos: Any
+    sin: Any
+    dx: Any
+    dy: Any
+
+
+def partial_cell(start: Any, s: Any, A: Any, L: float, t: int, sin: Callable, cos: Callable,
+                 mtimes: Callable, rows: Callable) -> PartialCell:
+    """The partial cell of the cell rule (module docstring) at n points: ``start`` and ``s``
+    rows 1 × n (the cell's start and the material point), ``A`` the points' loop
+    coefficients nc × n. Written once for numbers (:meth:`Curves.points`: ``np.sin``,
+    ``np.cos``, ``np.matmul`` and ``rows`` broadcasting) and for the contact rows' CasADi
+    expressions (``transcription.contact``: ``ca.sin``, ``ca.cos``, ``ca.mtimes`` and ``rows``
+    by ``ca.repmat``); ``rows(v, Q)`` is the row v at each of the Q nodes."""
+    _, xi, w = cell_rule(t)
+    Q = len(xi)
+    length = s - start
+    nodes = rows(start, Q) + mtimes(xi[:, None], length)
+    terms = basis_terms(nodes, L, t, sin, cos, np.ones((Q, s.shape[1])))
+    theta = sum(rows(A[c:c + 1, :], Q) * term for c, term in enumerate(terms))
+    c, sn = cos(theta), sin(theta)
+    return PartialCell(length, terms, c, sn, length * mtimes(w[None, :], c),
+                       length * mtimes(w[None, :], sn))
+
+
+def _broadcast_rows(v: np.ndarray, _nodes: int) -> np.ndarray:
+    """``partial_cell``'s ``rows`` for numbers: numpy broadcasts a 1 × n row itself."""
+    return v
+
+
+@dataclass(frozen=True)
 class Curves:
     """The centrelines of a fabric state: coefficients (N, 2t+2) and starts (N, 2) by loop
     index k = (i−1)·n + (j−1), with the loop length L and harmonics t."""
@@ -100,15 +140,13 @@ class Curves:
     def points(self, k: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Positions P(k, s), shape k.shape + (2,), by the cell rule."""
         k, s = np.broadcast_arrays(np.asarray(k), np.asarray(s, dtype=float))
-        M, xi, w = cell_rule(self.t)
         j = cell_of(s, self.L, self.t)
-        sj = j * (self.L / M)
-        length = s - sj
-        nodes = sj[..., None] + length[..., None] * xi                # (..., Q)
-        theta = np.einsum("...qc,...c->...q", basis_at(nodes, self.L, self.t),
-                          self.coeffs[k])
-        part = length[..., None] * np.stack([np.cos(theta) @ w, np.sin(theta) @ w], axis=-1)
-        return self.starts[k] + (self.prefix[k, j] + part)
+        start = j * (self.L / cells(self.t))
+        part = partial_cell(start.reshape(1, -1), s.reshape(1, -1), self.coeffs.T[:, k.ravel()],
+                            self.L, self.t, np.sin, np.cos, np.matmul,
+                            _broadcast_rows)
+        inc = np.stack([part.dx[0], part.dy[0]], axis=-1).reshape(s.shape + (2,))
+        return self.starts[k] + (self.prefix[k, j] + inc)
 
     def frames(self, k: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, unit tangents and signed curvatures at (k, s)."""

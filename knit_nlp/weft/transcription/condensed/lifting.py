@@ -14,13 +14,20 @@ from .assembly import block_pattern
 from .shooting import Shooting
 
 
-def lift(model: Shooting, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
+Pattern = tuple[ca.Sparsity, list[np.ndarray]]
+
+
+def normal_pattern(model: Shooting) -> Pattern:
+    """The sparsity of the normal matrix Σ_i T_iᵀT_i (course i's block on its z columns) and
+    per course the index of each block entry among its nonzeros (``block_pattern``): set-up,
+    kept by the NLP (``CondensedNLP.normal_pattern``) for every lift."""
+    return block_pattern((model.nz, model.nz), [(cm.cols, cm.cols) for cm in model.maps])
+
+
+def lift(model: Shooting, pattern: Pattern, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """The solver vector of ``model`` whose loops are closest to ``coeffs`` (m, n, 2t+2), with
-    the segment starts of ``starts`` (m, n, 2)."""
-    if "normal" not in model._cache:
-        model._cache["normal"] = block_pattern((model.nz, model.nz),
-                                               [(cm.cols, cm.cols) for cm in model.maps])
-    sp, idx = model._cache["normal"]
+    the segment starts of ``starts`` (m, n, 2); ``pattern``: ``normal_pattern(model)``."""
+    sp, idx = pattern
     values, rhs = np.zeros(sp.nnz() + 1), np.zeros(model.nz)
     for i, (cm, ix) in enumerate(zip(model.maps, idx)):
         Ti = cm.T.reshape(-1, cm.cols.size)

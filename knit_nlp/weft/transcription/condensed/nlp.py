@@ -24,6 +24,8 @@ CasADi Functions). The model is split by job, each step a class adding to the la
 """
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from ...model.parametrisation import Reduced
@@ -32,7 +34,7 @@ from ..protocol import WeftNLP
 from ..reduction import with_clamped
 from .assembly import Assembly
 from .glue import oracles
-from .lifting import lift
+from .lifting import Pattern, lift, normal_pattern
 
 RANK_TOL = 1e-8        # singular values below this fraction of the largest count as zero
 
@@ -69,7 +71,12 @@ class CondensedNLP(Assembly, WeftNLP):
     def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
         """The solver vector whose loops are closest (least squares in the coefficients) to
         ``coeffs`` (m, n, 2t+2), with the segment starts of ``starts`` (``lifting``)."""
-        return lift(self, coeffs, starts)
+        return lift(self, self.normal_pattern, coeffs, starts)
+
+    @cached_property
+    def normal_pattern(self) -> Pattern:
+        """The lifting's normal-matrix sparsity (``lifting.normal_pattern``), built once."""
+        return normal_pattern(self)
 
     def representatives(self) -> dict:
         out: dict = {"courses": list(self.reduction.courses),
