@@ -128,8 +128,10 @@ class Near:
     designed: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     def select(self, keep: np.ndarray) -> "Near":
+        designed = (self.designed if len(self.designed) == len(self.d)
+                    else np.zeros(len(self.d), bool))
         return Near(self.ca[keep], self.ua[keep], self.cb[keep], self.ub[keep], self.d[keep],
-                    self.designed[keep] if self.designed.size else self.designed)
+                    designed[keep])
 
 
 def close_segments(courses: Courses, reach: float, exclusion: float, rows: int = ROWS
@@ -256,24 +258,45 @@ def projected_crossings(courses: Courses, rows: int = ROWS) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros((0, 4))
 
 
-def own_contact(near: Near, found: Designed, window: float) -> np.ndarray:
+def own_contact(near: Near, found: Designed, window: float, wales: int, L: float
+                ) -> np.ndarray:
     """Which pairs are a matched designed crossing's own contact: on courses i and i − 1, both
-    closest points within ``window`` of the crossing along their yarns."""
+    closest points within ``window`` of the crossing along their yarns (the crossings of the
+    upper point's wale and its two neighbours are looked at)."""
     out = np.zeros(len(near.d), dtype=bool)
+    if not len(found.order):
+        return out
     a_up = near.ca == near.cb + 1
     pair = a_up | (near.cb == near.ca + 1)
     course = np.where(a_up, near.ca, near.cb)
     upper, lower = np.where(a_up, near.ua, near.ub), np.where(a_up, near.ub, near.ua)
-    ok = ~found.lost
-    for c in np.unique(course[pair]):
-        idx = np.flatnonzero(pair & (course == c))
-        mine = ok & (found.course == c)
-        if not mine.any():
-            continue
-        inside = ((np.abs(upper[idx, None] - found.u_upper[None, mine]) < window)
-                  & (np.abs(lower[idx, None] - found.u_lower[None, mine]) < window)).any(axis=1)
-        out[idx[inside]] = True
+    j0 = np.floor(upper / L).astype(int)
+    for dj in (-1, 0, 1):
+        j = j0 + dj
+        valid = pair & (j >= 0) & (j < wales)
+        for q in range(len(PAIRS)):
+            idx = np.where(valid, ((course - 1) * wales + j) * len(PAIRS) + q, 0)
+            out |= valid & ~found.lost[idx] & (np.abs(upper - found.u_upper[idx]) < window) & (
+                np.abs(lower - found.u_lower[idx]) < window)
     return out
+
+
+def reduce(near: Near, cell: float, L: float) -> Near:
+    """The closest pair of each cell (``cell`` of a loop along both yarns, designed contacts
+    apart from the others): every distance the report states (the smallest, the closest per
+    pair of loops and kind) is kept, and the pairs of one contact (tens of segment pairs)
+    become a few."""
+    if not len(near.d):
+        return near
+    per = int(np.ceil(L / cell)) + 1
+    ia = np.floor(near.ua / L).astype(np.int64) * per + np.floor(near.ua % L / cell).astype(np.int64)
+    ib = np.floor(near.ub / L).astype(np.int64) * per + np.floor(near.ub % L / cell).astype(np.int64)
+    span = int(max(ia.max(), ib.max())) + 1
+    key = ((near.ca.astype(np.int64) * span + ia) * (int(near.cb.max()) + 1) + near.cb) * span + ib
+    key = 2 * key + (near.designed if len(near.designed) == len(near.d) else 0)
+    order = np.lexsort((near.d, key))
+    _, first = np.unique(key[order], return_index=True)
+    return near.select(order[first])
 
 
 @dataclass
@@ -349,23 +372,23 @@ def check_3d(centrelines: np.ndarray, natural: np.ndarray, L: float, radius: flo
             rep.order_unknown = str(err)
     rep.n_designed, rep.lost = len(found.order), int(found.lost.sum())
     rep.flipped = [_crossing_row(found, k, n) for k in np.flatnonzero(found.flipped)]
-    parts = list(close_segments(courses, 2 * radius, EXCLUSION * np.pi * radius, rows))
-    near = Near(*(np.concatenate(c) for c in zip(*[(q.ca, q.ua, q.cb, q.ub, q.d)
-                                                    for q in parts]))) if parts else None
-    if near is None or not len(near.d):
+    parts = []
+    for chunk in close_segments(courses, 2 * radius, EXCLUSION * np.pi * radius, rows):
+        chunk.designed = own_contact(chunk, found, DESIGNED * 2 * radius, n, L)
+        parts.append(reduce(chunk, radius, L))
+    if not parts or not sum(len(q.d) for q in parts):
         return rep
-    near.designed = own_contact(near, found, DESIGNED * 2 * radius)
+    near = reduce(Near(*(np.concatenate(c) for c in zip(*[
+        (q.ca, q.ua, q.cb, q.ub, q.d, q.designed) for q in parts]))), radius, L)
     k = int(np.argmin(near.d))
     rep.smallest, rep.smallest_where = float(near.d[k]), _where(courses, near, k)
     if (~near.designed).any():
         rep.smallest_other = float(near.d[~near.designed].min())
-    inside = _by_loops(courses, near.select(near.d < 2 * core_radius))
-    rep.n_inside_core, rep.inside_core = len(inside), inside[:LISTED]
+    rep.n_inside_core, rep.inside_core = _by_loops(courses, near.select(near.d < 2 * core_radius))
     other = near.select(~near.designed)
-    touching = _by_loops(courses, other)
-    rep.n_other_touching, rep.other_touching = len(touching), touching[:LISTED]
+    rep.n_other_touching, rep.other_touching = _by_loops(courses, other)
     rep.close = other
-    rep.designed_touching = len(_by_loops(courses, near.select(near.designed)))
+    rep.designed_touching = _by_loops(courses, near.select(near.designed))[0]
     return rep
 
 
@@ -378,10 +401,11 @@ def _where(courses: Courses, near: Near, k: int) -> dict[str, Any]:
             "designed": bool(near.designed[k]) if near.designed.size else False}
 
 
-def _by_loops(courses: Courses, near: Near) -> list[dict[str, Any]]:
-    """Pairs grouped by their two loops, each with its closest pair; closest first."""
+def _by_loops(courses: Courses, near: Near) -> tuple[int, list[dict[str, Any]]]:
+    """Pairs grouped by their two loops: how many pairs of loops, and the closest pair of each
+    of the ``LISTED`` closest pairs of loops, closest first."""
     if not len(near.d):
-        return []
+        return 0, []
     ka, _ = courses.loop_of(near.ca, near.ua)
     kb, _ = courses.loop_of(near.cb, near.ub)
     lo, hi = np.minimum(ka, kb), np.maximum(ka, kb)
@@ -390,7 +414,7 @@ def _by_loops(courses: Courses, near: Near) -> list[dict[str, Any]]:
     _, first = np.unique(key[order], return_index=True)
     best = order[first]
     best = best[np.argsort(near.d[best], kind="stable")]
-    return [_where(courses, near, int(k)) for k in best]
+    return len(best), [_where(courses, near, int(k)) for k in best[:LISTED]]
 
 
 def _crossing_row(found: Designed, k: int, n: int) -> dict[str, Any]:
