@@ -8,8 +8,9 @@
    sharing a sample, found (a) by the check's broad phase (``contact.near.close_pairs`` on the
    segments' midpoints, radius 2r + the longest segment) and (b) by ipctk's (``Candidates.build``
    on a CollisionMesh of the polylines, boxes inflated by r, its default broad phase and its
-   HashGrid and BVH), each followed by the same exact segment distance
-   (``proximity.segment_distance``): the two sets must be equal; the seconds of each. Then the
+   HashGrid, BVH and SweepAndPrune), each followed by the same exact segment distance
+   (``proximity.segment_distance``): the two sets must be equal; the seconds of each (second
+   call of each, the first pays imports and set-up). Then the
    whole check's verdict on that answer. ``--skip-solve`` takes the natural 6 x 6 fabric.
 2. An N x N natural 3-D acrylic fabric built with numpy (the natural loop placed on its
    lattice, ``output.check.spatial_natural``'s shape): the whole check's seconds and its peak
@@ -109,17 +110,20 @@ def compare(skip_solve: bool) -> None:
         what = "diagonal_pull_3d solved"
     courses = Courses.of(lines, pr.L)
     reach = 2 * pr.yarn.radius
+    ours(courses, reach)                    # the first call imports scipy's k-d tree
     mine, t_mine = ours(courses, reach)
     print(f"{what}: {lines.shape[0]} x {lines.shape[1]} loops, {S} samples per loop, "
           f"{len(courses.segments()[0])} segments; pairs within 2r = {reach:g} mm")
     print(f"  check's broad phase (k-d tree, close_pairs) + exact distance: {len(mine)} pairs, "
           f"{t_mine:.3f} s")
     for broad in ("default", "HashGrid", "BVH", "SweepAndPrune"):
+        theirs(courses, reach, broad)
         got, t = theirs(courses, reach, broad)
         print(f"  ipctk {broad} + exact distance: {len(got)} pairs, {t:.3f} s, same pairs: "
               f"{got == mine} (only ours {len(mine - got)}, only ipctk's {len(got - mine)})")
+    t0 = time.perf_counter()
     rep = spatial_state(pr, lines)
-    print("  check:", rep.verdict("mm"))
+    print(f"  check ({time.perf_counter() - t0:.2f} s):", rep.verdict("mm"))
 
 
 def _large(n: int, queue) -> None:

@@ -40,7 +40,7 @@ from ..model.centrelines import SAMPLES as CENTRELINE_SAMPLES
 from ..model.problem import WeftProblem
 from ..model.quadrature import positions
 from ..model.spatial.curve3d import positions3d
-from ..model.spatial.proximity import ProximityReport, check_3d
+from ..model.spatial.proximity import ProximityReport, check_3d, natural_lines
 
 GAP_TOL = 1e-3             # the issue's target: no gap below 2r·(1 − 1e-3)
 REACH = 0.5                # pairs within this many r of their required gap are looked at
@@ -365,12 +365,9 @@ def spatial_samples(problem: WeftProblem, samples: int = SAMPLES) -> int:
 
 
 def spatial_natural(problem: WeftProblem, samples: int) -> np.ndarray:
-    """The natural 3-D centrelines of two courses of at least three wales (where the check
-    reads the designed crossings: ``proximity.reference_crossings``)."""
-    sh = problem.yarn.natural3d
-    n = max(problem.wales, 3)
-    s = np.linspace(0.0, problem.L, samples)
-    return sh.xyz(s)[None, None] + sh.starts(2, n)[:, :, None, :]
+    """The natural 3-D centrelines the check reads the designed crossings on
+    (``proximity.natural_lines``)."""
+    return natural_lines(problem.yarn.natural3d, problem.wales, samples)
 
 
 def spatial_state(problem: WeftProblem, centrelines: np.ndarray) -> ProximityReport:

@@ -186,7 +186,13 @@ class WeftResult(Outcome):
     def _spatial(self) -> dict[str, Any] | None:
         """The 3-D model's ``spatial`` block (docs/weft3d.md), None for the planar models."""
         spatial = getattr(self.nlp, "spatial_block", None)
-        return None if spatial is None else spatial(self.x, self.params.vector())
+        if spatial is None:
+            return None
+        block = spatial(self.x, self.params.vector())
+        if getattr(self.nlp, "neighbours", None) is not None:      # rounds3d: other contacts
+            block["other_contacts"] = {"listed_pairs": len(self.nlp.neighbours),
+                                       "rounds": list(self.nlp.rounds)}
+        return block
 
     def _save_3d(self, stem: Path, deformed: np.ndarray) -> list[Path]:
         """The 3-D model's yarn as tubes of its radius: ``.3d.png`` (oblique and side views,

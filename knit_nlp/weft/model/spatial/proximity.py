@@ -38,7 +38,7 @@ import numpy as np
 
 from ..contact.natural import EXCLUSION
 from ..contact.near import close_pairs
-from .natural3d import PAIRS
+from .natural3d import PAIRS, Natural3D
 
 ROWS = 1 << 20              # candidate segment pairs judged at once (about 0.3 GB of temporaries)
 MATCH = 0.25                # a designed crossing matches a projected crossing within MATCH·L
@@ -353,6 +353,13 @@ class ProximityReport:
                 "samples_per_loop": self.samples,
                 "same_yarn_rule": f"pieces of one course closer than {EXCLUSION:g}*pi*r along "
                                   "the yarn are one piece"}
+
+
+def natural_lines(shape: Natural3D, wales: int, samples: int) -> np.ndarray:
+    """The natural 3-D centrelines of two courses of at least three wales (m, n, S, 3): where
+    :func:`check_3d` reads the designed crossings (``reference_crossings``)."""
+    s = np.linspace(0.0, shape.length, samples)
+    return shape.xyz(s)[None, None] + shape.starts(2, max(wales, 3))[:, :, None, :]
 
 
 def check_3d(centrelines: np.ndarray, natural: np.ndarray, L: float, radius: float,
