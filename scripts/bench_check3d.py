@@ -121,6 +121,13 @@ def compare(skip_solve: bool) -> None:
         got, t = theirs(courses, reach, broad)
         print(f"  ipctk {broad} + exact distance: {len(got)} pairs, {t:.3f} s, same pairs: "
               f"{got == mine} (only ours {len(mine - got)}, only ipctk's {len(got - mine)})")
+        if got != mine:                     # what differs, to look at
+            p, d = courses.segments()
+            for name, uv in (("only ours", mine - got), ("only ipctk's", got - mine)):
+                uv = np.array(sorted(uv)[:3], dtype=np.int64).reshape(-1, 2)
+                dist = segment_distance(p[uv[:, 0]], d[uv[:, 0]], p[uv[:, 1]], d[uv[:, 1]])[0]
+                print(f"    {name}: {uv.tolist()} at {np.round(dist, 4).tolist()} mm")
+            np.save("bench_check3d_mismatch.npy", lines)
     t0 = time.perf_counter()
     rep = spatial_state(pr, lines)
     print(f"  check ({time.perf_counter() - t0:.2f} s):", rep.verdict("mm"))

@@ -36,7 +36,7 @@ coord = st.floats(-2.0, 2.0, allow_nan=False)
 point = st.tuples(coord, coord, coord).map(np.array)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(point, point, point, point, st.booleans())
 def test_segment_distance_is_the_exact_minimum(p0, p1, q0, q1, parallel) -> None:
     """Against brute force on 401 x 401 points of the two segments: never above it, and below
