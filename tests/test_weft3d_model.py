@@ -15,6 +15,7 @@ from knit_nlp.problems import resolve
 from knit_nlp.weft.model.basis import phi
 from knit_nlp.weft.model.spatial.crossing_contact import separation
 from knit_nlp.weft.model.spatial.curve3d import bending3d_numpy, positions3d
+from knit_nlp.weft.model.spatial.repulsion import sample_s
 
 ACRYLIC_2x2 = {"fabric": {"courses": 2, "wales": 2},
                "loop": {"length": 11.28, "harmonics": 3}, "material": {"R_f": 0.045},
@@ -46,7 +47,8 @@ def small():
 def test_objective_equals_an_independent_evaluation(small) -> None:
     """f at a perturbed consistent state (every lifted block recomputed) equals the bending of
     each loop by numpy quadrature (S4) plus the crossing energy (C1) of the separations
-    measured on numpy centrelines at the crossings' material coordinates (S2, S6)."""
+    measured on numpy centrelines at the crossings' material coordinates (S2, S6) plus the
+    other contacts' repulsion (R1) of numpy samples."""
     pr, nlp = small
     rng = np.random.default_rng(5)
     A = nlp.coefficients(nlp.x0) + 0.02 * rng.normal(size=nlp.coefficients(nlp.x0).shape)
@@ -70,6 +72,13 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
                               ends[1][1][None], nlp.signs[c:c + 1])
         contact += float(shell.crossing_energy(h, sin_a)[0])
     assert contact > 0
+    # the other contacts (R1): w² v(|x_a − x_b| + c) over the neighbour list, numpy samples
+    nb = nlp.neighbours
+    s = sample_s(pr.L, nb.samples)
+    pts = np.array([X[i, j] + positions3d(A[i, j], B[i, j], s, pr.L, pr.t, sh.modes)
+                    for i in range(2) for j in range(2)])
+    d = np.linalg.norm(pts[nb.ka, nb.qa] - pts[nb.kb, nb.qb], axis=1) + nb.shift
+    contact += float(np.sum((pr.L / nb.samples) ** 2 * shell.energy(d)))
     spring_contact, bending, work = nlp.energy(x, nlp.p0)
     assert bending == pytest.approx(bend, rel=1e-8)          # 8 against 16 Gauss nodes
     assert spring_contact == pytest.approx(contact, rel=1e-7)

@@ -25,8 +25,7 @@ from .inverse.spec import has_control_keys, strip_control_keys
 from .model.problem import MAX_CONTINUATION, WeftProblem, parse_problem
 from .model.reach import overstretch
 from .model.resize import parse_size, resized
-from .transcription.spatial import planar_only
-from .output.check import SAMPLES, check, load_result_json
+from .output.check import SAMPLES, check, check_spatial, load_result_json
 from .output.export import COLOURINGS, EXPORTS
 
 
@@ -171,11 +170,10 @@ def run_check(args: Namespace) -> int:
     problem = _problem_of(result, result_path, given)
     if given is not None:
         _same_source(result, result_path, given, problem)
-    if problem.yarn is not None and problem.yarn.spatial:
-        raise planar_only(problem, "check", "it judges planar answers; a 3-D result carries "
-                          "the 3-D model's own check (its JSON's check block), and the 3-D "
-                          "check of all pairs of yarn pieces is not built yet")
-    report = check(result, problem, args.samples, str(result_path))
+    if problem.yarn is not None and problem.yarn.spatial:     # all pairs of pieces in 3-D
+        report = check_spatial(result, problem, args.samples, str(result_path))
+    else:
+        report = check(result, problem, args.samples, str(result_path))
     report.save(prepare_out(args.out, problem.name, ()), result_path)
     print(report.line())
     return 0 if report.ok else 1

@@ -36,8 +36,11 @@ from ..model.contact.curves import Curves
 from ..model.contact.natural import NaturalFabric
 from ..model.contact.near import TooLarge
 from ..model.contact.pairs import SAMPLES, Grid, Pairs, check_samples, find_pairs
+from ..model.centrelines import SAMPLES as CENTRELINE_SAMPLES
 from ..model.problem import WeftProblem
 from ..model.quadrature import positions
+from ..model.spatial.curve3d import positions3d
+from ..model.spatial.proximity import ProximityReport, check_3d, natural_lines
 
 GAP_TOL = 1e-3             # the issue's target: no gap below 2r·(1 − 1e-3)
 REACH = 0.5                # pairs within this many r of their required gap are looked at
@@ -327,26 +330,87 @@ def own_check(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray
     return report, report.block()
 
 
-def spatial_check(block: dict[str, Any], core_radius: float, unit: str) -> dict[str, Any]:
-    """The 3-D model's own check (docs/weft3d.md), from its result's ``spatial`` block: every
-    designed crossing keeps its over/under order (signed separation > 0) and stays outside the
-    yarns' hard core (separation > 2R_c). The planar check above (crossings and gaps of the
-    projected centrelines) does not apply to yarns that pass over and under each other, and
-    pieces other than the designed crossings are not searched in 3-D yet: the verdict says so."""
-    flipped = int(block.get("flipped", 0))
-    smallest = block.get("smallest_separation")
-    inside = smallest is not None and smallest <= 2 * core_radius
-    ok = flipped == 0 and not inside
-    sep = "no crossings" if smallest is None else (
-        f"smallest separation {smallest:.4g} {unit} (core {2 * core_radius:.4g} {unit})")
-    slid = int(block.get("slid_off_loop", 0))
-    verdict = (f"designed crossings: {flipped} flipped, {sep}"
-               + (f", {slid} crossing points slid past their loop's end" if slid else "")
-               + ("" if ok else ": the answer is not physical")
-               + "; other pairs of yarn pieces are not checked in 3-D yet")
-    return {"model": "3d", "ok": ok, "flipped": flipped, "smallest_separation": smallest,
-            "core": 2 * core_radius, "slid_off_loop": slid, "other_pairs_checked": False,
-            "verdict": verdict}
+# -- the 3-D model (docs/weft3d.md, "Check") ---------------------------------------------
+
+@dataclass
+class SpatialCheckReport:
+    """``knit-nlp check`` of a 3-D result: the independent check over all pairs of yarn
+    pieces (``model.spatial.proximity``), with the CheckReport's ``ok``, ``line`` and ``save``."""
+
+    problem: str
+    report: ProximityReport
+    unit: str
+
+    @property
+    def ok(self) -> bool:
+        return self.report.ok
+
+    def line(self) -> str:
+        return f"{self.problem}: {self.report.verdict(self.unit)}"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"problem": self.problem, **self.report.block(self.unit)}
+
+    def save(self, out_dir: Path | str, result_path: Path | str | None = None) -> list[Path]:
+        """``<result stem>.check.json`` in ``out_dir``, as :meth:`CheckReport.save`."""
+        stem = (self.problem if result_path is None
+                else Path(result_path).name.removesuffix(".json"))
+        return [write_json(Path(out_dir) / f"{stem}.check.json", self.to_json())]
+
+
+def spatial_samples(problem: WeftProblem, samples: int = SAMPLES) -> int:
+    """Samples per loop of the 3-D check: ``check_samples`` (4 per radius, at least 16, at
+    most ``samples``), and never fewer than the result pictures' 61."""
+    return max(CENTRELINE_SAMPLES, check_samples(problem.L, problem.yarn.radius, samples))
+
+
+def spatial_natural(problem: WeftProblem, samples: int) -> np.ndarray:
+    """The natural 3-D centrelines the check reads the designed crossings on
+    (``proximity.natural_lines``)."""
+    return natural_lines(problem.yarn.natural3d, problem.wales, samples)
+
+
+def spatial_state(problem: WeftProblem, centrelines: np.ndarray) -> ProximityReport:
+    """The independent 3-D check of deformed centrelines (m, n, S, 3) of a problem."""
+    yarn = problem.yarn
+    return check_3d(centrelines, spatial_natural(problem, centrelines.shape[2]), problem.L,
+                    yarn.radius, yarn.core_radius)
+
+
+def spatial_own_check(problem: WeftProblem, centrelines: np.ndarray) -> dict[str, Any]:
+    """The ``check`` block every 3-D result carries (``WeftResult.checked``)."""
+    if not np.all(np.isfinite(centrelines)):
+        return {"model": "3d", "ok": None, "verdict": "not checked: the loops are not finite"}
+    return spatial_state(problem, centrelines).block(problem.units.length)
+
+
+def spatial_loops(result: Any, problem: WeftProblem, where: str = "result",
+                  samples: int = SAMPLES) -> np.ndarray:
+    """A 3-D result JSON's loops rebuilt (coefficients, ``elevations``, course starts with
+    ``course_starts_z``: eq. S2, loops chained) as sampled centrelines (m, n, S, 3)."""
+    coeffs, _ = loops_of(result, problem, where)
+    loops = (result.get("equilibrium", result) if "loops" not in result else result)["loops"]
+    m, n, q = problem.courses, problem.wales, problem.yarn.elevation_modes
+    if "elevations" not in loops or "course_starts_z" not in loops:
+        raise ProblemError(where, "loops", "elevations", "missing: a 3-D result written before "
+                           "the 3-D check (solve it again)")
+    elev = _array(loops["elevations"], (m, n, n_coeffs(q)), where, "elevations")
+    course = np.concatenate([_array(loops["course_starts"], (m, 2), where, "course_starts"),
+                             _array(loops["course_starts_z"], (m,), where,
+                                    "course_starts_z")[:, None]], axis=1)
+    A, B = coeffs.reshape(m * n, -1), elev.reshape(m * n, -1)
+    S = spatial_samples(problem, samples)
+    s = np.linspace(0.0, problem.L, S)
+    d = positions3d(A, B, s, problem.L, problem.t, q).reshape(m, n, S, 3)
+    starts = np.concatenate([course[:, None], d[:, :-1, -1]], axis=1).cumsum(axis=1)
+    return d + starts[:, :, None, :]
+
+
+def check_spatial(result: Any, problem: WeftProblem, samples: int = SAMPLES,
+                  where: str = "result") -> SpatialCheckReport:
+    """``knit-nlp check`` of a 3-D result JSON (``samples``: at most this many per loop)."""
+    report = spatial_state(problem, spatial_loops(result, problem, where, samples))
+    return SpatialCheckReport(problem.name, report, problem.units.length)
 
 
 def load_result_json(path: Path) -> Any:

@@ -175,17 +175,24 @@ class WeftResult(Outcome):
         """The answer's own check (``output.check``: new crossings against the natural fabric,
         with a radius gaps below their requirement), made once: the result JSON's ``check``
         block, which the summary and the picture's title also state."""
-        from .check import own_check, spatial_check   # the contact package, only when told
+        from .check import own_check, spatial_own_check, spatial_samples  # only when told
         yarn = self.problem.yarn
-        if yarn is not None and yarn.spatial:           # the 3-D model checks its crossings
-            return spatial_check(self._spatial, yarn.core_radius, self.problem.units.length)
+        if yarn is not None and yarn.spatial:    # all pairs of pieces in 3-D (docs/weft3d.md)
+            return spatial_own_check(self.problem, self.nlp.centrelines3d(
+                self.x, spatial_samples(self.problem)))
         return own_check(self.problem, self.coefficients, self.starts)[1]
 
     @cached_property
     def _spatial(self) -> dict[str, Any] | None:
         """The 3-D model's ``spatial`` block (docs/weft3d.md), None for the planar models."""
         spatial = getattr(self.nlp, "spatial_block", None)
-        return None if spatial is None else spatial(self.x, self.params.vector())
+        if spatial is None:
+            return None
+        block = spatial(self.x, self.params.vector())
+        if getattr(self.nlp, "neighbours", None) is not None:      # rounds3d: other contacts
+            block["other_contacts"] = {"listed_pairs": len(self.nlp.neighbours),
+                                       "rounds": list(self.nlp.rounds)}
+        return block
 
     def _save_3d(self, stem: Path, deformed: np.ndarray) -> list[Path]:
         """The 3-D model's yarn as tubes of its radius: ``.3d.png`` (oblique and side views,
@@ -233,6 +240,8 @@ class WeftResult(Outcome):
             result["representatives"] = reps
         if self._spatial is not None:                        # the 3-D model (docs/weft3d.md)
             result["spatial"] = self._spatial
+            result["loops"].update(course_starts_z=self.nlp.starts3d(self.x)[:, 0, 2].tolist(),
+                                   elevations=self.nlp.elevations(self.x).tolist())
         source = source_record(self.problem.source)
         if source:
             result["source"] = source

@@ -45,6 +45,15 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
                      f"[{u.force}], smallest gap " + (f"{gap:.6g} [{u.length}] = "
                      f"{contact.smallest_gap_over_2r:.6g} x 2r" if gap is not None
                      else "none within reach") + f", {contact.new_crossings} new crossings")
+    listed = getattr(r.nlp, "neighbours", None)               # the 3-D model's rounds
+    if listed is not None:
+        rounds = r.nlp.rounds
+        failed = [x["status"] for x in rounds if x["status"] != "Solve_Succeeded"]
+        lines.append(f"  other contacts: {len(listed)} pairs of sample points repel; "
+                     f"{len(rounds)} rounds added {sum(x['added'] for x in rounds)} pairs the "
+                     "check found closer than 2r" + (f" (the last round's solve failed: "
+                                                     f"{failed[0]}; its pairs not kept)"
+                                                     if failed else ""))
     lines.append("  check: " + r.checked["verdict"])
     lines += implausible(r)                     # springs beyond L, folds, loops inside out
     if not r.success:

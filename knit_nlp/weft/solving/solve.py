@@ -253,6 +253,15 @@ class Equilibrium:
 
     with_contact = False        # whether solves and the KKT system hold yarn contact
 
+    def rebuild(self, nlp: WeftNLP) -> None:
+        """Solve ``nlp`` from now on (the 3-D model's rounds of other contacts, rounds3d.py):
+        its IPOPT instance built here on the same wall-clock budget ([solver] max_time), the
+        KKT system afresh."""
+        t0 = time.perf_counter()
+        self.nlp, self._kkt = nlp, None
+        self.solver = WeftSolver(nlp, verbose=self.solver.verbose, clock=self.solver.clock)
+        self._build_s += time.perf_counter() - t0
+
     @property
     def wnlp(self) -> WeftNLP:
         """The NLP (the inverse problems' name for :attr:`nlp`)."""

@@ -23,6 +23,7 @@ from ..model.problem import WeftProblem
 from .adaptive import AdaptiveEquilibrium
 from .contact.equilibrium import KEEP, ContactEquilibrium, refuse
 from ..transcription.spatial import planar_only
+from .rounds3d import SpatialEquilibrium
 from .solve import Equilibrium
 
 ForwardEquilibrium = Equilibrium | AdaptiveEquilibrium
@@ -41,7 +42,7 @@ def equilibrium(problem: WeftProblem, parametrisation: Parametrisation | None = 
     if problem.yarn is not None and problem.yarn.spatial:
         if isinstance(param, (Reduced, Adaptive)):
             raise planar_only(problem, "the reduced model")
-        return Equilibrium(problem, Full(), verbose=verbose)
+        return SpatialEquilibrium(problem, Full(), verbose=verbose)   # rounds3d: other contacts
     if problem.yarn is not None:
         if isinstance(param, (Reduced, Adaptive)):
             own = " (the file's [reduction])" if parametrisation is None else ""

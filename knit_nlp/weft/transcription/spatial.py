@@ -38,6 +38,7 @@ from ..model.problem import WeftProblem
 from ..model.spatial.crossing_contact import crossing_terms, separation
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
 from ..model.spatial.natural3d import PAIRS, Natural3D, flat
+from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
 from ..model.centrelines import SAMPLES
 from .full import Constraints
 from .protocol import WeftNLP
@@ -59,7 +60,7 @@ def planar_only(problem: WeftProblem, what: str, why: str = REDUCED_IS_PLANAR) -
 
 
 SEGMENT_NODES = 8          # Gauss nodes on [s0, σ] (S3)
-LIFTED = ("SL", "SR", "cp", "PC")
+LIFTED = ("SL", "SR", "cp", "PC", "rp")
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,7 @@ class Spatial:
     elevation: bool = True
     contacts: bool = True
     springs: bool | None = None
+    repulsion: bool = True        # the other contacts (repulsion.py), with the contacts
 
 
 @dataclass
@@ -106,6 +108,8 @@ class SpatialNLP(WeftNLP):
         "show_eval_warnings": False})
     parametrisation: Full = Full()
     model: str = "full3d"
+    neighbours: Neighbours | None = None   # the other contacts' list (repulsion.py)
+    rounds: list[dict[str, Any]] = field(default_factory=list)   # rounds3d's, per round
 
     # -- the protocol ----------------------------------------------------------------
     def energy(self, x: np.ndarray, p: np.ndarray) -> tuple[float, float, float]:
@@ -239,12 +243,22 @@ class SpatialNLP(WeftNLP):
                 "flipped": int(np.sum(state["h"] <= 0)),
                 "slid_off_loop": int(np.sum((sig < 0) | (sig > self.problem.L)))}
 
+    def sample_points(self, x: np.ndarray, samples: int) -> np.ndarray:
+        """Every loop's repulsion samples (N, S, 3) at x (``repulsion.sample_s``, S2)."""
+        pr = self.problem
+        d = positions3d(self.coefficients(x).reshape(pr.n_loops, -1),
+                        self.elevations(x).reshape(pr.n_loops, -1), sample_s(pr.L, samples),
+                        pr.L, pr.t, self.shape.modes)
+        return d + self.starts3d(x).reshape(pr.n_loops, 1, 3)
+
     def _lifted_names(self) -> list[str]:
         return [name for name in LIFTED if name in self.x.blocks]
 
 
-def build_spatial(pr: WeftProblem, options: Spatial = Spatial()) -> SpatialNLP:
-    """Assemble the 3-D NLP of a problem (module docstring)."""
+def build_spatial(pr: WeftProblem, options: Spatial = Spatial(),
+                  extra: Neighbours | None = None) -> SpatialNLP:
+    """Assemble the 3-D NLP of a problem (module docstring); ``extra``: pairs of the other
+    contacts added to the natural neighbour list (the solve's rounds)."""
     yarn = pr.yarn
     springs = options.springs if options.springs is not None else bool(
         yarn is not None and yarn.crossing_springs)
@@ -260,14 +274,22 @@ def build_spatial(pr: WeftProblem, options: Spatial = Spatial()) -> SpatialNLP:
     if options.contacts and contacts and not options.elevation:
         raise ValueError("crossing contacts need the elevation (a planar fabric's crossings "
                          "have h = 0)")
-    return _Builder(pr, Spatial(options.elevation, contacts, springs), shape).build()
+    pairs = None
+    if contacts and options.repulsion:
+        pairs = natural_neighbours(shape, pr.courses, pr.wales)
+        pairs = pairs if extra is None else pairs.plus(extra)
+    out = _Builder(pr, Spatial(options.elevation, contacts, springs, pairs is not None), shape,
+                   pairs).build()
+    out.neighbours = pairs
+    return out
 
 
 class _Builder:
     """The blocks of :func:`build_spatial`, in order."""
 
-    def __init__(self, pr: WeftProblem, options: Spatial, shape: Natural3D) -> None:
-        self.pr, self.opt, self.shape = pr, options, shape
+    def __init__(self, pr: WeftProblem, options: Spatial, shape: Natural3D,
+                 pairs: Neighbours | None = None) -> None:
+        self.pr, self.opt, self.shape, self.pairs = pr, options, shape, pairs
         self.N, self.n = pr.n_loops, pr.wales
         self.nc, self.nq = n_coeffs(pr.t), n_coeffs(shape.modes)
         self.K = 4 * (self.N - self.n) if options.contacts else 0
@@ -324,6 +346,8 @@ class _Builder:
             xl.add("cp", 12, self.K)
         if self.specials:
             xl.add("PC", 3, len(self.specials))
+        if self.pairs is not None:
+            xl.add("rp", 3, N * self.pairs.samples)        # the other contacts' samples
         xs = ca.MX.sym("x", xl.size)
         xb = {name: ca.reshape(xs[xl.slice(name)], *shape)
               for name, (_, _, shape) in xl.blocks.items()}
@@ -359,6 +383,8 @@ class _Builder:
         if self.specials:
             lifted["PC"] = at(np.array([sp.s for sp in self.specials]),
                               np.array([sp.k for sp in self.specials]))
+        if self.pairs is not None:
+            lifted["rp"] = self._samples(A, Bel, X)
         for name, expr in lifted.items():
             rows.add(f"lift_{name}", xb[name] - expr)
         if n > 1:
@@ -455,6 +481,7 @@ class _Builder:
             out = self.crossing(cp[0:3, :], cp[3:6, :], cp[6:9, :], cp[9:12, :],
                                 ca.DM(self.signs).T)
             contact, h, sin_a = ca.sum2(out[0]), out[2].T, out[3].T
+        contact += self._repulsion(xb)
         work = ca.MX(0)
         for q, (ld, sp) in enumerate(zip(pr.loads, self.load_pts)):
             work += ca.dot(pb["forces"][:, q], xb["PC"][:2, sp] - ca.DM(pr.natural_position(ld.loop, ld.s)))
@@ -462,3 +489,18 @@ class _Builder:
                                A[:, loop_index(pr, ld.loop)] - ca.DM(sh.coeffs))
             work += pb["moments"][q] * dtheta
         return spring, contact, bend, work, h, sin_a
+
+    # -- the other contacts (model/spatial/repulsion.py, docs/weft3d.md) ------------------
+    def _samples(self, A: ca.MX, Bel: ca.MX, X: ca.MX) -> ca.MX:
+        """Every loop's repulsion samples (3 × N·S, column k·S + q): start + (S2)."""
+        pr, S = self.pr, self.pairs.samples
+        D = loop_displacements3d(pr.L, pr.t, self.shape.modes, sample_s(pr.L, S),
+                                 pr.quadrature_nodes).map(self.N, "serial")(A, Bel)
+        return X[:, np.repeat(np.arange(self.N), S).tolist()] + D
+
+    def _repulsion(self, xb: dict[str, ca.MX]) -> ca.MX:
+        """U_other (R1) of the neighbour list, 0 without one."""
+        if self.pairs is None:
+            return ca.MX(0)
+        return repulsion_energy(self.pr.yarn.shell(), self.pr.L / self.pairs.samples,
+                                xb["rp"], self.pairs)

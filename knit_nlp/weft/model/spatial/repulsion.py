@@ -1,0 +1,221 @@
+"""Other contacts of the 3-D model (docs/weft3d.md, "Other contacts"): the pairs of yarn pieces
+that are no designed crossing (legs of neighbouring wales at the sinker, legs inside the head
+below, courses two apart) repel each other by the soft-shell law.
+
+**Law.** The contact energy of two yarn pieces is the double integral ∫∫ v(|x₁ − x₂|) ds₁ ds₂
+of the soft-shell energy density v (``compression.SoftShell``; stitch-by-stitch's
+``contact_energy``): zero beyond touch (2r) with zero slope there, growing to +∞ at the hard
+core 2R_c. Each loop is sampled at ``SAMPLES`` midpoints s_q = (q + ½)·L/S, each carrying the
+length w = L/S, and the integral is its midpoint rule over the pairs in the neighbour list
+(R1):
+
+    U_other = Σ_(a, b) w² v(|x_a − x_b| + c_ab),
+
+c_ab = max(0, 2r − d⁰_ab) for a pair naturally closer than touch (d⁰ its natural distance):
+the law starts where the natural fabric puts it, so the natural state carries no force (the
+planar contact's "naturally closer pairs keep their natural gap"); 0 otherwise.
+
+**Neighbour list.** From the topology: every pair of loops within two courses and two wales of
+each other (a loop with itself included), and of their sample points those naturally closer
+than ``REACH``·2r, except (1) points of one course closer than EXCLUSION·π·r along the yarn (one
+piece: the planar rule, ``contact/natural.py``) and (2) a designed crossing's own contact: both
+points within ``proximity.DESIGNED``·2r along their yarns of one of its crossings in the
+natural fabric's projection (``proximity.reference_crossings``: the crossing's own energy, S7,
+acts there). Pairs that come close only after deformation are added by the solve's rounds
+(``missing``), from the independent check (``proximity``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..compression import SoftShell
+from ..contact.natural import EXCLUSION
+from .natural3d import Natural3D
+from .proximity import DESIGNED, Courses, Near, reference_crossings
+
+SAMPLES = 12               # sample points per loop (w = L/12: 0.94 mm = 1.27 r for the acrylic)
+REACH = 1.25               # natural pairs closer than REACH·2r are listed (measured: 1.5 and
+#                            16 samples listed 3,810 pairs on the 6 x 6 acrylic, the Hessian 3.2x
+#                            the NLP's without them; 1.25 and 12: 1,250 pairs, 1.3x)
+OFFSETS = ((0, 0), (0, 1), (0, 2)) + tuple((di, dj) for di in (1, 2) for dj in range(-2, 3))
+
+
+def sample_s(L: float, samples: int = SAMPLES) -> np.ndarray:
+    """The material points of a loop's samples (midpoints of S equal pieces)."""
+    return (np.arange(samples) + 0.5) * L / samples
+
+
+@dataclass(frozen=True)
+class Neighbours:
+    """The neighbour list: sample points (loop ``ka``, sample ``qa``) and (``kb``, ``qb``), loop
+    index k = i·n + j (0-based), and each pair's shift c (R1); S samples per loop."""
+
+    ka: np.ndarray
+    qa: np.ndarray
+    kb: np.ndarray
+    qb: np.ndarray
+    shift: np.ndarray
+    samples: int
+
+    def __len__(self) -> int:
+        return len(self.ka)
+
+    def keys(self) -> np.ndarray:
+        """One integer per pair, the same for (a, b) and (b, a)."""
+        a = self.ka.astype(np.int64) * self.samples + self.qa
+        b = self.kb.astype(np.int64) * self.samples + self.qb
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        return lo * (1 << 31) + hi
+
+    def plus(self, other: "Neighbours") -> "Neighbours":
+        return Neighbours(*(np.concatenate([getattr(self, f), getattr(other, f)])
+                            for f in ("ka", "qa", "kb", "qb", "shift")), self.samples)
+
+
+def natural_neighbours(shape: Natural3D, courses: int, wales: int,
+                       samples: int = SAMPLES) -> Neighbours:
+    """The neighbour list of a fabric of natural 3-D loops (module docstring)."""
+    L, r = shape.length, shape.radius
+    s = sample_s(L, samples)
+    x = shape.xyz(s)
+    lattice = np.array([shape.wale_spacing, shape.course_spacing])
+    windows = _designed(shape) if courses > 1 else None
+    parts = []
+    for di, dj in OFFSETS:
+        if di >= courses or abs(dj) >= wales:
+            continue
+        shift = np.array([dj * lattice[0], di * lattice[1], 0.0])
+        d0 = np.linalg.norm(x[:, None] - (x[None] + shift), axis=-1)     # (qa, qb)
+        keep = d0 < REACH * 2 * r
+        if di == 0:
+            keep &= np.abs(dj * L + s[None] - s[:, None]) >= EXCLUSION * np.pi * r
+            if dj == 0:
+                keep &= np.triu(np.ones_like(keep), 1)
+        if di == 1 and windows is not None:
+            keep &= ~_in_window(windows, s, dj, L, DESIGNED * 2 * r)
+        qa, qb = np.nonzero(keep)
+        i, j = np.meshgrid(np.arange(max(0, -di), courses - di),
+                           np.arange(max(0, -dj), wales - max(dj, 0)), indexing="ij")
+        ka = (i * wales + j).ravel()
+        kb = ka + di * wales + dj
+        c = np.maximum(0.0, 2 * r - d0[qa, qb])
+        parts.append((np.repeat(ka, len(qa)), np.tile(qa, len(ka)), np.repeat(kb, len(qa)),
+                      np.tile(qb, len(ka)), np.tile(c, len(ka))))
+    if not parts:
+        return Neighbours(*(np.zeros(0, int) for _ in range(4)), np.zeros(0), samples)
+    return Neighbours(*(np.concatenate(p) for p in zip(*parts)), samples)
+
+
+def _designed(shape: Natural3D) -> tuple[np.ndarray, np.ndarray]:
+    """The designed crossings' material points in the natural projection (upper loop's s,
+    lower offset), from two courses of three natural loops."""
+    s = np.linspace(0.0, shape.length, 241)
+    lines = shape.xyz(s)[None, None] + shape.starts(2, 3)[:, :, None, :]
+    return reference_crossings(Courses.of(lines, shape.length))
+
+
+def _in_window(windows: tuple[np.ndarray, np.ndarray], s: np.ndarray, dj: int, L: float,
+               w: float) -> np.ndarray:
+    """(qa, qb) of lower loop a and upper loop b = a + (1, dj) inside a designed crossing's
+    window: one of the upper wale's crossings (or its neighbours') within w along both."""
+    su, sl = windows
+    out = np.zeros((len(s), len(s)), dtype=bool)
+    for k in (-1, 0, 1):
+        for c_u, c_l in zip(su, sl):
+            up = np.abs(s - (k * L + c_u)) < w
+            low = np.abs(s - ((dj + k) * L + c_l)) < w
+            out |= low[:, None] & up[None, :]
+    return out
+
+
+def pair_energy(shell: SoftShell, weight: float) -> ca.Function:
+    """Function (x_a (3), x_b (3), c) -> w² v(|x_a − x_b| + c), one term of (R1)."""
+    xa, xb, c = ca.SX.sym("x_a", 3), ca.SX.sym("x_b", 3), ca.SX.sym("c")
+    d = ca.norm_2(xa - xb) + c
+    return ca.Function("pair_energy", [xa, xb, c], [weight ** 2 * shell.casadi_energy(d)],
+                       ["x_a", "x_b", "c"], ["E"])
+
+
+def repulsion_energy(shell: SoftShell, weight: float, points: ca.MX, pairs: Neighbours
+                     ) -> ca.MX:
+    """U_other (R1) of lifted sample points (3 × N·S, column k·S + q)."""
+    if not len(pairs):
+        return ca.MX(0)
+    a = (pairs.ka * pairs.samples + pairs.qa).tolist()
+    b = (pairs.kb * pairs.samples + pairs.qb).tolist()
+    term = pair_energy(shell, weight).map(len(pairs), "serial")
+    return ca.sum2(term(points[:, a], points[:, b], ca.DM(pairs.shift).T))
+
+
+def missing(close: Near | None, listed: Neighbours, L: float, wales: int,
+            shape: Natural3D) -> Neighbours:
+    """The sample-point pairs nearest the check's other pairs closer than touch (``close``)
+    that the list does not hold (each pair with its neighbours along both yarns, shift 0),
+    except pairs inside a designed crossing's window (module docstring, (2))."""
+    S = listed.samples
+    if close is None or not len(close.d):
+        return Neighbours(*(np.zeros(0, int) for _ in range(4)), np.zeros(0), S)
+    ka, qa = _sample_of(close.ca, close.ua, L, wales, S)
+    kb, qb = _sample_of(close.cb, close.ub, L, wales, S)
+    n_loops = (int(max(close.ca.max(), close.cb.max())) + 1) * wales
+    rows = []
+    for da in (-1, 0, 1):
+        for db in (-1, 0, 1):
+            rows.append(_step(ka, qa, da, S, n_loops, wales) + _step(kb, qb, db, S, n_loops, wales))
+    cand = np.unique(np.concatenate([np.stack(r, 1) for r in rows]), axis=0)
+    cand = cand[(cand[:, 0] >= 0) & (cand[:, 2] >= 0) & ~((cand[:, 0] == cand[:, 2])
+                                                         & (cand[:, 1] == cand[:, 3]))]
+    new = Neighbours(cand[:, 0], cand[:, 1], cand[:, 2], cand[:, 3], np.zeros(len(cand)), S)
+    keep = ~np.isin(new.keys(), listed.keys()) & ~_designed_pair(new, shape, wales)
+    keep &= ~_same_piece(new, L, wales, shape.radius)
+    k = np.flatnonzero(keep)
+    _, first = np.unique(new.keys()[k], return_index=True)
+    k = k[first]
+    return Neighbours(new.ka[k], new.qa[k], new.kb[k], new.qb[k], new.shift[k], S)
+
+
+def _sample_of(course: np.ndarray, u: np.ndarray, L: float, wales: int, S: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    j = np.clip(np.floor(u / L).astype(int), 0, wales - 1)
+    q = np.clip(np.floor((u - j * L) / L * S).astype(int), 0, S - 1)
+    return course * wales + j, q
+
+
+def _step(k: np.ndarray, q: np.ndarray, dq: int, S: int, n_loops: int, wales: int
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """The sample dq further along the course (across the loop's end into its neighbour;
+    −1 where the course ends)."""
+    q2 = q + dq
+    k2 = k + np.floor_divide(q2, S)
+    same_course = (k2 // wales == k // wales) & (k2 >= 0) & (k2 < n_loops)
+    return np.where(same_course, k2, -1), np.mod(q2, S)
+
+
+def _same_piece(p: Neighbours, L: float, wales: int, r: float) -> np.ndarray:
+    s = sample_s(L, p.samples)
+    ua = (p.ka % wales) * L + s[p.qa]
+    ub = (p.kb % wales) * L + s[p.qb]
+    return (p.ka // wales == p.kb // wales) & (np.abs(ua - ub) < EXCLUSION * np.pi * r)
+
+
+def _designed_pair(p: Neighbours, shape: Natural3D, wales: int) -> np.ndarray:
+    """Pairs of loops one course apart inside a designed crossing's window."""
+    out = np.zeros(len(p), dtype=bool)
+    if not shape.s_upper.size or not len(p):
+        return out
+    L, S = shape.length, p.samples
+    s = sample_s(L, S)
+    up_is_b = p.kb // wales == p.ka // wales + 1
+    up_is_a = p.ka // wales == p.kb // wales + 1
+    low_k, low_q = np.where(up_is_b, p.ka, p.kb), np.where(up_is_b, p.qa, p.qb)
+    up_k, up_q = np.where(up_is_b, p.kb, p.ka), np.where(up_is_b, p.qb, p.qa)
+    dj = up_k % wales - low_k % wales
+    windows = _designed(shape)
+    for d in np.unique(dj[up_is_a | up_is_b]):
+        mask = _in_window(windows, s, int(d), L, DESIGNED * 2 * shape.radius)
+        sel = (up_is_a | up_is_b) & (dj == d)
+        out[sel] = mask[low_q[sel], up_q[sel]]
+    return out

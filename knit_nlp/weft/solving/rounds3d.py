@@ -1,0 +1,81 @@
+"""The 3-D model's rounds of other contacts (docs/weft3d.md, "Other contacts"): after a solve,
+the independent check over all pairs of yarn pieces (``model.spatial.proximity``); pairs of
+pieces closer than touch (2r) that are neither one piece of yarn nor a designed crossing's own
+contact, and whose sample points the neighbour list (``model.spatial.repulsion``) does not
+hold, are added to the list, and the NLP is built again and solved from the answer (one
+direct solve: load steps from the natural state would start over). Where that solve fails, the
+answer before it stands and the round says so. At most ``ROUNDS`` rounds; each round's pairs
+and status are recorded on the NLP (``SpatialNLP.rounds``) for the result JSON and the
+summary, and what is left after the last is the result's check's to say.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..model.spatial.proximity import check_3d, natural_lines
+from ..model.spatial.repulsion import Neighbours, missing
+from ..model.contact.pairs import check_samples
+from ..model.centrelines import SAMPLES
+from ..transcription.spatial import SpatialNLP, build_spatial
+from .solve import Equilibrium, Solution
+
+ROUNDS = 3
+
+
+class SpatialEquilibrium(Equilibrium):
+    """The 3-D model's equilibrium: ``Equilibrium`` with the rounds of other contacts."""
+
+    extra: Neighbours | None = None
+
+    def solve(self, params: Any = None, x0: np.ndarray | None = None, **kw: Any) -> Solution:
+        sol = super().solve(params, x0, **kw)
+        rounds: list[dict[str, Any]] = []
+        for _ in range(ROUNDS):
+            if not sol.success or self.nlp.neighbours is None:
+                break
+            new = self.missing(sol.x)
+            if not len(new):
+                break
+            sol, status = self._again(sol, new)
+            rounds.append({"added": len(new), "status": status})
+            if status != "Solve_Succeeded":
+                break
+        self.nlp.rounds = rounds
+        return sol
+
+    def missing(self, x: np.ndarray) -> Neighbours:
+        """The pairs the check finds closer than touch that the list lacks (module docstring),
+        each shifted so that it starts no deeper than half way into the shell (R1: a pair
+        found inside the core would make the energy infinite at the answer)."""
+        nlp: SpatialNLP = self.nlp
+        pr, shape = self.problem, nlp.shape
+        S = max(SAMPLES, check_samples(pr.L, pr.yarn.radius))
+        rep = check_3d(nlp.centrelines3d(x, S), natural_lines(shape, pr.wales, S), pr.L,
+                       pr.yarn.radius, pr.yarn.core_radius)
+        new = missing(rep.close, nlp.neighbours, pr.L, pr.wales, shape)
+        if not len(new):
+            return new
+        pts = nlp.sample_points(x, new.samples)
+        d = np.linalg.norm(pts[new.ka, new.qa] - pts[new.kb, new.qb], axis=1)
+        half = pr.yarn.radius + pr.yarn.core_radius
+        return Neighbours(new.ka, new.qa, new.kb, new.qb, np.maximum(0.0, half - d),
+                          new.samples)
+
+    def _again(self, sol: Solution, new: Neighbours) -> tuple[Solution, str]:
+        """The NLP with ``new`` pairs added, solved from ``sol``'s answer; where that fails,
+        the answer before it (and the failure's status)."""
+        old, old_solver, old_kkt, x = self.nlp, self.solver, self._kkt, sol.x
+        extra = new if self.extra is None else self.extra.plus(new)
+        self.rebuild(build_spatial(self.problem, extra=extra))
+        sigma = old.x.get(x, "sigma") if "sigma" in old.x.blocks else None
+        x0 = self.nlp.lift3d(old.coefficients(x), old.elevations(x), old.starts3d(x), sigma)
+        rep = self.solver.once(sol.params.vector(), x0)
+        if not rep.success:
+            self.nlp, self.solver, self._kkt = old, old_solver, old_kkt
+            sol.add_effort(rep)
+            return sol, rep.status
+        self.extra = extra
+        rep.add_effort(sol)
+        return self.solution(rep, sol.params), rep.status
