@@ -109,9 +109,9 @@ def _constant_coefficients(f_s: ca.MX, g_s: ca.MX, x: ca.MX, p: ca.MX, yv: ca.MX
         return np.zeros(0), sp.csc_matrix((g_s.numel(), 0))
     jf, jg = ca.jacobian(f_s, yv), ca.jacobian(g_s, yv)
     every = ca.vertcat(x, p, yv)
-    if ca.depends_on(ca.vertcat(ca.vec(jf), ca.vec(jg)), every):
+    if ca.depends_on(jf, every) or ca.depends_on(jg, every):
         raise NotElementwise("f or g is not affine in the elements' outputs")
-    if ca.depends_on(ca.vertcat(ca.vec(ca.jacobian(f_s, x)), ca.vec(ca.jacobian(g_s, x))), yv):
+    if ca.depends_on(ca.jacobian(f_s, x), yv) or ca.depends_on(ca.jacobian(g_s, x), yv):
         raise NotElementwise("f or g multiplies the decision variables by an element output")
     fn = ca.Function("coefficients", [], [jf, jg])
     cf, cg = fn.call([])
