@@ -24,6 +24,7 @@ CasADi's AD, so a new energy term is correct whether or not it is registered as 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import casadi as ca
 import numpy as np
@@ -44,6 +45,7 @@ class Element:
     count: int
     args: list
     outputs: list
+    hessian: Callable | None = None     # (args, multipliers) -> (nonzeros × M, rows, cols)
 
 
 @dataclass
@@ -52,12 +54,15 @@ class Elements:
 
     items: list[Element] = field(default_factory=list)
 
-    def call(self, name: str, fn: ca.Function, count: int, *args) -> list[ca.MX]:
+    def call(self, name: str, fn: ca.Function, count: int, *args,
+             hessian: Callable | None = None) -> list[ca.MX]:
         """Map ``fn`` over ``count`` instances on ``args`` (as ``fn.map(count)``) and record the
-        call; returns its outputs."""
+        call; returns its outputs. ``hessian``: the instances' local Lagrangian Hessians in
+        closed form, (args, the outputs' multipliers) -> (upper-triangle nonzeros × count,
+        their local rows, columns), instead of CasADi's AD of ``fn``."""
         outs = fn.map(count, "serial")(*args)
         outs = list(outs) if isinstance(outs, (list, tuple)) else [outs]
-        self.items.append(Element(name, fn, count, list(args), outs))
+        self.items.append(Element(name, fn, count, list(args), outs, hessian))
         return outs
 
 
@@ -188,12 +193,17 @@ class _Local:
     def hessian(self, need: list[bool], mus: list[ca.MX]):
         """(local nonzeros MX, and the global upper-triangle (row, col) of each)."""
         e, M = self.e, self.e.count
-        mu_sx = [ca.SX.sym(f"mu{o}", *self.sx_out[o].shape) for o in range(len(need))]
-        lag = sum((ca.dot(mu_sx[o], self.sx_out[o]) for o, w in enumerate(need) if w), ca.SX(0))
-        H = ca.triu(ca.hessian(lag, self.v)[0])
-        hr, hc = H.sparsity().get_triplet()
-        fn = ca.Function(f"{e.name}_hess", [*self.sx_in, *mu_sx], [ca.vertcat(*H.nonzeros())])
-        vals = ca.vec(fn.map(M, "serial")(*self.e.args, *mus))
+        if e.hessian is not None:
+            vals, hr, hc = e.hessian(e.args, mus)
+            vals = ca.vec(vals)
+        else:
+            mu_sx = [ca.SX.sym(f"mu{o}", *self.sx_out[o].shape) for o in range(len(need))]
+            lag = sum((ca.dot(mu_sx[o], self.sx_out[o]) for o, w in enumerate(need) if w),
+                      ca.SX(0))
+            H = ca.triu(ca.hessian(lag, self.v)[0])
+            hr, hc = H.sparsity().get_triplet()
+            fn = ca.Function(f"{e.name}_hess", [*self.sx_in, *mu_sx], [ca.vertcat(*H.nonzeros())])
+            vals = ca.vec(fn.map(M, "serial")(*self.e.args, *mus))
         r = self.idx[np.asarray(hr, dtype=int)].T.ravel()     # instance-major
         c = self.idx[np.asarray(hc, dtype=int)].T.ravel()
         lo, hi = np.minimum(r, c), np.maximum(r, c)

@@ -41,6 +41,7 @@ from ..model.spatial.natural3d import PAIRS, Natural3D, flat
 from ..model.centrelines import SAMPLES
 from .elements import Elements, element_derivatives
 from .full import Constraints
+from .loop_hessians import bending_hessian, displacement_hessian
 from .protocol import WeftNLP
 from .rows import (SPRINGS, ClampRows, SpecialPoint, add_clamp_rows, held_dims, loop_index,
                    rigid_natural_points, rigid_targets, special_points)
@@ -346,8 +347,9 @@ class _Builder:
         pr, N, n, P = self.pr, self.N, self.n, len(self.evals)
         A, X = xb["coeffs"], xb["starts"]
         Bel = xb["elev"] if self.opt.elevation else ca.DM.zeros(self.nq, N)
-        D = self.elements.call("loops", loop_displacements3d(
-            pr.L, pr.t, self.shape.modes, np.array(self.evals), pr.quadrature_nodes), N, A, Bel)[0]
+        rule = (pr.L, pr.t, self.shape.modes, np.array(self.evals), pr.quadrature_nodes)
+        D = self.elements.call("loops", loop_displacements3d(*rule), N, A, Bel,
+                               hessian=displacement_hessian(*rule))[0]
 
         def at(s: float | np.ndarray, loops: np.ndarray) -> ca.MX:
             """Positions of material points s (one, or one per loop) on the given loops:
@@ -452,9 +454,10 @@ class _Builder:
         pr, sh = self.pr, self.shape
         A = xb["coeffs"]
         Bel = xb["elev"] if self.opt.elevation else ca.DM.zeros(self.nq, self.N)
+        rule = (pr.L, pr.t, sh.modes, pr.quadrature_nodes)
         bend = ca.sum2(self.elements.call(
-            "bending", bending3d(pr.L, pr.t, sh.modes, pr.quadrature_nodes), self.N, A, Bel,
-            ca.DM(sh.coeffs), ca.DM(self._b0()), pb["R_f"])[0])
+            "bending", bending3d(*rule), self.N, A, Bel, ca.DM(sh.coeffs), ca.DM(self._b0()),
+            pb["R_f"], hessian=bending_hessian(*rule))[0])
         spring = ca.MX(0)
         if self.opt.springs:
             k = ca.vertcat(pb["k_a"], pb["k_b"])
