@@ -37,14 +37,17 @@ def _compare(jac, hess, opts, x, p, lf, lg) -> tuple[float, float]:
     return dj, dh
 
 
-@pytest.mark.parametrize("springs", [False, True])
-def test_element_derivatives_equal_casadis_ad(springs: bool) -> None:
+@pytest.mark.parametrize("options", [Spatial(), Spatial(springs=True),
+                                     Spatial(elevation=False, contacts=False, springs=True)])
+def test_element_derivatives_equal_casadis_ad(options: Spatial) -> None:
     """Jacobian of the rows and Lagrangian Hessian, assembled per loop, crossing side and
-    crossing (with the paper's springs too), equal CasADi's AD of the whole NLP to rounding at
-    random points away from the natural state, random multipliers and λ_f."""
+    crossing (with the paper's springs too, and in the paper's limit, φ frozen: there the
+    loops' closed-form Hessians give way to AD), equal CasADi's AD of the whole NLP to rounding
+    at random points away from the natural state, random multipliers and λ_f."""
     pr = parse_problem(PULL_3x2, "pull3x2.toml")
-    el = build_spatial(pr, Spatial(springs=springs))
-    ad = build_spatial(pr, Spatial(springs=springs, derivatives="casadi"))
+    el = build_spatial(pr, options)
+    ad = build_spatial(pr, Spatial(options.elevation, options.contacts, options.springs,
+                                   derivatives="casadi"))
     assert "hess_lag" in el.nlpsol_options and "hess_lag" not in ad.nlpsol_options
     jac, hess = _ad(ad.nlp)
     rng = np.random.default_rng(3)

@@ -59,7 +59,8 @@ class Elements:
         """Map ``fn`` over ``count`` instances on ``args`` (as ``fn.map(count)``) and record the
         call; returns its outputs. ``hessian``: the instances' local Lagrangian Hessians in
         closed form, (args, the outputs' multipliers) -> (upper-triangle nonzeros × count,
-        their local rows, columns), instead of CasADi's AD of ``fn``."""
+        their local rows, columns), instead of CasADi's AD of ``fn``; used when the inputs
+        that depend on x are exactly its ``variables`` (input indices), AD otherwise."""
         outs = fn.map(count, "serial")(*args)
         outs = list(outs) if isinstance(outs, (list, tuple)) else [outs]
         self.items.append(Element(name, fn, count, list(args), outs, hessian))
@@ -193,7 +194,7 @@ class _Local:
     def hessian(self, need: list[bool], mus: list[ca.MX]):
         """(local nonzeros MX, and the global upper-triangle (row, col) of each)."""
         e, M = self.e, self.e.count
-        if e.hessian is not None:
+        if e.hessian is not None and tuple(self.var) == e.hessian.variables:
             vals, hr, hc = e.hessian(e.args, mus)
             vals = ca.vec(vals)
         else:

@@ -69,6 +69,7 @@ def displacement_hessian(L: float, t: int, q: int, points: np.ndarray, nodes_per
         hab = se * (wx * st - wy * ct)
         return blocks.values(haa, hab, haa - wz * se), blocks.rows, blocks.cols
 
+    hessian.variables = (0, 1)                  # local variables (a, b)
     return hessian
 
 
@@ -98,4 +99,5 @@ def bending_hessian(L: float, t: int, q: int, nodes_per_panel: int):
         vals = ca.vertcat(vals[:-nbb, :], vals[-nbb:, :] + ca.mtimes(Kd, om))
         return vals, blocks.rows, blocks.cols
 
+    hessian.variables = (0, 1)
     return hessian
