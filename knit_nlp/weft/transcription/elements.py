@@ -46,6 +46,7 @@ class Element:
     args: list
     outputs: list
     hessian: Callable | None = None     # (args, multipliers) -> (nonzeros × M, rows, cols)
+    jacobian: Callable | None = None    # (args) -> (nonzeros × M, output rows, cols): output 0
 
 
 @dataclass
@@ -55,15 +56,17 @@ class Elements:
     items: list[Element] = field(default_factory=list)
 
     def call(self, name: str, fn: ca.Function, count: int, *args,
-             hessian: Callable | None = None) -> list[ca.MX]:
+             hessian: Callable | None = None, jacobian: Callable | None = None) -> list[ca.MX]:
         """Map ``fn`` over ``count`` instances on ``args`` (as ``fn.map(count)``) and record the
         call; returns its outputs. ``hessian``: the instances' local Lagrangian Hessians in
         closed form, (args, the outputs' multipliers) -> (upper-triangle nonzeros × count,
         their local rows, columns), instead of CasADi's AD of ``fn``; used when the inputs
-        that depend on x are exactly its ``variables`` (input indices), AD otherwise."""
+        that depend on x are exactly its ``variables`` (input indices), AD otherwise;
+        ``jacobian`` likewise, (args) -> the first output's Jacobian nonzeros × count, their
+        local rows (in the output's column-major order) and columns."""
         outs = fn.map(count, "serial")(*args)
         outs = list(outs) if isinstance(outs, (list, tuple)) else [outs]
-        self.items.append(Element(name, fn, count, list(args), outs, hessian))
+        self.items.append(Element(name, fn, count, list(args), outs, hessian, jacobian))
         return outs
 
 
@@ -166,23 +169,26 @@ class _Local:
         """(local nonzeros MX (n·M), their map to the global Jacobian's (row, col): a sparse
         (ng·nx-indexed) coefficient list)."""
         e, M = self.e, self.e.count
-        blocks, rows, cols, yidx = [], [], [], []
-        n = 0
+        closed = e.jacobian is not None and tuple(self.var) == e.jacobian.variables
+        parts, yidx, cols = [], [], []
         for o, want in enumerate(need):
             if not want:
                 continue
-            J = ca.jacobian(ca.vec(self.sx_out[o]), self.v)
-            jr, jc = J.sparsity().get_triplet()
-            blocks.append(J.nonzeros())
+            if closed and o == 0:
+                vals, jr, jc = e.jacobian(e.args)
+            else:
+                J = ca.jacobian(ca.vec(self.sx_out[o]), self.v)
+                jr, jc = J.sparsity().get_triplet()
+                fn = ca.Function(f"{e.name}_jac{o}", self.sx_in, [ca.vertcat(*J.nonzeros())])
+                vals = fn.map(M, "serial")(*self.e.args)
+            parts.append(vals)                                            # nnz × M
             size = self.sx_out[o].numel()
             # global Y index and x column of every (instance, nonzero), instance-major
             m = np.arange(M)[:, None]
             yidx.append((starts[o] + m * size + np.asarray(jr)[None, :]))
             cols.append(self.idx[np.asarray(jc, dtype=int)].T)             # M × nnz
-            n += len(jr)
-        fn = ca.Function(f"{e.name}_jac", self.sx_in, [ca.vertcat(*[ca.vertcat(*b) for b in blocks])])
-        vals = ca.vec(fn.map(M, "serial")(*self.e.args))
-        # order of vals: instance-major, within an instance the blocks' nonzeros in order
+        vals = ca.vec(ca.vertcat(*parts))
+        # order of vals: instance-major, within an instance the outputs' nonzeros in order
         ycat = np.hstack(yidx).ravel()
         ccat = np.hstack(cols).ravel()
         # global (row r, col c) += Gy[r, y] · val

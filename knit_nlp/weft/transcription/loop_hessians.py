@@ -73,6 +73,44 @@ def displacement_hessian(L: float, t: int, q: int, points: np.ndarray, nodes_per
     return hessian
 
 
+def displacement_jacobian(L: float, t: int, q: int, points: np.ndarray, nodes_per_panel: int):
+    """Jacobian provider of ``curve3d.loop_displacements3d``: ∂D_p/∂a_i = Σ_q C_pq ∂T_q/∂θ Φ_qi
+    (and in b with ∂T/∂φ and Ψ), each as panel integrals (one sparse product over the nodes)
+    summed panel by panel to the points (C = cumulative sum ∘ panel weights): about 7 500
+    operations per loop against 50 000 for AD of the element."""
+    rule = panel_rule(points, L, nodes_per_panel)
+    Q, P = rule.nodes.size, rule.points.size
+    n_panels = Q // nodes_per_panel
+    panel_of = np.repeat(np.arange(n_panels), nodes_per_panel)
+    Wp = np.zeros((n_panels, Q))
+    Wp[panel_of, np.arange(Q)] = rule.weights
+    cum = (np.arange(n_panels)[None, :] < rule.point_panels[:, None]).astype(float)
+    Phi, Psi = phi(rule.nodes, L, t), phi(rule.nodes, L, q)
+    nc, nq = Phi.shape[1], Psi.shape[1]
+    K = {name: ca.sparsify(ca.DM(np.vstack([Wp * B[:, i][None, :] for i in range(B.shape[1])])))
+         for name, B in (("a", Phi), ("b", Psi))}
+    S = {name: ca.sparsify(ca.DM(np.kron(np.eye(n), cum))) for name, n in (("a", nc), ("b", nq))}
+    Phi_, Psi_ = ca.DM(Phi), ca.DM(Psi)
+    comps = {"a": (0, 1), "b": (0, 1, 2)}
+    rows, cols = [], []
+    for name, n, c0 in (("a", nc, 0), ("b", nq, nc)):
+        for comp in comps[name]:
+            i, pt = np.meshgrid(np.arange(n), np.arange(P), indexing="ij")
+            rows.append((3 * pt + comp).ravel())
+            cols.append((c0 + i).ravel())
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+
+    def jacobian(args: list) -> tuple[ca.MX, np.ndarray, np.ndarray]:
+        th, el = ca.mtimes(Phi_, args[0]), ca.mtimes(Psi_, args[1])
+        ct, st, ce, se = ca.cos(th), ca.sin(th), ca.cos(el), ca.sin(el)
+        dT = {"a": (-ce * st, ce * ct), "b": (-se * ct, -se * st, ce)}
+        vals = [ca.mtimes(S[name], ca.mtimes(K[name], d)) for name in ("a", "b") for d in dT[name]]
+        return ca.vertcat(*vals), rows, cols
+
+    jacobian.variables = (0, 1)
+    return jacobian
+
+
 def bending_hessian(L: float, t: int, q: int, nodes_per_panel: int):
     """Hessian provider of ``curve3d.bending3d`` (module docstring)."""
     rule = panel_rule([], L, nodes_per_panel, max_panel=L / 8)

@@ -41,7 +41,7 @@ from ..model.spatial.natural3d import PAIRS, Natural3D, flat
 from ..model.centrelines import SAMPLES
 from .elements import Elements, element_derivatives
 from .full import Constraints
-from .loop_hessians import bending_hessian, displacement_hessian
+from .loop_hessians import bending_hessian, displacement_hessian, displacement_jacobian
 from .protocol import WeftNLP
 from .rows import (SPRINGS, ClampRows, SpecialPoint, add_clamp_rows, held_dims, loop_index,
                    rigid_natural_points, rigid_targets, special_points)
@@ -349,7 +349,8 @@ class _Builder:
         Bel = xb["elev"] if self.opt.elevation else ca.DM.zeros(self.nq, N)
         rule = (pr.L, pr.t, self.shape.modes, np.array(self.evals), pr.quadrature_nodes)
         D = self.elements.call("loops", loop_displacements3d(*rule), N, A, Bel,
-                               hessian=displacement_hessian(*rule))[0]
+                               hessian=displacement_hessian(*rule),
+                               jacobian=displacement_jacobian(*rule))[0]
 
         def at(s: float | np.ndarray, loops: np.ndarray) -> ca.MX:
             """Positions of material points s (one, or one per loop) on the given loops:
