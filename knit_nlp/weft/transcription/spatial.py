@@ -16,6 +16,14 @@ points, its bending, its crossing segments), as in ``full``: the Lagrangian Hess
 diagonal in the loops (with their σ's) plus 12 × 12 blocks per crossing. The sparsity is fixed
 by the fabric's topology: no inequality rows, no active set.
 
+Derivatives (``Spatial.derivatives``, default ``"elements"``): every nonlinear term is a mapped
+SX Function called through ``_Builder.elements`` (``elements.Elements.call``), whose Jacobian
+and Lagrangian Hessian are assembled element by element (``elements.element_derivatives``; the
+loops' in closed form, ``loop_hessians``). A new energy term: call its per-instance Function
+through ``self.elements.call(name, fn, count, *inputs)`` (inputs: selections of the decision
+variables, constants, parameters) and add its output to the energy; a term written directly in
+the variables is still right (CasADi's AD of the part outside the elements), only slower.
+
 ``Spatial(elevation=False, contacts=False, springs=True)`` is the paper's limit (φ frozen at 0,
 each course's start held at z = 0): the planar full model's NLP in other variables (tested).
 """
