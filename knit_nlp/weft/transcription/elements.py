@@ -31,6 +31,11 @@ import numpy as np
 import scipy.sparse as sp
 
 
+# common subexpressions merged in the elements' AD Functions (exact: measured on a crossing
+# side's segment Hessian, 7 984 -> 7 103 operations, 0.052 -> 0.037 s per 3 000 instances)
+CSE = {"cse": True}
+
+
 class NotElementwise(ValueError):
     """f or g is not affine and separable in the elements' outputs (module docstring)."""
 
@@ -179,7 +184,8 @@ class _Local:
             else:
                 J = ca.jacobian(ca.vec(self.sx_out[o]), self.v)
                 jr, jc = J.sparsity().get_triplet()
-                fn = ca.Function(f"{e.name}_jac{o}", self.sx_in, [ca.vertcat(*J.nonzeros())])
+                fn = ca.Function(f"{e.name}_jac{o}", self.sx_in, [ca.vertcat(*J.nonzeros())],
+                                 CSE)
                 vals = fn.map(M, "serial")(*self.e.args)
             parts.append(vals)                                            # nnz × M
             size = self.sx_out[o].numel()
@@ -209,7 +215,8 @@ class _Local:
                       ca.SX(0))
             H = ca.triu(ca.hessian(lag, self.v)[0])
             hr, hc = H.sparsity().get_triplet()
-            fn = ca.Function(f"{e.name}_hess", [*self.sx_in, *mu_sx], [ca.vertcat(*H.nonzeros())])
+            fn = ca.Function(f"{e.name}_hess", [*self.sx_in, *mu_sx],
+                             [ca.vertcat(*H.nonzeros())], CSE)
             vals = ca.vec(fn.map(M, "serial")(*self.e.args, *mus))
         r = self.idx[np.asarray(hr, dtype=int)].T.ravel()     # instance-major
         c = self.idx[np.asarray(hc, dtype=int)].T.ravel()
