@@ -79,7 +79,7 @@ def test_an_unregistered_term_falls_back_to_ad() -> None:
     """A nonlinear term written directly in x (not an element) is differentiated by AD and
     added: the toy's derivatives equal CasADi's."""
     x, p, f, g, els = _toy(extra=True)
-    opts = element_derivatives(x, p, f, g, els, 7, 1)
+    opts = element_derivatives(x, p, f, g, els, 7)
     jac, hess = _ad({"x": x, "p": p, "f": f, "g": g})
     rng = np.random.default_rng(1)
     dj, dh = _compare(jac, hess, opts, rng.normal(size=7), 1.3, 0.7, rng.normal(size=3))
@@ -89,4 +89,4 @@ def test_an_unregistered_term_falls_back_to_ad() -> None:
 def test_a_nonaffine_use_of_an_output_is_refused() -> None:
     x, p, f, g, els = _toy(extra=False, misuse=True)
     with pytest.raises(NotElementwise, match="not affine"):
-        element_derivatives(x, p, f, g, els, 7, 1)
+        element_derivatives(x, p, f, g, els, 7)

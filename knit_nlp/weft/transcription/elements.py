@@ -76,7 +76,7 @@ class Elements:
 
 
 def element_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elements,
-                        nx: int, npar: int) -> dict[str, ca.Function]:
+                        nx: int) -> dict[str, ca.Function]:
     """``jac_g`` and ``hess_lag`` Functions for ``casadi.nlpsol`` (module docstring)."""
     used = [(e, o) for e in elements.items for o in range(len(e.outputs))]
     Y = [ca.MX.sym(f"{e.name}_{o}", *e.outputs[o].shape) for e, o in used]
@@ -89,7 +89,7 @@ def element_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elemen
     jac_parts, hess_parts = [], []
     offset = 0
     mu_all = lam_f * ca.DM(cf) + ca.mtimes(_to_dm(Gy.T.tocsc()), lam_g) if yv.numel() else ca.MX(0, 1)
-    for k, e in enumerate(elements.items):
+    for e in elements.items:
         local = _Local(e, x, p, nx)
         sizes = [y.numel() for y in e.outputs]
         starts = offset + np.concatenate([[0], np.cumsum(sizes)])
@@ -171,8 +171,9 @@ class _Local:
         self.v = ca.vertcat(*[ca.vec(self.sx_in[i]) for i in self.var])
 
     def jacobian(self, need: list[bool], Gy: sp.csc_matrix, starts: np.ndarray):
-        """(local nonzeros MX (n·M), their map to the global Jacobian's (row, col): a sparse
-        (ng·nx-indexed) coefficient list)."""
+        """The needed outputs' local Jacobian nonzeros (MX, instance-major) and, for every
+        nonzero of G_Y ∂Y/∂x they make, its global (row, column), source nonzero and
+        coefficient (the ``_assemble`` part)."""
         e, M = self.e, self.e.count
         closed = e.jacobian is not None and tuple(self.var) == e.jacobian.variables
         parts, yidx, cols = [], [], []

@@ -320,7 +320,7 @@ class _Builder:
                          lift_fn, self.signs, npar)
         if self.opt.derivatives == "elements":
             out.nlpsol_options = {**out.nlpsol_options, **element_derivatives(
-                xs, ps, nlp["f"], nlp["g"], self.elements, xl.size, pl.size)}
+                xs, ps, nlp["f"], nlp["g"], self.elements, xl.size)}
         out.x0 = out.lift3d(np.broadcast_to(self.shape.coeffs, (pr.courses, pr.wales, self.nc)),
                             np.broadcast_to(self._b0(), (pr.courses, pr.wales, self.nq)),
                             self.shape.starts(pr.courses, pr.wales))
