@@ -16,6 +16,14 @@ points, its bending, its crossing segments), as in ``full``: the Lagrangian Hess
 diagonal in the loops (with their σ's) plus 12 × 12 blocks per crossing. The sparsity is fixed
 by the fabric's topology: no inequality rows, no active set.
 
+Derivatives (``Spatial.derivatives``, default ``"elements"``): every nonlinear term is a mapped
+SX Function called through ``_Builder.elements`` (``elements.Elements.call``), whose Jacobian
+and Lagrangian Hessian are assembled element by element (``elements.element_derivatives``; the
+loops' in closed form, ``loop_hessians``). A new energy term: call its per-instance Function
+through ``self.elements.call(name, fn, count, *inputs)`` (inputs: selections of the decision
+variables, constants, parameters) and add its output to the energy; a term written directly in
+the variables is still right (CasADi's AD of the part outside the elements), only slower.
+
 ``Spatial(elevation=False, contacts=False, springs=True)`` is the paper's limit (φ frozen at 0,
 each course's start held at z = 0): the planar full model's NLP in other variables (tested).
 """
@@ -40,7 +48,9 @@ from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d
 from ..model.spatial.natural3d import PAIRS, Natural3D, flat
 from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
 from ..model.centrelines import SAMPLES
+from .elements import Elements, element_derivatives
 from .full import Constraints
+from .loop_hessians import bending_hessian, displacement_hessian, displacement_jacobian
 from .protocol import WeftNLP
 from .rows import (SPRINGS, ClampRows, SpecialPoint, add_clamp_rows, held_dims, loop_index,
                    rigid_natural_points, rigid_targets, special_points)
@@ -67,12 +77,15 @@ LIFTED = ("SL", "SR", "cp", "PC", "rp")
 class Spatial:
     """Switches of the 3-D builder: ``elevation`` (False: φ frozen at 0), ``contacts`` (the
     crossings' persistent contacts), ``springs`` (the paper's k_a, k_b; None: the file's
-    ``[yarn] crossing_springs``)."""
+    ``[yarn] crossing_springs``), ``derivatives``: ``"elements"`` (assembled element by
+    element, ``elements.element_derivatives``) or ``"casadi"`` (CasADi's AD of the whole NLP,
+    for comparisons)."""
 
     elevation: bool = True
     contacts: bool = True
     springs: bool | None = None
     repulsion: bool = True        # the other contacts (repulsion.py), with the contacts
+    derivatives: str = "elements"
 
 
 @dataclass
@@ -274,12 +287,14 @@ def build_spatial(pr: WeftProblem, options: Spatial = Spatial(),
     if options.contacts and contacts and not options.elevation:
         raise ValueError("crossing contacts need the elevation (a planar fabric's crossings "
                          "have h = 0)")
+    if options.derivatives not in ("elements", "casadi"):
+        raise ValueError(f"derivatives must be 'elements' or 'casadi'; got {options.derivatives!r}")
     pairs = None
     if contacts and options.repulsion:
         pairs = natural_neighbours(shape, pr.courses, pr.wales)
         pairs = pairs if extra is None else pairs.plus(extra)
-    out = _Builder(pr, Spatial(options.elevation, contacts, springs, pairs is not None), shape,
-                   pairs).build()
+    out = _Builder(pr, Spatial(options.elevation, contacts, springs, pairs is not None,
+                               options.derivatives), shape, pairs).build()
     out.neighbours = pairs
     return out
 
@@ -302,6 +317,7 @@ class _Builder:
         pts += [sp.s for sp in self.specials]
         self.evals = list(dict.fromkeys(float(v) for v in pts))
         self.col = {s: q for q, s in enumerate(self.evals)}
+        self.elements = Elements()          # every nonlinear term's mapped call (elements.py)
 
     def build(self) -> SpatialNLP:
         pr = self.pr
@@ -323,6 +339,9 @@ class _Builder:
                          rows.upper(), WeftParams.of(pr), self.specials, self.clamp_pts,
                          self.load_pts, self.rigid_pts, clamp_rows, rigid_rows, z_rows, terms,
                          lift_fn, self.signs, npar)
+        if self.opt.derivatives == "elements":
+            out.nlpsol_options = {**out.nlpsol_options, **element_derivatives(
+                xs, ps, nlp["f"], nlp["g"], self.elements, xl.size)}
         out.x0 = out.lift3d(np.broadcast_to(self.shape.coeffs, (pr.courses, pr.wales, self.nc)),
                             np.broadcast_to(self._b0(), (pr.courses, pr.wales, self.nq)),
                             self.shape.starts(pr.courses, pr.wales))
@@ -359,8 +378,10 @@ class _Builder:
         pr, N, n, P = self.pr, self.N, self.n, len(self.evals)
         A, X = xb["coeffs"], xb["starts"]
         Bel = xb["elev"] if self.opt.elevation else ca.DM.zeros(self.nq, N)
-        D = loop_displacements3d(pr.L, pr.t, self.shape.modes, np.array(self.evals),
-                                 pr.quadrature_nodes).map(N, "serial")(A, Bel)
+        rule = (pr.L, pr.t, self.shape.modes, np.array(self.evals), pr.quadrature_nodes)
+        D = self.elements.call("loops", loop_displacements3d(*rule), N, A, Bel,
+                               hessian=displacement_hessian(*rule),
+                               jacobian=displacement_jacobian(*rule))[0]
 
         def at(s: float | np.ndarray, loops: np.ndarray) -> ca.MX:
             """Positions of material points s (one, or one per loop) on the given loops:
@@ -397,11 +418,11 @@ class _Builder:
                          - ca.mtimes(ca.DM(S), Bel[:, (left + 1).tolist()]))
         if self.opt.contacts:
             cp = xb["cp"]
-            self.crossing = crossing_terms(self.pr.yarn.shell()).map(self.K, "serial")
             self.signs = self._signs()
-            out = self.crossing(cp[0:3, :], cp[3:6, :], cp[6:9, :], cp[9:12, :],
-                                ca.DM(self.signs).T)
-            rows.add("closest", out[1])
+            self.crossing = self.elements.call(
+                "crossings", crossing_terms(self.pr.yarn.shell()), self.K, cp[0:3, :],
+                cp[3:6, :], cp[6:9, :], cp[9:12, :], ca.DM(self.signs).T)
+            rows.add("closest", self.crossing[1])
         else:
             self.signs = np.zeros(0)
         return lifted
@@ -414,10 +435,11 @@ class _Builder:
         ku = np.repeat(up, 4)
         kl = np.repeat(low, 4)
         s0u, s0l = np.tile(sh.s_upper, len(up)), np.tile(sh.s_lower, len(up))
-        seg = segment(pr.L, pr.t, sh.modes, SEGMENT_NODES).map(self.K, "serial")
+        seg = segment(pr.L, pr.t, sh.modes, SEGMENT_NODES)
         parts = []
-        for loops, s0, sig in ((ku, s0u, sigma[0, :]), (kl, s0l, sigma[1, :])):
-            delta, tang = seg(A[:, loops.tolist()], Bel[:, loops.tolist()], ca.DM(s0).T, sig)
+        for side, loops, s0, sig in (("upper", ku, s0u, sigma[0, :]), ("lower", kl, s0l, sigma[1, :])):
+            delta, tang = self.elements.call(f"segment_{side}", seg, self.K, A[:, loops.tolist()],
+                                             Bel[:, loops.tolist()], ca.DM(s0).T, sig)
             parts += [at(s0, loops) + delta, tang]
         return ca.vertcat(*parts)
 
@@ -466,20 +488,22 @@ class _Builder:
         pr, sh = self.pr, self.shape
         A = xb["coeffs"]
         Bel = xb["elev"] if self.opt.elevation else ca.DM.zeros(self.nq, self.N)
-        bend = ca.sum2(bending3d(pr.L, pr.t, sh.modes, pr.quadrature_nodes).map(self.N)(
-            A, Bel, ca.DM(sh.coeffs), ca.DM(self._b0()), pb["R_f"]))
+        rule = (pr.L, pr.t, sh.modes, pr.quadrature_nodes)
+        bend = ca.sum2(self.elements.call(
+            "bending", bending3d(*rule), self.N, A, Bel, ca.DM(sh.coeffs), ca.DM(self._b0()),
+            pb["R_f"], hessian=bending_hessian(*rule))[0])
         spring = ca.MX(0)
         if self.opt.springs:
             k = ca.vertcat(pb["k_a"], pb["k_b"])
-            pair = spring_pair_energy().map(self.N - self.n)
-            c = pr.crossings
-            spring = (ca.sum2(pair(xb["SL"], ca.DM(c.rest_left), ca.DM(c.frame_left), k))
-                      + ca.sum2(pair(xb["SR"], ca.DM(c.rest_right), ca.DM(c.frame_right), k)))
+            c, M = pr.crossings, self.N - self.n
+            spring = (ca.sum2(self.elements.call("springs_left", spring_pair_energy(), M, xb["SL"],
+                                                 ca.DM(c.rest_left), ca.DM(c.frame_left), k)[0])
+                      + ca.sum2(self.elements.call("springs_right", spring_pair_energy(), M,
+                                                   xb["SR"], ca.DM(c.rest_right),
+                                                   ca.DM(c.frame_right), k)[0]))
         contact, h, sin_a = ca.MX(0), ca.MX(0, 1), ca.MX(0, 1)
         if self.opt.contacts:
-            cp = xb["cp"]
-            out = self.crossing(cp[0:3, :], cp[3:6, :], cp[6:9, :], cp[9:12, :],
-                                ca.DM(self.signs).T)
+            out = self.crossing
             contact, h, sin_a = ca.sum2(out[0]), out[2].T, out[3].T
         contact += self._repulsion(xb)
         work = ca.MX(0)

@@ -73,7 +73,34 @@ def segment_distance(p: np.ndarray, dp: np.ndarray, q: np.ndarray, dq: np.ndarra
         a = np.where(A <= tiny, 0.0, a)
     b = np.where((A <= tiny) & (E <= tiny), 0.0, b)
     gap = r + a[:, None] * dp - b[:, None] * dq
-    return np.sqrt(np.einsum("ki,ki->k", gap, gap)), a, b
+    d = np.sqrt(np.einsum("ki,ki->k", gap, gap))
+    flat = np.flatnonzero((den <= 1e-14 * A * E) & (A > tiny) & (E > tiny))
+    if flat.size:            # (nearly) parallel: the nearest pair may sit at any end
+        d, a, b = _ends(p, dp, q, dq, flat, d, a, b)
+    return d, a, b
+
+
+def _ends(p: np.ndarray, dp: np.ndarray, q: np.ndarray, dq: np.ndarray, rows: np.ndarray,
+          d: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ...]:
+    """For (nearly) parallel rows, the better of (a, b) and the four ends' closest points."""
+    d, a, b = d.copy(), a.copy(), b.copy()
+    P, DP, Q, DQ = p[rows], dp[rows], q[rows], dq[rows]
+    for ea in (0.0, 1.0):                 # an end of p against segment q
+        bb = np.clip(np.einsum("ki,ki->k", P + ea * DP - Q, DQ) / np.einsum("ki,ki->k", DQ, DQ), 0, 1)
+        _keep(rows, d, a, b, np.full(rows.size, ea), bb, P, DP, Q, DQ)
+    for eb in (0.0, 1.0):                 # an end of q against segment p
+        aa = np.clip(np.einsum("ki,ki->k", Q + eb * DQ - P, DP) / np.einsum("ki,ki->k", DP, DP), 0, 1)
+        _keep(rows, d, a, b, aa, np.full(rows.size, eb), P, DP, Q, DQ)
+    return d, a, b
+
+
+def _keep(rows: np.ndarray, d: np.ndarray, a: np.ndarray, b: np.ndarray, aa: np.ndarray,
+          bb: np.ndarray, P: np.ndarray, DP: np.ndarray, Q: np.ndarray, DQ: np.ndarray) -> None:
+    """Take (aa, bb) on the rows where it is nearer (in place)."""
+    gap = P + aa[:, None] * DP - Q - bb[:, None] * DQ
+    dd = np.sqrt(np.einsum("ki,ki->k", gap, gap))
+    better = dd < d[rows]
+    d[rows[better]], a[rows[better]], b[rows[better]] = dd[better], aa[better], bb[better]
 
 
 @dataclass(frozen=True)
