@@ -86,8 +86,8 @@ DEEP_PAIRS = "Contact_Deep_Pairs"   # ... and of one still nearly crossed after 
 ROUNDS_EXCEEDED = "Contact_Rounds_Exceeded"   # ... and of one whose rounds did not settle
 REFUTED = "Contact_Check_Refuted"   # ... and of an answer the check still finds short (CHECKS)
 # answers the check may refute in the last step before the solve gives up (REFUTED): each
-# refutation adds the check's short pairs and costs a round or two (random 2 x 2 to 4 x 4
-# pulls with r 0.05-0.8: at most one was needed, tests/test_contact_last_word.py)
+# refutation adds the check's short pairs and costs a round or more (on 40 random 2 x 2 to
+# 4 x 4 pulls and pushes with r 0.05-0.8 no solve came to REFUTED; tests/test_contact_last_word.py)
 CHECKS = 3
 # every slot, used or not, costs its rows in every evaluation and its 5 variables and 6 rows in
 # every KKT factorisation, and a rebuild is cheap (0.2 s at 3,000 slots): measured on the 10 x
