@@ -70,7 +70,7 @@ class WeftResult(Outcome):
 
     @property
     def message(self) -> str:
-        return describe(self.status, self.problem.solver.max_time)
+        return self.report.detail or describe(self.status, self.problem.solver.max_time)
 
     @property
     def iterations(self) -> int:

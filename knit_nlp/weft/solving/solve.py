@@ -79,6 +79,7 @@ class SolveReport:
     stats: dict[str, float] = field(default_factory=dict)
     # continuation: (load factor, x, lam_g) of every step reached, the loading path
     path: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)
+    detail: str = ""          # a sentence that says more than the status (the result's message)
 
     def add_effort(self, other: "SolveReport") -> None:
         """Count another solve's iterations, time and IPOPT profile into this report."""

@@ -47,9 +47,15 @@ class Crossings:
         return self._counts
 
     def _count(self) -> dict[tuple[int, int], int]:
-        keys, n = np.unique(np.stack([self.kA, self.kB], 1).reshape(-1, 2), axis=0,
-                            return_counts=True)
-        return {(int(a), int(b)): int(c) for (a, b), c in zip(keys, n)}
+        """One key per pair of loops, counted by a 1-D unique and read as Python ints at
+        once (a row-wise unique and a dict built from numpy scalars took 0.8 s of a
+        100 x 100 check)."""
+        if len(self.kA) == 0:
+            return {}
+        big = int(max(self.kA.max(), self.kB.max())) + 1
+        keys, n = np.unique(self.kA.astype(np.int64) * big + self.kB, return_counts=True)
+        a, b = np.divmod(keys, big)
+        return dict(zip(zip(a.tolist(), b.tolist()), n.tolist()))
 
 
 def find_crossings(curves: Curves, grid: Grid) -> Crossings:
@@ -60,7 +66,7 @@ def find_crossings(curves: Curves, grid: Grid) -> Crossings:
     m, K = pts.shape[:2]
     p0 = pts[:, :-1].reshape(-1, 2)
     d = (pts[:, 1:] - pts[:, :-1]).reshape(-1, 2)
-    length = np.linalg.norm(d, axis=1)
+    length = np.hypot(d[:, 0], d[:, 1])        # a third of norm's time on 2 million segments
     if length.size == 0:
         return _empty()
     parts = [_crossing_segments(p0, d, K, uv)
@@ -152,9 +158,10 @@ def judge(fab: NaturalFabric, found: Crossings, courses: int, wales: int) -> Ver
     counts = found.counts()
     natural: dict[tuple[int, int], int] = {}
     for di, dj in designed_offsets(fab):
+        count = fab.crossings((di, dj))      # once per offset: 1.2 s at 100 x 100 per pair
         for i in range(max(0, -di), min(courses, courses - di)):
             for j in range(max(0, -dj), min(wales, wales - dj)):
-                natural[(i * wales + j, (i + di) * wales + j + dj)] = fab.crossings((di, dj))
+                natural[(i * wales + j, (i + di) * wales + j + dj)] = count
     excess = {k: c - natural.get(k, 0) for k, c in counts.items() if c > natural.get(k, 0)}
     deficit = {k: c - counts.get(k, 0) for k, c in natural.items() if counts.get(k, 0) < c}
     _slides(excess, deficit, wales)

@@ -120,7 +120,7 @@ class NaturalFabric:
             # every piece pair is naturally more than 2r apart and none is designed: the
             # required gap is 2r throughout (measured: most offsets a search meets)
             return OffsetTable(offset, np.broadcast_to(np.float32(np.inf), (GRID, GRID)), ())
-        dist = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=-1)
+        dist = _distances(a, b)
         s = self.s
         same = np.zeros_like(dist, dtype=bool)
         if di == 0:
@@ -149,7 +149,7 @@ class NaturalFabric:
             if _box_distance(a, b) > 2 * self.radius:
                 self._locks[offset] = []           # no crossing, no lens: boxes apart
                 return []
-            dist = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=-1)
+            dist = _distances(a, b)
             self._locks[offset] = _interlocks(self, a, b, dist)
         return self._locks[offset]
 
@@ -200,24 +200,37 @@ def _box_distance(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.hypot(*gap))
 
 
-def natural_crossings(a: np.ndarray, b: np.ndarray, s: np.ndarray
-                      ) -> list[tuple[float, float, float]]:
-    """Crossings (s_A, s_B, angle) of two polylines sampled at s (segment intersections)."""
-    p, dp = a[:-1, None, :], np.diff(a, axis=0)[:, None, :]
-    q, dq = b[None, :-1, :], np.diff(b, axis=0)[None, :, :]
-    den = dp[..., 0] * dq[..., 1] - dp[..., 1] * dq[..., 0]
+def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Every point of polyline a against every point of b (hypot: half of norm's time on the
+    801 x 801 tables, built for each offset a solve or check meets)."""
+    return np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
+
+
+def natural_crossings(a: np.ndarray, b: np.ndarray, s: np.ndarray,
+                      dist: np.ndarray | None = None) -> list[tuple[float, float, float]]:
+    """Crossings (s_A, s_B, angle) of two polylines sampled at s (segment intersections).
+    Given ``dist`` (:func:`_distances` of a and b) only segments whose first points lie within
+    the two longest segments of each other are tried (two segments that meet do): the dense
+    intersection of all 800 x 800 segment pairs took 0.06 s an offset, most of a first check."""
+    da, db = np.diff(a, axis=0), np.diff(b, axis=0)
+    if dist is None:
+        ia, ib = np.nonzero(np.ones((len(da), len(db)), dtype=bool))
+    else:
+        near = np.hypot(*da.T).max() + np.hypot(*db.T).max()
+        ia, ib = np.nonzero(dist[:-1, :-1] <= near)
+    p, dp, q, dq = a[ia], da[ia], b[ib], db[ib]
+    den = dp[:, 0] * dq[:, 1] - dp[:, 1] * dq[:, 0]
     r = q - p
     with np.errstate(divide="ignore", invalid="ignore"):
-        ta = (r[..., 0] * dq[..., 1] - r[..., 1] * dq[..., 0]) / den
-        tb = (r[..., 0] * dp[..., 1] - r[..., 1] * dp[..., 0]) / den
+        ta = (r[:, 0] * dq[:, 1] - r[:, 1] * dq[:, 0]) / den
+        tb = (r[:, 0] * dp[:, 1] - r[:, 1] * dp[:, 0]) / den
     hit = (np.abs(den) > 0) & (ta >= 0) & (ta < 1) & (tb >= 0) & (tb < 1)
-    ia, ib = np.nonzero(hit)
     h = s[1] - s[0]
     out = []
-    for i, j in zip(ia, ib):
-        ua, ub = dp[i, 0], dq[0, j]
+    for i, j, u, v in zip(ia[hit], ib[hit], ta[hit], tb[hit]):
+        ua, ub = da[i], db[j]
         cosang = abs(ua @ ub) / (np.linalg.norm(ua) * np.linalg.norm(ub))
-        out.append((float(s[i] + ta[i, j] * h), float(s[j] + tb[i, j] * h),
+        out.append((float(s[i] + u * h), float(s[j] + v * h),
                     float(np.arccos(np.clip(cosang, 0.0, 1.0)))))
     return out
 
@@ -226,7 +239,7 @@ def _interlocks(fab: NaturalFabric, a: np.ndarray, b: np.ndarray, dist: np.ndarr
                 ) -> list[Interlock]:
     """Group the natural crossings of two loops into interlocks and give each its box."""
     s = fab.s
-    found = sorted(natural_crossings(a, b, s))
+    found = sorted(natural_crossings(a, b, s, dist))
     if not found:
         return []
     groups: list[list[tuple[float, float, float]]] = [[found[0]]]

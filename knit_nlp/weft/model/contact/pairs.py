@@ -70,6 +70,28 @@ def check_samples(L: float, radius: float, samples: int = SAMPLES) -> int:
     return pair_samples(L, radius, CHECK_PER_RADIUS, samples)
 
 
+GAP_TOL = 1e-3            # a gap below its requirement·(1 − GAP_TOL) is short: check's verdict
+CHECK_REACH = 0.5         # check's gap search: pairs within this many r of their requirement
+
+
+def checked_pairs(fab: NaturalFabric, curves: Curves, courses: int, wales: int,
+                  zones: Zones | None, samples: int = SAMPLES, limit: float | None = None
+                  ) -> tuple["Pairs", "Grid"]:
+    """The gap search of ``check`` (output/check.py) on a state: pairs within ``CHECK_REACH``·r
+    of their requirement, searched at :func:`check_samples` per loop, and that grid. The
+    contact rounds judge their answer by the same search (solving/contact/rounds.py, "the
+    checker has the last word"), so solver and check share the search, its sampling and
+    :func:`short`, as they share the rule (``NaturalFabric``) and the zones."""
+    grid = Grid(courses, wales, fab.L, check_samples(fab.L, fab.radius, samples))
+    return find_pairs(fab, curves, grid, CHECK_REACH * fab.radius, zones, limit), grid
+
+
+def short(pairs: "Pairs") -> np.ndarray:
+    """Which pairs miss their required gap by more than ``GAP_TOL`` (relative): check's
+    violations."""
+    return pairs.gap < pairs.required * (1 - GAP_TOL)
+
+
 @dataclass(frozen=True)
 class Grid:
     """The fabric's size and the course-arc sampling (every course sampled at the same S)."""

@@ -30,7 +30,7 @@ from ..solve import (DEFAULT_START, Equilibrium, Solution, SolveReport, WeftSolv
                      solve_nlp, start_point)
 from ..starts import needs_perturbation
 from .active import ACTIVE, active_gaps
-from .rounds import TOL, ContactRun, ContactSolver
+from .rounds import REFUTED, TOL, ContactRun, ContactSolver
 
 STEPS = 4                  # first load steps of a contact path when none are asked for
 KEEP = 16                  # solved contact states remembered (by base solution) for the KKT
@@ -71,7 +71,16 @@ def solve_with_contact(base: FullNLP, solver: WeftSolver, contact: ContactSolver
     run, route, why, fresh = _from_paper(base, contact, p, first)
     if run is None:
         run, route = _load_steps(base, contact, p, start, continuation, why, fresh)
+    _tell_refuted(contact, run.report)
     return run.report, contact_block(problem, contact, run, route, problem.solver.tol)
+
+
+def _tell_refuted(contact: ContactSolver, report: SolveReport) -> None:
+    """An answer the check still refutes (``REFUTED``) says what is left, in its message."""
+    if report.status == REFUTED and len(contact.left):
+        report.detail = (f"not converged: the independent check finds {len(contact.left)} "
+                         f"pairs short of their gap after the rounds with its pairs: "
+                         f"{contact.named(contact.left)}")
 
 
 def _from_paper(base: FullNLP, contact: ContactSolver, p: np.ndarray, first: SolveReport
@@ -81,13 +90,18 @@ def _from_paper(base: FullNLP, contact: ContactSolver, p: np.ndarray, first: Sol
     for the load steps that counts the effort spent (``_fresh``)."""
     if not first.success:
         return None, "", "the paper's model did not converge", _fresh(base, first)
-    if not contact.clean(first.x):
+    if not contact.out_of_time() and not contact.clean(first.x):
         return None, "", "yarns crossed in the paper's solution", _fresh(base, first)
+    if contact.out_of_time():            # the load steps end at once, out of time
+        return None, "", "out of time after the paper's model", _fresh(base, first)
     pairs = contact.pairs(first.x)
-    if not contact.violations(pairs, TOL).any():
-        return (ContactRun(first, pairs, np.zeros(len(pairs))),
-                "paper's model: no contact needed", "", first)
-    run = contact.run(p, p, first.x, 1, _fresh(base, first))
+    refuted = None
+    if not contact.violations(pairs, TOL).any() and not contact.out_of_time():
+        refuted = contact.refuted(first.x)       # the check's last word (rounds.py, 5.)
+        if len(refuted) == 0:
+            return (ContactRun(first, pairs, np.zeros(len(pairs))),
+                    "paper's model: no contact needed", "", first)
+    run = contact.run(p, p, first.x, 1, _fresh(base, first), extra=refuted)
     _keep_path(run.report, first)
     if run.report.success:
         return run, "contact rounds from the paper's solution (no yarn crossed in it)", "", first
@@ -285,6 +299,7 @@ class ContactEquilibrium(Equilibrium):
         self.solver.start_clock()           # the contact solves share its clock
         report = SolveReport(False, "", x, np.zeros(self.nlp.n_constraints), np.nan, 0, 0.0)
         self._run = self.contact.run(p, np.asarray(p_from, dtype=float), x, 1, report)
+        _tell_refuted(self.contact, self._run.report)
         return self._run.report if self._run.report.success else None
 
     def _remember(self, rep: SolveReport, block: ContactBlock) -> None:

@@ -12,6 +12,12 @@
    ``TOL`` (relative) with no crossing, and the contact points stopped moving along the yarns.
    A round whose pairs all nearly meet their gaps already starts IPOPT at a small barrier
    parameter (``SETTLE``).
+5. The checker has the last word: at the target, the answer the rounds accept is searched as
+   ``check`` searches it (pairs.checked_pairs: its own, finer sampling, its reach, its
+   tolerance; the same rule, zones and crossing count). Pairs it finds short join the rounds
+   (kept, reseated, in every later round of the step) and the rounds go on from the answer;
+   after ``CHECKS`` such refutations the solve ends ``REFUTED`` (not converged), naming what
+   is left.
 A round needs a new build only when some pair of loops needs more slots than it has.
 """
 from __future__ import annotations
@@ -24,12 +30,15 @@ import numpy as np
 from ...model.contact.crossings import Crossings, Verdict, designed_zones, find_crossings, judge
 from ...model.contact.curves import Curves
 from ...model.contact.natural import NaturalFabric
-from ...model.contact.pairs import Grid, Pairs, find_pairs, pair_samples, reseat
+from ...model.contact.near import TooLarge
+from ...model.contact.pairs import (Grid, Pairs, checked_pairs, find_pairs, pair_samples,
+                                    reseat, short)
 from ...model.contact.zones import Zones
 from ...model.parametrisation import Full
 from ...transcription.contact import ContactNLP, Slots
 from ...transcription.factory import transcribe
 from ...transcription.full import FullNLP
+from ....limits import CHECK_ROWS
 from ....outcome import OUT_OF_TIME
 from ....progress import loading
 from ..solve import SolveReport, WeftSolver
@@ -74,6 +83,12 @@ SAME = 0.01
 FLIP = 1e-6               # a pair now this far (relative to L) on its other side passed through
 CROSSED = "Contact_Crossing"        # the status of a step that let yarns cross
 DEEP_PAIRS = "Contact_Deep_Pairs"   # ... and of one still nearly crossed after its restarts
+ROUNDS_EXCEEDED = "Contact_Rounds_Exceeded"   # ... and of one whose rounds did not settle
+REFUTED = "Contact_Check_Refuted"   # ... and of an answer the check still finds short (CHECKS)
+# answers the check may refute in the last step before the solve gives up (REFUTED): each
+# refutation adds the check's short pairs and costs a round or more (on 40 random 2 x 2 to
+# 4 x 4 pulls and pushes with r 0.05-0.8 no solve came to REFUTED; tests/test_contact_last_word.py)
+CHECKS = 3
 # every slot, used or not, costs its rows in every evaluation and its 5 variables and 6 rows in
 # every KKT factorisation, and a rebuild is cheap (0.2 s at 3,000 slots): measured on the 10 x
 # 10 diagonal pull, SPARE 0.5 / SHRINK 2 held 2.85 slots per pair (16.1 s), 0.1 / 1.2 held
@@ -180,6 +195,7 @@ class Step:
     pairs: Pairs | None = None
     warm: Warm | None = None
     lam: np.ndarray | None = None
+    left: Pairs | None = None          # REFUTED: the pairs the check still finds short
 
     @property
     def success(self) -> bool:
@@ -205,6 +221,7 @@ class ContactSolver:
         self.build_s = 0.0
         self.log = None                  # a callable receiving every Round as it ends
         self.last: ContactSolve | None = None   # the last successful solve of the contact NLP
+        self.left = Pairs.empty()        # what the check found short in a REFUTED answer
         self._look: Look | None = None
 
     @property
@@ -215,6 +232,13 @@ class ContactSolver:
     @deadline.setter
     def deadline(self, when: float) -> None:
         self.base_solver.deadline = when
+
+    def out_of_time(self) -> bool:
+        """Whether the shared deadline has passed: checked before every phase that is not an
+        IPOPT solve (a pair search, the check's search, a build of the contact NLP), so that
+        ``[solver] max_time`` is overrun by one phase at most (a 10 x 10 pull at max_time = 5
+        ran its first pair search, 5.2 s under load, after the deadline had passed)."""
+        return time.perf_counter() >= self.deadline
 
     def look(self, x_base: np.ndarray) -> Look:
         """A base-layout state's curves, crossings, verdict and designed zones. The last
@@ -282,6 +306,30 @@ class ContactSolver:
             required[q], used[q] = pairs.required[i], True
         return sA, sB, sigma, required, used, slot_of
 
+    def refuted(self, x_base: np.ndarray) -> Pairs:
+        """The pairs the independent check finds short at a state (``check``'s own search,
+        pairs.checked_pairs, on this state's curves and zones): empty when the check agrees.
+        A search too large for check (CHECK_ROWS) is not made here either: check then says
+        "not checked"."""
+        look = self.look(x_base)
+        pr = self.base.problem
+        try:
+            found, _ = checked_pairs(self.fabric, look.curves, pr.courses, pr.wales, look.zones,
+                                     limit=CHECK_ROWS)
+        except TooLarge:
+            return Pairs.empty()
+        return found.select(short(found))
+
+    def named(self, pairs: Pairs, most: int = 4) -> str:
+        """The loops and gaps of (the first ``most`` of) some pairs, for a message."""
+        n = self.grid.wales
+        order = np.argsort(pairs.gap / np.maximum(pairs.required, 1e-300))[:most]
+        text = ", ".join(f"({a // n + 1},{a % n + 1})-({b // n + 1},{b % n + 1}) at "
+                         f"{g / q:.4g} of its gap" for a, b, g, q in zip(
+                             pairs.kA[order], pairs.kB[order], pairs.gap[order],
+                             pairs.required[order]))
+        return text + (f" and {len(pairs) - most} more" if len(pairs) > most else "")
+
     def violations(self, pairs: Pairs, tol: float) -> np.ndarray:
         """Pairs that miss their required gap by more than tol (relative)."""
         return pairs.gap < pairs.required * (1 - tol)
@@ -324,6 +372,9 @@ class ContactSolver:
         base multipliers, pairs and their gap multipliers; ``settle``: the pairs nearly meet
         their gaps, IPOPT starts at a small barrier parameter); the pairs' gap multipliers."""
         t0 = time.perf_counter()
+        if self.out_of_time():          # no build of a contact NLP that cannot be solved
+            return (SolveReport(False, OUT_OF_TIME, x_base, np.zeros(0), np.nan, 0, 0.0),
+                    np.zeros(len(pairs)))
         rebuilt = self._slots(pairs)
         sA, sB, sigma, required, used, slot_of = self._assign(pairs)
         c = self.cnlp
@@ -372,14 +423,17 @@ class ContactSolver:
         added (:meth:`_restart`), and they stay in every later round (:meth:`_again`).
         The :class:`Step`: its status says why when a solve failed or yarns crossed."""
         tol = TOL if final else STEP_TOL
-        restarts, settle = 0, False
+        restarts, settle, checks = 0, False, 0
         deep_met = Pairs.empty()        # the pairs a restart was for: in every later round
+        checked = Pairs.empty()         # the pairs the check found short: in every later round
         for k in range(MAX_ROUNDS):
             begun_x, begun_pairs, begun_warm = x, pairs, warm   # a restart repeats this round
             rep, lam = self.solve_once(p, x, pairs, warm, report, rounds,
                                        note if k == 0 else f"{note}, round {k + 1}", settle)
             if not rep.success:
                 return Step(rep.status)
+            if self.out_of_time():
+                return Step(OUT_OF_TIME)
             xn = rep.x[:self.base.n_variables]
             found = self.pairs(xn)
             if self.crossed(xn, pairs, found):
@@ -414,15 +468,27 @@ class ContactSolver:
             report.x, report.objective = x, rep.objective
             report.lam_g = rep.lam_g[:self.base.n_constraints]
             if not self.violations(found, tol).any() and not moved:
-                return Step("Solve_Succeeded", x, found, warm, carry((pairs, lam), found))
+                if final and self.out_of_time():
+                    return Step(OUT_OF_TIME)   # an answer the check has not judged
+                refuted = self.refuted(xn) if final else Pairs.empty()
+                if len(refuted) == 0:
+                    return Step("Solve_Succeeded", x, found, warm, carry((pairs, lam), found))
+                if checks == CHECKS:
+                    return Step(REFUTED, left=refuted)
+                checks += 1
+                checked = checked.concat(refuted)
+                if self.log is not None:
+                    self.log(f"  the check finds {len(refuted)} pairs short: "
+                             f"{self.named(refuted)}; solving on with them")
+                found = found.concat(unrepeated(found, refuted, self.grid.h * SAME))
             if self.log is not None:
                 short = np.max(1 - found.gap / np.maximum(found.required, 1e-300), initial=0)
                 self.log(f"  again: {int(self.violations(found, tol).sum())} short (worst "
                          f"{short:.2e}), moved {moved}")
             pairs = found.concat(held)
-            pairs = pairs.concat(self._again(xn, deep_met, pairs))
+            pairs = pairs.concat(self._again(xn, deep_met.concat(checked), pairs))
             settle = not self.violations(pairs, SETTLE).any()
-        return Step("Contact_Rounds_Exceeded")
+        return Step(ROUNDS_EXCEEDED)
 
     def polish(self, p: np.ndarray, rep: SolveReport, times: int) -> bool:
         """Solve again (warm) at p from the accepted solution ``rep`` (its x, multipliers and
@@ -494,12 +560,20 @@ class ContactSolver:
         return None if len(back) == 0 else pairs0.concat(back)
 
     def run(self, p_target: np.ndarray, p_natural: np.ndarray, x_start: np.ndarray,
-            steps: int, report: SolveReport, max_halvings: int = 8) -> ContactRun:
+            steps: int, report: SolveReport, max_halvings: int = 8,
+            extra: Pairs | None = None) -> ContactRun:
         """Load steps from an uncrossed state x_start (at p_natural) to p_target, each solved
-        by :meth:`step` and halved when it fails or lets yarns cross."""
+        by :meth:`step` and halved when it fails or lets yarns cross; ``extra``: pairs of
+        x_start the first solve holds besides those the search finds (the check's)."""
         rounds: list[Round] = []
         x, tau, dtau, halvings = x_start, 0.0, 1.0 / steps, 0
+        if self.out_of_time():
+            report.success, report.status = False, OUT_OF_TIME
+            return ContactRun(report, Pairs.empty(), np.zeros(0), rounds)
         pairs, lam, warm = self.pairs(x), None, None
+        if extra is not None:
+            pairs = pairs.concat(unrepeated(pairs, extra, self.grid.h * SAME))
+        self.left = Pairs.empty()
         solved = pairs                 # the pairs of the last solved step (lam's pairs)
         while tau < 1.0:
             if time.perf_counter() >= self.deadline:
@@ -511,20 +585,29 @@ class ContactSolver:
                             nxt >= 1.0, report, rounds, f"load {nxt:.4g}")
             if not out.success:
                 report.status = out.status
-            if not out.success and out.status == OUT_OF_TIME:
-                report.success = False        # no time for a wider search or a shorter step
+            if not out.success and out.status in (OUT_OF_TIME, REFUTED):
+                # no time for a wider search or a shorter step; or the answer the check
+                # refutes is the target's: neither would change what it finds short
+                report.success = False
+                self.left = out.left if out.left is not None else Pairs.empty()
                 break
             if not out.success:
                 # first widen the reach (a pair farther away may be what the step needed:
                 # a body pushed by a load has nothing else to stop it), then halve the step
                 # (a step still nearly crossed after its restarts is halved at once: on the
                 # 30 x 30 pull the doubled reach held 50,000 pairs, 72 s a solve, and the
-                # pairs it met deep had been 2-12 times their gap apart at the step's start)
-                widest = {CROSSED: WIDE_CROSSED, DEEP_PAIRS: 0.0, INFEASIBLE: 0.0}.get(
-                    report.status, WIDEST)
+                # pairs it met deep had been 2-12 times their gap apart at the step's start;
+                # a step whose rounds did not settle is halved at once too: its rounds found
+                # pairs, they did not miss any, and a wider reach only makes every round
+                # dearer: the 10 x 10 diagonal push by a third, each round of its last step
+                # finding ~10 pairs 0.3-0.9 % short beside its slots, 30-220 IPOPT
+                # iterations a round at 3,400 pairs)
+                widest = {CROSSED: WIDE_CROSSED, DEEP_PAIRS: 0.0, INFEASIBLE: 0.0,
+                          ROUNDS_EXCEEDED: 0.0}.get(report.status, WIDEST)
                 if self.reach < widest * self.base.problem.L and len(pairs) < WIDE_PAIRS:
                     self.reach *= 2
-                    pairs = self.pairs(x)
+                    if not self.out_of_time():      # else the loop's head ends the run
+                        pairs = self.pairs(x)
                     continue
                 if np.array_equal(p_target, p_natural):
                     # no load to step (a start at unknown parameters): a shorter step is the
