@@ -95,7 +95,8 @@ def test_the_check_and_the_3d_files_speak_of_the_3d_answer(solved) -> None:
 
 def test_check_and_the_inverse_problems_refuse_a_3d_problem_in_one_line(solved, tmp_path,
                                                                         capsys) -> None:
-    """What is not built for the 3-D model says so (exit 2, one line naming [yarn] geometry)
+    """What is not built for the 3-D model says so (exit 2, one line naming [yarn] geometry;
+    control and fit in 3-D: tests/test_weft3d_inverse.py)
     instead of judging or steering a space curve as a planar one: `check` read the 3-D pull's
     projection as 9 new crossings and 1,239 short gaps before it refused."""
     from knit_nlp.cli import main
@@ -108,12 +109,3 @@ def test_check_and_the_inverse_problems_refuse_a_3d_problem_in_one_line(solved, 
                  str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "[yarn] geometry" in err and "check" in err
-    doc = {**DOC, "name": "control3d",
-           "clamp": [DOC["clamp"][0], {**DOC["clamp"][1], "displacement": [0.0, 0.0],
-                                       "actuated": True, "bounds": [[-5.0, 25.0], [-5.0, 25.0]]}],
-           "goal": [{"loop": [2, 1], "point": "H", "position": [3.0, 4.0]}]}
-    path = tmp_path / "control3d.toml"
-    path.write_text(toml_text(doc))
-    assert main(["control", str(path), "--out", str(tmp_path / "c")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "not offered for the 3-D model" in err

@@ -178,9 +178,10 @@ class WeftSolver:
         return self.wnlp.violation(np.asarray(self._g(x, p)).ravel())
 
     def continuation(self, p: np.ndarray, x0: np.ndarray, steps: int,
-                     max_halvings: int = 6) -> SolveReport:
-        """Step the parameters from their natural values to ``p``, warm-starting each solve."""
-        p_nat = WeftParams.natural(self.wnlp.problem).vector()
+                     max_halvings: int = 6, p_from: np.ndarray | None = None) -> SolveReport:
+        """Step the parameters from their natural values (or ``p_from``, x0's) to ``p``,
+        warm-starting each solve."""
+        p_nat = WeftParams.natural(self.wnlp.problem).vector() if p_from is None else p_from
         x, tau, dtau = x0, 0.0, 1.0 / steps
         total = SolveReport(False, "", x0, np.zeros(self.wnlp.n_constraints), np.nan, 0, 0.0)
         halvings = 0
