@@ -16,7 +16,7 @@ from ..model.parametrisation import Full
 from ..model.problem import WeftProblem
 from ..solving.contact.equilibrium import KEEP
 from ..model.params import WeftParams
-from ..solving.solve import DEFAULT_START, Equilibrium, Solution
+from ..solving.solve import DEFAULT_START, Equilibrium, Solution, WeftSolver
 from ..transcription.spatial import planar_only
 from ..solving.variants import equilibrium
 
@@ -32,6 +32,9 @@ POLISH = 4
 # solved contact states remembered for a calibration curve, whose nodes' sensitivities are taken
 # after the whole pull (up to curve.NODES x 10 steps, each possibly halved): every state stays
 CURVE_KEEP = 1024
+# IPOPT iterations of one solve inside a 3-D inverse step (``SpatialSteps``): the accepted steps
+# of the 2 x 2 and 6 x 6 controls took 10-60
+TRIAL_ITER = 150
 
 
 # the inverse commands not yet taken through the 3-D model (``[yarn] geometry = "3d"``), each
@@ -65,7 +68,12 @@ class SpatialSteps(Equilibrium):
     origin, a solve is the 3-D model's own (load steps from the natural state). Measured on a
     2 x 2 control: with the default solve from x0 (four load steps from the natural
     parameters, each warm-started from the new actuation's prediction) the first trial steps
-    failed and the trust radius fell to 3e-5 mm before it grew again (42 outer iterations)."""
+    failed and the trust radius fell to 3e-5 mm before it grew again (42 outer iterations).
+    A step's IPOPT solves stop at ``TRIAL_ITER`` iterations (a failed step shrinks the control's
+    trust region): on the 6 x 6 ``place_stitch_3d`` one trial of 3 mm pressed a crossing
+    towards its core (objective 2.5e9) for over 1 100 iterations and 13 minutes."""
+
+    _trial: WeftSolver | None = None        # the IPOPT instance of the steps, built on first use
 
     def solve(self, params: WeftParams | np.ndarray | None = None, x0: np.ndarray | None = None,
               *, continuation: int | None = None, start: str = DEFAULT_START,
@@ -76,11 +84,14 @@ class SpatialSteps(Equilibrium):
         params = self.as_params(params)
         p = params.vector()
         self.forward_solves += 1
+        if self._trial is None:
+            self._trial = WeftSolver(self.nlp, max_iter=TRIAL_ITER, verbose=self.solver.verbose,
+                                     clock=self.solver.clock)
         self.solver.start_clock()
-        rep = self.solver.once(p, x0)
+        rep = self._trial.once(p, x0)
         rep.attempts = [f"direct from the prediction: {rep.status} ({rep.iterations} it)"]
         if not rep.success:
-            step = self.solver.continuation(p, origin[0], 1, p_from=np.asarray(origin[1]))
+            step = self._trial.continuation(p, origin[0], 1, p_from=np.asarray(origin[1]))
             step.add_effort(rep)
             step.attempts = rep.attempts + [f"load step from the last state: {step.status}"]
             rep = step
