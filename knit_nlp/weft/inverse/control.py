@@ -27,14 +27,13 @@ import numpy as np
 from ...jsonio import write_json
 from ...outcome import Energy, Outcome, describe
 from ...progress import QUIET_FOR, Clock
-from ..model.centrelines import natural_centrelines
 from ..model.problem import WeftProblem
 from ..output.plausibility import summary_line as implausible
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport
 from ..solving.sensitivity import Stability
 from .forward import equilibrium_for
-from .plot import plot_control
+from .plot import natural_plan, plot_control
 from .points import point_function, point_jacobian
 from .spec import Actuated, ControlProblem
 
@@ -141,12 +140,13 @@ class ControlResult(Outcome):
                      + f" at least {o['at_least']:.4g}: achieved {o['achieved']:.4g}")
                     for pair, o in zip(self.ctl.opening_points(self.state.x), result["openings"])]
         png = plot_control(out / f"{name}.control.png", self.equilibrium,
-                           natural_centrelines(self.problem), wnlp.centrelines(self.start.x),
+                           natural_plan(wnlp), wnlp.centrelines(self.start.x),
                            wnlp.centrelines(self.state.x), goals, reached, travel, openings,
                            f"{name}: {result['status']}, objective {result['objective']:.3g}, "
                            f"{'stable' if result['stable'] else 'NOT STABLE'}"
                            + ("" if self.problem.yarn is None else
-                              f"; yarn contact, r = {self.problem.yarn.radius:g} "
+                              f"; {'3-D model' if self.problem.yarn.spatial else 'yarn contact'}"
+                              f", r = {self.problem.yarn.radius:g} "
                               f"{self.problem.units.length}"), result["check"])
         return [js, png]
 

@@ -10,7 +10,7 @@ fit and calibrate:
   ``[yarn] radius`` (the reduced models refuse a radius: their loops are interpolated);
 - ``AdaptiveEquilibrium`` (``adaptive.py``): the adaptive-representatives strategy, which
   refines its grid afresh at every solve and has no sensitivities;
-- the 3-D model (``[yarn] geometry = "3d"``): an ``Equilibrium`` of its full transcription
+- the 3-D model (``[yarn] geometry = "3d"``): a ``SpatialEquilibrium`` of its full transcription
   (``transcription.spatial``, through ``transcribe``); its crossings are persistent contacts
   in the NLP itself, so it needs no contact rounds; the reduced models are planar and refuse it.
 
@@ -23,7 +23,7 @@ from ..model.problem import WeftProblem
 from .adaptive import AdaptiveEquilibrium
 from .contact.equilibrium import KEEP, ContactEquilibrium, refuse
 from ..transcription.spatial import planar_only
-from .solve import Equilibrium
+from .solve import Equilibrium, SpatialEquilibrium
 
 ForwardEquilibrium = Equilibrium | AdaptiveEquilibrium
 
@@ -41,7 +41,7 @@ def equilibrium(problem: WeftProblem, parametrisation: Parametrisation | None = 
     if problem.yarn is not None and problem.yarn.spatial:
         if isinstance(param, (Reduced, Adaptive)):
             raise planar_only(problem, "the reduced model")
-        return Equilibrium(problem, Full(), verbose=verbose)
+        return SpatialEquilibrium(problem, Full(), verbose=verbose)
     if problem.yarn is not None:
         if isinstance(param, (Reduced, Adaptive)):
             own = " (the file's [reduction])" if parametrisation is None else ""
