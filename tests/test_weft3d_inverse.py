@@ -182,3 +182,20 @@ def test_a_3d_sweep_writes_the_spatial_block_and_its_check_at_every_point(tmp_pa
         assert r["energy"]["total"] == pytest.approx(alone.energy.total, rel=1e-6)
         assert r["spatial"]["smallest_separation"] == pytest.approx(
             alone.to_json()["spatial"]["smallest_separation"], rel=1e-6)
+
+
+def test_the_shipped_3d_control_converges_with_no_crossing_flipped_or_through_the_core() -> None:
+    """`knit-nlp control place_stitch_3d` (issue 39's target: no interpenetration and no
+    flipped crossing in place_stitch controlled in 3-D): converged, stable, reached by the
+    forward solve, every designed crossing in its order and outside the hard core 2R_c."""
+    from knit_nlp.problems import resolve
+    from knit_nlp.weft.inverse.control import control
+    from knit_nlp.weft.inverse.spec import load_control
+
+    ans = control(load_control(resolve("place_stitch_3d")))
+    r = ans.to_json()
+    assert ans.success and r["goals"][0]["misfit"] < 1e-6
+    spatial, core = r["equilibrium"]["spatial"], 2 * ans.problem.yarn.core_radius
+    assert r["check"]["ok"] and spatial["flipped"] == 0
+    assert spatial["smallest_separation"] > core
+    assert all(c["separation"] > core for c in spatial["crossings"])
