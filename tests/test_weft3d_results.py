@@ -93,19 +93,3 @@ def test_the_check_and_the_3d_files_speak_of_the_3d_answer(solved) -> None:
     np.testing.assert_allclose(mesh.point_data["radius"], pr.yarn.radius)
 
 
-def test_the_inverse_problems_refuse_a_3d_problem_in_one_line(tmp_path, capsys) -> None:
-    """What is not built for the 3-D model says so (exit 2, one line naming [yarn] geometry)
-    instead of steering a space curve as a planar one (``check`` of a 3-D result is the 3-D
-    check: tests/test_weft3d_check_cli.py)."""
-    from knit_nlp.cli import main
-    from knit_nlp.tomlio import toml_text
-
-    doc = {**DOC, "name": "control3d",
-           "clamp": [DOC["clamp"][0], {**DOC["clamp"][1], "displacement": [0.0, 0.0],
-                                       "actuated": True, "bounds": [[-5.0, 25.0], [-5.0, 25.0]]}],
-           "goal": [{"loop": [2, 1], "point": "H", "position": [3.0, 4.0]}]}
-    path = tmp_path / "control3d.toml"
-    path.write_text(toml_text(doc))
-    assert main(["control", str(path), "--out", str(tmp_path / "c")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "not offered for the 3-D model" in err

@@ -27,14 +27,13 @@ import numpy as np
 from ...jsonio import write_json
 from ...outcome import Energy, Outcome, describe
 from ...progress import QUIET_FOR, Clock
-from ..model.centrelines import natural_centrelines
 from ..model.problem import WeftProblem
 from ..output.plausibility import summary_line as implausible
 from ..output.results import WeftResult
 from ..solving.solve import SolveReport
 from ..solving.sensitivity import Stability
 from .forward import equilibrium_for
-from .plot import plot_control
+from .plot import natural_plan, plot_control
 from .points import point_function, point_jacobian
 from .spec import Actuated, ControlProblem
 
@@ -54,6 +53,14 @@ class ControlOptions:
     forward_tol: float = 1e-5        # largest centreline distance for the forward check to pass
     initial_radius: float = 10.0     # trust region in model units (and radians for rotations);
     #                                  place_stitch: 5 outer steps instead of 7 with 2.0
+    # the 3-D model's first trust region, in yarn radii: its crossings have no stiffness at
+    # touch, so a first trial of 10 mm on a 6 x 6 acrylic fabric pressed a crossing towards
+    # its core (objective 1e8-5e9) for minutes before the step was cut
+    initial_radius_3d: float = 1.0
+    # times a converged iteration whose equilibrium is not the forward solve's from the natural
+    # state goes on from the forward solve's (a 2 x 2 acrylic control in 3-D ended 0.008 mm
+    # from it, on a second minimum 1e-9 N·mm higher in energy)
+    branch_restarts: int = 3
 
 
 @dataclass
@@ -133,12 +140,13 @@ class ControlResult(Outcome):
                      + f" at least {o['at_least']:.4g}: achieved {o['achieved']:.4g}")
                     for pair, o in zip(self.ctl.opening_points(self.state.x), result["openings"])]
         png = plot_control(out / f"{name}.control.png", self.equilibrium,
-                           natural_centrelines(self.problem), wnlp.centrelines(self.start.x),
+                           natural_plan(wnlp), wnlp.centrelines(self.start.x),
                            wnlp.centrelines(self.state.x), goals, reached, travel, openings,
                            f"{name}: {result['status']}, objective {result['objective']:.3g}, "
                            f"{'stable' if result['stable'] else 'NOT STABLE'}"
                            + ("" if self.problem.yarn is None else
-                              f"; yarn contact, r = {self.problem.yarn.radius:g} "
+                              f"; {'3-D model' if self.problem.yarn.spatial else 'yarn contact'}"
+                              f", r = {self.problem.yarn.radius:g} "
                               f"{self.problem.units.length}"), result["check"])
         return [js, png]
 
@@ -214,7 +222,7 @@ class Controller:
     def __init__(self, cp: ControlProblem, options: ControlOptions | None = None) -> None:
         self.cp, self.opts = cp, options or ControlOptions()
         # with [yarn] radius the forward model and its KKT system hold the active contacts
-        self.eq = equilibrium_for(cp.problem)
+        self.eq = equilibrium_for(cp.problem, command="control")
         pl = self.eq.wnlp.p
         idx = []
         for a in cp.actuated:
@@ -235,6 +243,8 @@ class Controller:
         self._w = np.array(w)
         self._rows = self._w > 0
         self._qp = self._build_qp()
+        self.restarts = 0                # iterations resumed from the forward solve's branch
+        self._forward: tuple[np.ndarray, SolveReport] | None = None
 
     # -- residuals and their Jacobians ------------------------------------------------------
     def params(self, u: np.ndarray) -> np.ndarray:
@@ -332,21 +342,40 @@ class Controller:
         start = self._state(u, rep)
         if not rep.success:
             return self._finish(start, start, False, f"start equilibrium not found: {rep.status}", 0, t0)
-        s, radius, status, it = start, self.opts.initial_radius, "Maximum_Iterations", 0
         rho = 10.0 * (1.0 + float(start.r @ start.r))
-        for it in range(1, self.opts.max_iter + 1):
+        s, status, it, radius = self._iterate(start, self.first_radius(), rho, 0, clock)
+        for _ in range(self.opts.branch_restarts):
+            if status != CONVERGED:
+                break
+            fwd = self.forward(s.u)
+            if not fwd.success or self.distance(s.x, fwd.x) <= self.forward_tolerance():
+                break
+            # the path the iteration took ended on another equilibrium than the forward solve
+            # from the natural state reaches at these targets: go on from that one
+            self.restarts += 1
+            s, status, it, radius = self._iterate(self._state(s.u, fwd), radius, rho, it, clock)
+        ok = status == CONVERGED and bool(np.all(s.gap >= -self.opts.opening_tol))
+        if status == CONVERGED and not ok:
+            status = "Converged_Opening_Infeasible"
+        return self._finish(start, s, ok, status, it, t0)
+
+    def _iterate(self, s: State, radius: float, rho: float, it: int, clock: Clock
+                 ) -> tuple[State, str, int, float]:
+        """Trust-region Gauss–Newton/SQP steps from state s (module docstring) until converged,
+        failed or out of iterations; returns the last state, status, iteration count and trust
+        radius."""
+        status, first = "Maximum_Iterations", it + 1
+        for it in range(first, self.opts.max_iter + 1):
             dx, Jr, Jg = self.jacobians(s)
             try:
                 d, lam_o = self._step(s, Jr, Jg, radius, rho)
             except RuntimeError as err:
-                status = str(err)
-                break
+                return s, str(err), it, radius
             rho = max(rho, 2.0 * float(np.abs(lam_o).max(initial=0.0)))
             model = s.r + Jr @ d
             pred = s.merit(rho) - float(model @ model + rho * np.sum(np.maximum(0.0, -(s.gap + Jg @ d))))
             if pred <= self.opts.objective_tol or np.abs(d).max() <= self.opts.step_tol * (1 + np.abs(s.u).max()):
-                status = CONVERGED
-                break
+                return s, CONVERGED, it, radius
             trial = self.equilibrium(s.u + d, x0=s.x + dx @ d, origin=s)
             if not trial.success:
                 radius = 0.25 * np.abs(d).max()
@@ -360,10 +389,28 @@ class Controller:
             else:
                 radius = 0.25 * np.abs(d).max()
             self._progress(it, s, radius, clock)
-        ok = status == CONVERGED and bool(np.all(s.gap >= -self.opts.opening_tol))
-        if status == CONVERGED and not ok:
-            status = "Converged_Opening_Infeasible"
-        return self._finish(start, s, ok, status, it, t0)
+        return s, status, max(it, first - 1), radius
+
+    def forward(self, u: np.ndarray) -> SolveReport:
+        """The forward solve from the natural state at unknowns u (as ``knit-nlp solve``),
+        once per u (the branch test and the forward check share it)."""
+        if self._forward is None or not np.array_equal(self._forward[0], u):
+            self._forward = (u.copy(), self.eq.solve(self.params(u)))
+        return self._forward[1]
+
+    def distance(self, x: np.ndarray, y: np.ndarray) -> float:
+        """The largest distance between two states' centrelines (21 samples per loop; in
+        space for the 3-D model, whose states may differ out of the plane only)."""
+        lines = getattr(self.eq.wnlp, "centrelines3d", self.eq.wnlp.centrelines)
+        return float(np.linalg.norm(lines(x, 21) - lines(y, 21), axis=-1).max())
+
+    def first_radius(self) -> float:
+        """The first trust region: ``initial_radius``, in the 3-D model at most
+        ``initial_radius_3d`` yarn radii."""
+        yarn = self.cp.problem.yarn
+        if yarn is not None and yarn.spatial:
+            return min(self.opts.initial_radius, self.opts.initial_radius_3d * yarn.radius)
+        return self.opts.initial_radius
 
     def forward_tolerance(self) -> float:
         """The forward check's largest centreline distance: ``forward_tol``; with yarn contact
@@ -378,9 +425,8 @@ class Controller:
         p = self.params(s.u)
         stab = self.eq.stability(s.x, s.lam, p)
         t2 = time.perf_counter()
-        fwd = self.eq.solve(p)
-        lines = [self.eq.wnlp.centrelines(v, 21) for v in (s.x, fwd.x)]
-        dist = float(np.linalg.norm(lines[0] - lines[1], axis=-1).max())
+        fwd = self.forward(s.u)
+        dist = self.distance(s.x, fwd.x)
         fwd_ok = bool(fwd.success and dist <= self.forward_tolerance())
         t3 = time.perf_counter()
         if ok and not stab.stable:
@@ -429,7 +475,8 @@ def control_json(ans: ControlResult) -> dict[str, Any]:
             "stable": ans.stability.stable,
             "min_reduced_hessian_eigenvalue": ans.stability.min_eigenvalue,
             "stability_method": ans.stability.method,
-            "forward_check": {"success": ans.forward_success, "max_distance": ans.forward_distance},
+            "forward_check": {"success": ans.forward_success, "max_distance": ans.forward_distance,
+                              "restarts_from_the_forward_solve": ctl.restarts},
             "travel_weight": cp.travel_weight,
             "check": equilibrium.checked,             # the answer's own check (output.check)
             "equilibrium": equilibrium.to_json()}

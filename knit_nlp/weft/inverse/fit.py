@@ -26,16 +26,16 @@ from typing import Any, Sequence
 import casadi as ca
 import numpy as np
 
+from ...errors import ProblemError
 from ...jsonio import write_json
 from ...outcome import Energy, Outcome
-from ..model.centrelines import natural_centrelines
 from ..model.params import MATERIAL
 from ..model.problem import WeftProblem
 from ..output.results import WeftResult
 from ..solving.solve import Equilibrium, SolveReport
 from .forward import equilibrium_for
 from .observations import Observation
-from .plot import plot_fit
+from .plot import natural_plan, plot_fit
 from .points import point_function, point_jacobian
 
 CONVERGED = "Converged"
@@ -96,7 +96,7 @@ class FitResult(Outcome):
         :func:`fit_name` of the load cases, so fits of other cases never overwrite these."""
         out, result, name = Path(out_dir), self.to_json(), self._name()
         js = write_json(out / f"{name}.fit.json", result)
-        panels = [(c.name, self.case_result(c), natural_centrelines(c.eq.problem),
+        panels = [(c.name, self.case_result(c), natural_plan(c.eq.wnlp),
                    c.eq.wnlp.centrelines(c.x), c.observed, self.fitted[c.name])
                   for c in self.cases if c.x is not None]
         title = (f"fit of {', '.join(self.names)}: {result['status']}, rms residual "
@@ -148,7 +148,8 @@ class Fitter:
             obs = [o for o in observations if o.case == pr.name]
             if not obs:
                 continue
-            eq = equilibrium_for(pr)
+            refuse_springs_in_3d(pr, self.names)
+            eq = equilibrium_for(pr, command="fit")
             fn = point_jacobian(point_function(eq.wnlp, [(o.loop, o.s) for o in obs]))
             self.cases.append(_Case(pr.name, eq, fn, np.array([o.xy for o in obs])))
         first = self.cases[0].eq.wnlp
@@ -278,6 +279,18 @@ class Fitter:
                                 f"{std[k]:.3g} exceeds the value {v[k]:.3g})")
                 std[k] = None
         return std, warnings
+
+
+def refuse_springs_in_3d(pr: WeftProblem, names: Sequence[str]) -> None:
+    """A 3-D load case without the paper's crossing springs has no k_a, k_b (its crossings are
+    contacts, docs/weft3d.md): fitting them is refused in one line rather than reported as
+    undetermined values the data cannot see."""
+    springs = [n for n in names if n in ("k_a", "k_b")]
+    if springs and pr.yarn is not None and pr.yarn.spatial and not pr.yarn.crossing_springs:
+        raise ProblemError(pr.source, "yarn", "crossing_springs",
+                           f"fit of {', '.join(springs)}: the 3-D model's crossings are contacts, "
+                           "not the paper's springs; fit R_f only (--params R_f) or set "
+                           "crossing_springs = true")
 
 
 def weak_values(J: np.ndarray, opts: FitOptions) -> set[int]:

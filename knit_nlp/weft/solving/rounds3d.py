@@ -19,20 +19,24 @@ from ..model.spatial.repulsion import Neighbours, missing
 from ..model.contact.pairs import check_samples
 from ..model.centrelines import SAMPLES
 from ..transcription.spatial import SpatialNLP, build_spatial
-from .solve import Equilibrium, Solution
+from .solve import Solution, SpatialSteps
 
 ROUNDS = 3
 
 
-class SpatialEquilibrium(Equilibrium):
-    """The 3-D model's equilibrium: ``Equilibrium`` with the rounds of other contacts."""
+class SpatialEquilibrium(SpatialSteps):
+    """The 3-D model's equilibrium: ``SpatialSteps`` (the inverse problems' trial steps) with
+    the rounds of other contacts. ``rounds``: at most this many (0 in the inverse problems,
+    ``inverse.forward``: a round rebuilds the NLP with more variables, and the states an
+    outer iteration keeps would no longer fit it)."""
 
     extra: Neighbours | None = None
+    rounds_max: int = ROUNDS
 
     def solve(self, params: Any = None, x0: np.ndarray | None = None, **kw: Any) -> Solution:
         sol = super().solve(params, x0, **kw)
         rounds: list[dict[str, Any]] = []
-        for _ in range(ROUNDS):
+        for _ in range(self.rounds_max):
             if not sol.success or self.nlp.neighbours is None:
                 break
             new = self.missing(sol.x)

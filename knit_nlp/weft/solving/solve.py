@@ -179,9 +179,10 @@ class WeftSolver:
         return self.wnlp.violation(np.asarray(self._g(x, p)).ravel())
 
     def continuation(self, p: np.ndarray, x0: np.ndarray, steps: int,
-                     max_halvings: int = 6) -> SolveReport:
-        """Step the parameters from their natural values to ``p``, warm-starting each solve."""
-        p_nat = WeftParams.natural(self.wnlp.problem).vector()
+                     max_halvings: int = 6, p_from: np.ndarray | None = None) -> SolveReport:
+        """Step the parameters from their natural values (or ``p_from``, x0's) to ``p``,
+        warm-starting each solve."""
+        p_nat = WeftParams.natural(self.wnlp.problem).vector() if p_from is None else p_from
         x, tau, dtau = x0, 0.0, 1.0 / steps
         total = SolveReport(False, "", x0, np.zeros(self.wnlp.n_constraints), np.nan, 0, 0.0)
         halvings = 0
@@ -352,6 +353,54 @@ class Equilibrium:
                   method: str = "sparse") -> Stability:
         """Smallest eigenvalue of the reduced Hessian (``KKT.stability``)."""
         return self.kkt_system.stability(x, lam, p, method)
+
+
+# IPOPT iterations of one solve inside a 3-D inverse step (``SpatialSteps``): the
+# accepted steps of the 2 x 2 and 6 x 6 controls took 10-60
+TRIAL_ITER = 150
+# halvings of a failed 3-D step before the control shrinks its trust region instead: with 6,
+# failed trials of a 6 x 6 acrylic control took 4-6 minutes each (over 1 000 iterations)
+TRIAL_HALVINGS = 2
+
+
+class SpatialSteps(Equilibrium):
+    """The 3-D model's equilibrium (its full transcription, ``transcription.spatial``; chosen
+    by ``variants.equilibrium``) whose solves with an ``origin`` (a solved state and its
+    parameters: the control iteration's trial steps) are one load step from there: IPOPT
+    from the predicted state x0 at the new parameters, and where that fails, the parameters
+    stepped from the origin's (halved as needed, ``WeftSolver.continuation``). Without an
+    origin, a solve is the 3-D model's own (load steps from the natural state). Measured on a
+    2 x 2 control: with the default solve from x0 (four load steps from the natural
+    parameters, each warm-started from the new actuation's prediction) the first trial steps
+    failed and the trust radius fell to 3e-5 mm before it grew again (42 outer iterations).
+    A step's IPOPT solves stop at ``TRIAL_ITER`` iterations (a failed step shrinks the control's
+    trust region): on a 6 x 6 acrylic control one trial of 3 mm pressed a crossing
+    towards its core (objective 2.5e9) for over 1 100 iterations and 13 minutes."""
+
+    _trial: WeftSolver | None = None        # the IPOPT instance of the steps, built on first use
+
+    def solve(self, params: WeftParams | np.ndarray | None = None, x0: np.ndarray | None = None,
+              *, continuation: int | None = None, start: str = DEFAULT_START,
+              x0_params: WeftParams | np.ndarray | None = None,
+              origin: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
+        if origin is None or x0 is None:
+            return super().solve(params, x0, continuation=continuation, start=start)
+        params = self.as_params(params)
+        p = params.vector()
+        self.forward_solves += 1
+        if self._trial is None:
+            self._trial = WeftSolver(self.nlp, max_iter=TRIAL_ITER, verbose=self.solver.verbose,
+                                     clock=self.solver.clock)
+        self.solver.start_clock()
+        rep = self._trial.once(p, x0)
+        rep.attempts = [f"direct from the prediction: {rep.status} ({rep.iterations} it)"]
+        if not rep.success:
+            step = self._trial.continuation(p, origin[0], 1, max_halvings=TRIAL_HALVINGS,
+                                            p_from=np.asarray(origin[1]))
+            step.add_effort(rep)
+            step.attempts = rep.attempts + [f"load step from the last state: {step.status}"]
+            rep = step
+        return self.solution(rep, params)
 
 
 def solve_nlp(wnlp: WeftNLP, solver: WeftSolver | None = None,

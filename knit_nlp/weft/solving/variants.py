@@ -10,7 +10,7 @@ fit and calibrate:
   ``[yarn] radius`` (the reduced models refuse a radius: their loops are interpolated);
 - ``AdaptiveEquilibrium`` (``adaptive.py``): the adaptive-representatives strategy, which
   refines its grid afresh at every solve and has no sensitivities;
-- the 3-D model (``[yarn] geometry = "3d"``): an ``Equilibrium`` of its full transcription
+- the 3-D model (``[yarn] geometry = "3d"``): a ``SpatialEquilibrium`` of its full transcription
   (``transcription.spatial``, through ``transcribe``); its crossings are persistent contacts
   in the NLP itself, so it needs no contact rounds; the reduced models are planar and refuse it.
 
