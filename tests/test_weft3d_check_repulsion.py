@@ -97,4 +97,5 @@ def test_a_solve_adds_the_pairs_its_check_finds_and_says_so(tmp_path) -> None:
     block = result.to_json()["spatial"]["other_contacts"]
     assert block["rounds"] == rounds and block["listed_pairs"] == len(eq.nlp.neighbours)
     line = solve_summary(result, [])
-    assert f"{len(rounds)} rounds added {sum(r['added'] for r in rounds)} pairs" in line
+    word = "round" if len(rounds) == 1 else "rounds"
+    assert f"{len(rounds)} {word} added {sum(r['added'] for r in rounds)} pairs" in line

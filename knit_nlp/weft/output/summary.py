@@ -50,7 +50,8 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
         rounds = r.nlp.rounds
         failed = [x["status"] for x in rounds if x["status"] != "Solve_Succeeded"]
         lines.append(f"  other contacts: {len(listed)} pairs of sample points repel; "
-                     f"{len(rounds)} rounds added {sum(x['added'] for x in rounds)} pairs the "
+                     f"{len(rounds)} round{'s' * (len(rounds) != 1)} added "
+                     f"{sum(x['added'] for x in rounds)} pairs the "
                      "check found closer than 2r" + (f" (the last round's solve failed: "
                                                      f"{failed[0]}; its pairs not kept)"
                                                      if failed else ""))
