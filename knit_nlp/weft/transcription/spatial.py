@@ -527,4 +527,4 @@ class _Builder:
         if self.pairs is None:
             return ca.MX(0)
         return repulsion_energy(self.pr.yarn.shell(), self.pr.L / self.pairs.samples,
-                                xb["rp"], self.pairs)
+                                xb["rp"], self.pairs, self.elements.call)

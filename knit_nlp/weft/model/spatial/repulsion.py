@@ -28,6 +28,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Callable
+
 import casadi as ca
 import numpy as np
 
@@ -139,15 +141,20 @@ def pair_energy(shell: SoftShell, weight: float) -> ca.Function:
                        ["x_a", "x_b", "c"], ["E"])
 
 
-def repulsion_energy(shell: SoftShell, weight: float, points: ca.MX, pairs: Neighbours
-                     ) -> ca.MX:
-    """U_other (R1) of lifted sample points (3 × N·S, column k·S + q)."""
+def repulsion_energy(shell: SoftShell, weight: float, points: ca.MX, pairs: Neighbours,
+                     mapped: Callable[..., list[ca.MX]] | None = None) -> ca.MX:
+    """U_other (R1) of lifted sample points (3 × N·S, column k·S + q). ``mapped(name, fn,
+    count, *args)`` maps the pair term over the pairs (default ``fn.map``; the 3-D NLP passes
+    ``Elements.call``, so that its derivatives are assembled pair by pair)."""
     if not len(pairs):
         return ca.MX(0)
     a = (pairs.ka * pairs.samples + pairs.qa).tolist()
     b = (pairs.kb * pairs.samples + pairs.qb).tolist()
-    term = pair_energy(shell, weight).map(len(pairs), "serial")
-    return ca.sum2(term(points[:, a], points[:, b], ca.DM(pairs.shift).T))
+    if mapped is None:
+        def mapped(name: str, fn: ca.Function, count: int, *args: ca.MX) -> list[ca.MX]:
+            return [fn.map(count, "serial")(*args)]
+    return ca.sum2(mapped("repulsion", pair_energy(shell, weight), len(pairs), points[:, a],
+                          points[:, b], ca.DM(pairs.shift).T)[0])
 
 
 def missing(close: Near | None, listed: Neighbours, L: float, wales: int,
