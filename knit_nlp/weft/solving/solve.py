@@ -98,7 +98,23 @@ class Clock:
     deadline: float = np.inf
 
 
-class WeftSolver:
+class OnClock:
+    """A solver on a shared :class:`Clock`: its ``deadline`` is the clock's (moving it moves
+    every solver's that shares the clock)."""
+
+    clock: Clock
+
+    @property
+    def deadline(self) -> float:
+        """When the solves stop (the shared :class:`Clock`)."""
+        return self.clock.deadline
+
+    @deadline.setter
+    def deadline(self, when: float) -> None:
+        self.clock.deadline = when
+
+
+class WeftSolver(OnClock):
     """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
@@ -133,15 +149,6 @@ class WeftSolver:
         variables and rows) that shares this one's clock and progress setting: its solves stop
         at the same deadline."""
         return WeftSolver(wnlp, verbose=self.verbose, ipopt=ipopt, clock=self.clock)
-
-    @property
-    def deadline(self) -> float:
-        """When the solves stop (the shared :class:`Clock`)."""
-        return self.clock.deadline
-
-    @deadline.setter
-    def deadline(self, when: float) -> None:
-        self.clock.deadline = when
 
     def start_clock(self) -> None:
         """Start the wall-clock budget ``[solver] max_time`` shared by the solves that follow

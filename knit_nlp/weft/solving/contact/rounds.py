@@ -41,7 +41,7 @@ from ...transcription.full import FullNLP
 from ....limits import CHECK_ROWS
 from ....outcome import OUT_OF_TIME
 from ....progress import loading
-from ..solve import SolveReport, WeftSolver
+from ..solve import OnClock, SolveReport, WeftSolver
 from .active import active_gaps
 from .matching import carry, contacts_moved, loop_pair_counts, lost_contacts, match, unrepeated
 
@@ -202,7 +202,7 @@ class Step:
         return self.x is not None
 
 
-class ContactSolver:
+class ContactSolver(OnClock):
     """Contact rounds for one problem: the base NLP is ``solver``'s (the paper's IPOPT
     instance); the contact NLP's solvers share its clock (:meth:`WeftSolver.sibling`)."""
 
@@ -210,6 +210,7 @@ class ContactSolver:
         base = solver.wnlp
         pr = base.problem
         self.base_solver = solver
+        self.clock = solver.clock        # the deadline shared with the paper's solves
         self.base, self.radius = base, float(radius)
         self.fabric = NaturalFabric.of(pr, radius)
         per_loop = per_loop or pair_samples(pr.L, radius)     # the rule check shares
@@ -223,15 +224,6 @@ class ContactSolver:
         self.last: ContactSolve | None = None   # the last successful solve of the contact NLP
         self.left = Pairs.empty()        # what the check found short in a REFUTED answer
         self._look: Look | None = None
-
-    @property
-    def deadline(self) -> float:
-        """The wall-clock deadline shared with the paper's solves (the base solver's clock)."""
-        return self.base_solver.deadline
-
-    @deadline.setter
-    def deadline(self, when: float) -> None:
-        self.base_solver.deadline = when
 
     def out_of_time(self) -> bool:
         """Whether the shared deadline has passed: checked before every phase that is not an
