@@ -106,7 +106,13 @@ def _crossing_segments(p0: np.ndarray, d: np.ndarray, K: int, uv: np.ndarray):
     cu, iu = np.divmod(u, K - 1)
     cv, iv = np.divmod(v, K - 1)
     apart = (cu != cv) | (np.abs(iu - iv) > 1)
-    u, v = u[apart], v[apart]
+    return segments_crossing(p0, d, u[apart], v[apart])
+
+
+def segments_crossing(p0: np.ndarray, d: np.ndarray, u: np.ndarray, v: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Of the segment pairs (u, v) (starts ``p0``, vectors ``d``, read in x, y), those whose
+    projections cross, with the parameters on both, half-open [0, 1): u, v, t_u, t_v."""
     den = d[u, 0] * d[v, 1] - d[u, 1] * d[v, 0]
     r = p0[v] - p0[u]
     with np.errstate(divide="ignore", invalid="ignore"):

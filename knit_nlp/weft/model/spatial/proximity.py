@@ -36,6 +36,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from ..contact.crossings import segments_crossing
 from ..contact.natural import EXCLUSION
 from ..contact.near import close_pairs
 from .natural3d import PAIRS, Natural3D
@@ -271,13 +272,7 @@ def projected_crossings(courses: Courses, rows: int = ROWS) -> np.ndarray:
         u, v = u[keep], v[keep]
         up = u // K > v // K
         u, v = np.where(up, u, v), np.where(up, v, u)         # u on the upper course
-        den = d[u, 0] * d[v, 1] - d[u, 1] * d[v, 0]
-        r = p[v] - p[u]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            a = (r[:, 0] * d[v, 1] - r[:, 1] * d[v, 0]) / den
-            b = (r[:, 0] * d[u, 1] - r[:, 1] * d[u, 0]) / den
-        hit = (den != 0) & (a >= 0) & (a < 1) & (b >= 0) & (b < 1)
-        u, v, a, b = u[hit], v[hit], a[hit], b[hit]
+        u, v, a, b = segments_crossing(p, d, u, v)
         cu, uu = courses.locate(u, a)
         _, ul = courses.locate(v, b)
         dz = (p[u, 2] + a * d[u, 2]) - (p[v, 2] + b * d[v, 2])
