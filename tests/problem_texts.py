@@ -27,3 +27,14 @@ def bend(R_f: float | str = "{R_f}") -> str:
     0.3 at its last loop's end, with bending modulus ``R_f`` (no crossing springs act)."""
     return (anchored(1, 3, "bend") + 'angle = 0.0\n[[load]]\nloop = [1, 3]\npoint = "end"\n'
             f"moment = 0.3\n[material]\nR_f = {R_f}\n")
+
+
+def pull3d(name: str, L: float, R_f: float, radius: float, lift: float) -> dict:
+    """A 2 x 2 fabric in 3-D (mm, N; ``[yarn] geometry = "3d"``, 4 elevation modes), loop
+    (1, 1)'s start held and loop (1, 2)'s H lifted by ``lift`` mm along y, as a TOML table."""
+    return {"name": name, "fabric": {"courses": 2, "wales": 2},
+            "units": {"length": "mm", "force": "N"},
+            "loop": {"length": L, "harmonics": 3}, "material": {"R_f": R_f},
+            "yarn": {"radius": radius, "geometry": "3d", "elevation_modes": 4},
+            "clamp": [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
+                      {"loop": [1, 2], "point": "H", "displacement": [0.0, lift]}]}

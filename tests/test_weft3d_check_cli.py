@@ -12,12 +12,9 @@ import knit_nlp
 from knit_nlp.cli import main
 from knit_nlp.tomlio import toml_text
 from knit_nlp.weft.model.problem import parse_problem
+from problem_texts import pull3d
 
-DOC = {"name": "thin3d", "fabric": {"courses": 2, "wales": 2}, "units": {"length": "mm", "force": "N"},
-       "loop": {"length": 10.0, "harmonics": 3}, "material": {"R_f": 1.0},
-       "yarn": {"radius": 0.15, "geometry": "3d", "elevation_modes": 4},
-       "clamp": [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
-                 {"loop": [1, 2], "point": "H", "displacement": [0.0, 0.3]}]}
+DOC = pull3d("thin3d", L=10.0, R_f=1.0, radius=0.15, lift=0.3)
 
 
 @pytest.fixture(scope="module")

@@ -15,12 +15,9 @@ from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.transcription.full import FullNLP
 from knit_nlp.weft.transcription.spatial import PlanarOnly
+from problem_texts import pull3d
 
-DOC = {"name": "small3d", "fabric": {"courses": 2, "wales": 2}, "units": {"length": "mm", "force": "N"},
-       "loop": {"length": 11.28, "harmonics": 3}, "material": {"R_f": 0.045},
-       "yarn": {"radius": 0.74, "geometry": "3d", "elevation_modes": 4},
-       "clamp": [{"loop": [1, 1], "point": "start", "displacement": [0.0, 0.0]},
-                 {"loop": [1, 2], "point": "H", "displacement": [0.0, 0.8]}]}
+DOC = pull3d("small3d", L=11.28, R_f=0.045, radius=0.74, lift=0.8)
 
 
 @pytest.fixture(scope="module")
