@@ -31,12 +31,13 @@ POLISH = 4
 CURVE_KEEP = 1024
 
 
-def equilibrium_for(problem: WeftProblem, keep: int = KEEP) -> Equilibrium:
+def equilibrium_for(problem: WeftProblem, keep: int = KEEP, spatial: bool = False) -> Equilibrium:
     """The forward equilibrium control, fit and calibrate share: the full model (with yarn
     contact for a problem with a radius, remembering ``keep`` contact states for their
     sensitivities, its solves polished). The 3-D model is refused: its sensitivities and
-    the inverse problems' points have not been taken through its transcription yet."""
-    if problem.yarn is not None and problem.yarn.spatial:
+    the inverse problems' points have not been taken through its transcription yet
+    (``spatial``: calibrate's curves, which need neither, take it)."""
+    if problem.yarn is not None and problem.yarn.spatial and not spatial:
         raise planar_only(problem, "control, fit and calibrate", "not offered for the 3-D "
                           "model yet (docs/weft3d.md, 'Not done yet'); use the planar model")
     return equilibrium(problem, Full(), keep=keep, polish=POLISH)
