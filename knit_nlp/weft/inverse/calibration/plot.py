@@ -107,8 +107,7 @@ def plot_calibration(path: Path, result: Any) -> Path:
             ratio = (f"; wale / course stiffness per width at 10 % strain: model "
                      f"{show(r['model'])}, measured {show(r['measured'])}")
     fig.suptitle(f"{result.name}: {vals}; clamp width {result.spec.clamp_width:g} {units.length}"
-                 f"\n(k_a, k_b in {units.force}/{units.length}, R_f in "
-                 f"{units.force}·{units.length}²; circles: measured medians at the metric forces)"
+                 f"\n({_units(result)}; circles: measured medians at the metric forces)"
                  f"{ratio}{_beside_ratio(result)}", fontsize=9)
     return save_figure(fig, path, dpi=110)
 
@@ -121,3 +120,13 @@ def _beside_ratio(result: Any) -> str:
     r = next((v for k, v in beside.items() if k.startswith("wale_over_course")), None)
     shown = "n/a" if r is None or r["model"] is None else f"{r['model']:.3g}"
     return f"; {beside['name']} ({beside['geometry']}): {shown}"
+
+
+def _units(result: Any) -> str:
+    """The units of the values in the figure's title (those the model uses)."""
+    u = result.spec.base.units
+    f, length = u.force, u.length
+    if not result.spec.spatial:
+        return f"k_a, k_b in {f}/{length}, R_f in {f}·{length}²"
+    return (f"R_f in {f}·{length}², radius and core_radius in {length}, contact_rigidity in "
+            f"{f}/{length}³")
