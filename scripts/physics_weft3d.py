@@ -129,6 +129,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", default="", help="comma list of model:direction to run "
                     "(the N x N pulls; 'none': only the big 3-D runs)")
     ap.add_argument("--max-time", type=float, default=30.0, help="wall seconds per step")
+    ap.add_argument("--big-runs", default="", help="comma list of direction:strain of the big "
+                    "3-D runs (default: courses:0.5,wales:0.3,courses:-0.2,wales:-0.2)")
     ap.add_argument("--out", default="results")
     args = ap.parse_args(argv)
     BASE["solver"]["max_time"] = args.max_time
@@ -145,7 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = stiffness_rows(runs)
     big = []
     if not args.skip_big:
-        for direction, strain in sorted(BIG, key=lambda b: (-b[1], b[0])):
+        chosen = [(d, float(e)) for d, e in (r.split(":") for r in args.big_runs.split(",") if r)]
+        for direction, strain in chosen or sorted(BIG, key=lambda b: (-b[1], b[0])):
             steps = np.round(np.arange(STEP, abs(strain) + 1e-9, STEP), 4) * np.sign(strain)
             big.append(pull("3d", direction, args.big, args.big, steps))
             json.dump({"pulls": runs, "stiffness": rows, "big": big},
