@@ -21,6 +21,11 @@ width throughout (clamp width 35.5 mm, the source's; issue 40) and the yarn's me
 - b4k as c4k without contact (its same-run reference)
 - b4, b8, b10   as b with 4, 8 and 10 loops on the specimens' shorter sides (b: 6)
 - bfd as b with finite-difference sensitivities instead of the implicit-function ones
+- e   the 3-D model (``problems/real_fabric/acrylic_3d_x.toml`` without its planar ``beside``):
+      every measured value held, the crossings' contact rigidity fitted on x, y predicted
+      [shipped]; e0 the same with nothing fitted (the 3-D model's prediction of both tests);
+      e2, e4 as e0 with 2 and 4 loops on the shorter sides (e0: 3). Not in the default runs
+      (minutes each): ``--runs e0,e2,e4,e``
 
 Then, per run, what a researcher checks first (``metrics``): the course pull's tangent
 stiffening from 5 % to 45 % strain and the wale pull's stiffness per width over the course
@@ -49,6 +54,8 @@ from knit_nlp.weft.inverse.calibration import calibrate, parse_spec  # noqa: E40
 from knit_nlp.weft.inverse.calibration.calibrate import Calibration  # noqa: E402
 
 SPEC = ROOT / "problems" / "real_fabric" / "acrylic_fit_x.toml"
+SPEC3D = ROOT / "problems" / "real_fabric" / "acrylic_3d_x.toml"
+RUNS3D = ("e", "e0", "e2", "e4")
 PAPER = {"k_a": 100.0, "k_b": 1.0}          # Wada et al.'s k L² / R_f (k_a = 1, k_b = 0.01, R_f = 1, L = 10)
 RUNS = ("a0", "b", "bx", "bR", "d", "b4", "b8", "b10", "bfd")
 B4 = {"k_a": 3.5e4, "k_b": 7.4}             # about b4's answer at the real width (c4k, b4k:
@@ -67,7 +74,22 @@ def _from(doc: dict, answer: dict) -> None:
     doc["calibrate"].update(fit=["k_b"])
 
 
+def variant3d(name: str) -> dict:
+    """The 3-D runs (module doc): the shipped 3-D spec, its planar ``beside`` left out."""
+    doc = copy.deepcopy(load_toml(SPEC3D))
+    cal = doc["calibrate"]
+    cal.pop("beside", None)
+    if name != "e":
+        cal["fit"] = []
+    if name in ("e2", "e4"):
+        cal["min_loops"] = int(name[1:])
+    doc["name"] = f"acrylic_{name}"
+    return doc
+
+
 def variant(name: str) -> dict:
+    if name in RUNS3D:
+        return variant3d(name)
     doc = copy.deepcopy(load_toml(SPEC))
     cal = doc["calibrate"]
     if name == "a0":
@@ -122,7 +144,7 @@ def main() -> int:
     results = {}
     for name in args.runs.split(","):
         try:
-            spec = parse_spec(variant(name), SPEC)
+            spec = parse_spec(variant(name), SPEC3D if name in RUNS3D else SPEC)
         except ProblemError as err:
             print(f"{name:<4} not run: {err}")
             continue
@@ -134,7 +156,10 @@ def main() -> int:
         p = js["parameters"]
         x, y = js["tests"]
         loops = " / ".join(f"{t['specimen']['courses']}x{t['specimen']['wales']}" for t in js["tests"])
-        print(f"{name:<4} {_value(p['k_a']):<17} {_value(p['k_b']):<17} "
+        first = _value(p["contact_rigidity"]) + " (k, N/mm3)" if "contact_rigidity" in p else (
+            _value(p["k_a"]))
+        second = _value(p["k_b"]) if "k_b" in p else "(3-D)"
+        print(f"{name:<4} {first:<17} {second:<17} "
               f"{_value(p['R_f']):<18} {x['use'][:4]} {_rms(x)}  {y['use'][:4]} {_rms(y)}  "
               f"{'yes' if res.success else 'NO ':<3} {wall:8.1f}  {js['timings']['forward_solves']:6d}"
               f"  {loops}", flush=True)

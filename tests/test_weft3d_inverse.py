@@ -45,7 +45,7 @@ def plan_point(nlp, x: np.ndarray, loop: tuple[int, int], s: float) -> np.ndarra
 @pytest.fixture(scope="module")
 def pulled():
     pr = parse_problem(copy.deepcopy(DOC), "inverse3d.toml")
-    eq = equilibrium_for(pr, command="control")
+    eq = equilibrium_for(pr)
     sol = eq.solve()
     assert sol.success
     return pr, eq, sol
@@ -112,7 +112,7 @@ def test_control_in_3d_recovers_a_known_target_and_reports_the_3d_check(pulled, 
     np.testing.assert_allclose(r["actuated"][0]["target"], target, atol=1e-5)
     assert r["goals"][0]["misfit"] < 1e-6
     ctl = parse_problem(copy.deepcopy(DOC), "inverse3d.toml")   # the answer, solved alone
-    alone = equilibrium_for(ctl, command="control").solve(
+    alone = equilibrium_for(ctl).solve(
         eq.params.with_(targets={2: r["actuated"][0]["target"]}))
     np.testing.assert_allclose(plan_point(eq.wnlp, alone.x, (2, 2), s_h), goal, atol=1e-5)
     spatial = r["equilibrium"]["spatial"]
@@ -153,14 +153,6 @@ def test_fit_refuses_spring_values_the_3d_model_does_not_have(tmp_path, capsys) 
                  "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "crossing_springs" in err and "k_a" in err
-
-
-def test_calibrate_still_refuses_a_3d_specimen_in_one_line() -> None:
-    """Until calibrate is taken through the 3-D model, its forward equilibrium refuses one."""
-    from knit_nlp.weft.transcription.spatial import PlanarOnly
-
-    with pytest.raises(PlanarOnly, match="calibrate"):
-        equilibrium_for(parse_problem(copy.deepcopy(DOC), "inverse3d.toml"))
 
 
 def test_a_3d_sweep_writes_the_spatial_block_and_its_check_at_every_point(tmp_path) -> None:

@@ -222,7 +222,7 @@ class Controller:
     def __init__(self, cp: ControlProblem, options: ControlOptions | None = None) -> None:
         self.cp, self.opts = cp, options or ControlOptions()
         # with [yarn] radius the forward model and its KKT system hold the active contacts
-        self.eq = equilibrium_for(cp.problem, command="control")
+        self.eq = equilibrium_for(cp.problem)
         pl = self.eq.wnlp.p
         idx = []
         for a in cp.actuated:

@@ -149,7 +149,7 @@ class Fitter:
             if not obs:
                 continue
             refuse_springs_in_3d(pr, self.names)
-            eq = equilibrium_for(pr, command="fit")
+            eq = equilibrium_for(pr)
             fn = point_jacobian(point_function(eq.wnlp, [(o.loop, o.s) for o in obs]))
             self.cases.append(_Case(pr.name, eq, fn, np.array([o.xy for o in obs])))
         first = self.cases[0].eq.wnlp

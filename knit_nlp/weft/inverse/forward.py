@@ -14,7 +14,6 @@ from ..model.parametrisation import Full
 from ..model.problem import WeftProblem
 from ..solving.contact.equilibrium import KEEP
 from ..solving.solve import Equilibrium
-from ..transcription.spatial import planar_only
 from ..solving.rounds3d import SpatialEquilibrium
 from ..solving.variants import equilibrium
 
@@ -32,24 +31,12 @@ POLISH = 4
 CURVE_KEEP = 1024
 
 
-# the inverse commands not yet taken through the 3-D model (``[yarn] geometry = "3d"``), each
-# with the reason it refuses one in a line (docs/weft3d.md): control and fit are (their
-# sensitivities tested against finite differences of 3-D solves, tests/test_weft3d_inverse.py)
-NOT_IN_3D = {"calibrate": "not offered for the 3-D model yet (docs/weft3d.md, 'Not done yet'); "
-                          "use the planar model"}
-
-
-def equilibrium_for(problem: WeftProblem, keep: int = KEEP, command: str = "calibrate"
-                    ) -> Equilibrium:
+def equilibrium_for(problem: WeftProblem, keep: int = KEEP) -> Equilibrium:
     """The forward equilibrium control, fit and calibrate share: the full model (with yarn
     contact for a problem with a radius, remembering ``keep`` contact states for their
     sensitivities, its solves polished; the 3-D model's ``SpatialEquilibrium``, whose
     crossings are energy terms of an equality-constrained NLP, so its sensitivities are the
-    plain KKT system's).
-    ``command`` names the caller: one in ``NOT_IN_3D`` refuses a 3-D problem (calibrate's
-    curves call without it)."""
-    if problem.yarn is not None and problem.yarn.spatial and command in NOT_IN_3D:
-        raise planar_only(problem, command, NOT_IN_3D[command])
+    plain KKT system's, without the other contacts' rounds)."""
     eq = equilibrium(problem, Full(), keep=keep, polish=POLISH)
     if isinstance(eq, SpatialEquilibrium):
         eq.rounds_max = 0        # the outer iteration's states must keep fitting its NLP

@@ -17,7 +17,8 @@ from typing import Callable
 
 import numpy as np
 
-from ...output.check import own_check
+from ...model.params import MATERIAL
+from ...output.check import own_check, spatial_own_check, spatial_samples
 from .checks import HALF, STIFFENING, outcome_checks
 from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives,
                     strains_at)
@@ -33,6 +34,17 @@ STRAIN_LIMIT_FACTOR = 3.0   # ... or stops at 3 times the largest measured axial
 STRAIN_LIMIT_FLOOR = 0.5    #     (but not below 0.5, nor above curve.MAX_STRAIN)
 CURVE_SAMPLES = 121         # model curve points written and drawn
 CHECKS_STRAIN = STIFFENING[1] + HALF    # ... and to the largest strain the checks read
+# The 3-D model's curves stop at 60 % axial strain (the checks read up to 47.5 %, the course
+# tests reach 51 %): past it its course pulls straighten the loops onto their crossings and the
+# steps stall (2 x 3 acrylic: to 122 % strain in 300-iteration steps; 3 x 5: a step past 50 %
+# ran 268 iterations at max violation 1.2 without converging, measured)
+SPATIAL_MAX_STRAIN = 0.6
+CURVES_KEPT = 4             # model curves a test remembers (the fit's base and its differences)
+# ``curve_differences``: forward differences of whole curves in log(value), step 0.05. The
+# curve's nodes follow the force, so its strains at fixed forces carry an interpolation noise
+# of about 2e-4 (curve.NODES); a 5 % change of a value moves them by 1e-3 to 1e-2 (3-D course
+# pull, contact rigidity and R_f), so the noise is a few per cent of the difference.
+CURVE_FD_LOG_STEP = 0.05
 
 
 class TestModel:
@@ -44,10 +56,14 @@ class TestModel:
         self.specimen = build_specimen(spec.doc, str(spec.source), self.test.direction,
                                        self.test.courses, self.test.wales, spec.test_name(k))
         self.model = SpecimenModel(self.specimen)
-        self._cache: tuple[tuple[float, ...], Curve] | None = None
+        # the contact rigidity the 3-D NLP was built with (``energy_scale``)
+        self.rigidity = spec.values.get("contact_rigidity") if spec.spatial else None
+        self._cache: dict[tuple[float, ...], Curve] = {}
         self.min_strain = 0.0          # the final evaluation's curve runs to CHECKS_STRAIN too
         measured = max(float(np.max(r.axial)) for r in self.measured.runs)
-        self.strain_limit = min(MAX_STRAIN, max(STRAIN_LIMIT_FLOOR, STRAIN_LIMIT_FACTOR * measured))
+        self.max_strain = SPATIAL_MAX_STRAIN if spec.spatial else MAX_STRAIN
+        self.strain_limit = min(self.max_strain,
+                                max(STRAIN_LIMIT_FLOOR, STRAIN_LIMIT_FACTOR * measured))
         self.solves = 0
         self.iterations = 0
 
@@ -62,20 +78,38 @@ class TestModel:
             return self.test.width
         return float(self.measured.width_clamps * self.clamp_width)
 
+    def energy_scale(self, values: dict[str, float] | None = None) -> float:
+        """λ = k / k₀ of the 3-D model (1 for the planar one): its energy is
+        U = R_f·B(x) + k·C(x) [+ k_a, k_b springs] (S4, S7), so at the clamps' positions the
+        equilibrium at (R_f, k_a, k_b, k) is the one at (R_f/λ, k_a/λ, k_b/λ, k₀) with every
+        force times λ. A fitted contact rigidity therefore re-solves the NLP built at k₀ with
+        the material divided by λ and scales its forces (tested against an NLP built at k)."""
+        if self.rigidity is None or values is None:
+            return 1.0
+        return values["contact_rigidity"] / self.rigidity
+
     def scale(self, values: dict[str, float] | None = None) -> float:
-        """Real force over model force: width over the model specimen's pitch width."""
-        return self.width() / self.specimen.pitch_width
+        """Real force over model force: width over the model specimen's pitch width (times the
+        3-D model's energy scale λ, ``energy_scale``)."""
+        return self.width() / self.specimen.pitch_width * self.energy_scale(values)
+
+    def material(self, values: dict[str, float]) -> dict[str, float]:
+        """The NLP's material parameters at ``values`` (divided by λ, ``energy_scale``)."""
+        lam = self.energy_scale(values)
+        return {k: values[k] / lam for k in MATERIAL}
 
     def curve(self, values: dict[str, float]) -> Curve:
-        key = (*(values[k] for k in ("k_a", "k_b", "R_f")), self.strain_limit, self.min_strain)
-        if self._cache is None or self._cache[0] != key:
+        material = self.material(values)
+        key = (*material.values(), self.strain_limit, self.min_strain)
+        if key not in self._cache:
             goal = GOAL_MARGIN * self.measured.max_force / self.scale(values)
-            c = self.model.curve({k: values[k] for k in ("k_a", "k_b", "R_f")}, goal,
-                                 self.strain_limit, self.min_strain)
+            c = self.model.curve(material, goal, self.strain_limit, self.min_strain)
             self.solves += c.solves
             self.iterations += c.iterations
-            self._cache = (key, c)
-        return self._cache[1]
+            if len(self._cache) >= CURVES_KEPT:
+                self._cache.pop(next(iter(self._cache)))
+            self._cache[key] = c
+        return self._cache[key]
 
     def strains(self, values: dict[str, float], forces: np.ndarray,
                 extrapolate: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -87,6 +121,8 @@ class TestModel:
     def derivatives(self, values: dict[str, float], forces: np.ndarray, names: list[str],
                     method: str) -> tuple[np.ndarray, np.ndarray]:
         """d(axial, lateral strain at real forces)/d(log value) for ``names``."""
+        if method == "curve_differences":
+            return self.curve_differences(values, forces, names)
         c = self.curve(values)
         fm = np.asarray(forces) / self.scale(values)
         if not names:
@@ -97,6 +133,20 @@ class TestModel:
             self.solves += 2 * len(c.u) * len(names)
         scale = np.array([values[n] for n in names])
         return dax * scale, dlat * scale
+
+    def curve_differences(self, values: dict[str, float], forces: np.ndarray,
+                          names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """d(axial, lateral strain at real forces)/d(log value) by forward differences of
+        whole curves, step ``CURVE_FD_LOG_STEP`` in log value (the 3-D model's sensitivities:
+        one more curve per value)."""
+        base = self.strains(values, forces, extrapolate=True)
+        dax, dlat = np.zeros((len(forces), len(names))), np.zeros((len(forces), len(names)))
+        for q, name in enumerate(names):
+            moved = {**values, name: values[name] * np.exp(CURVE_FD_LOG_STEP)}
+            ax, lat = self.strains(moved, forces, extrapolate=True)
+            dax[:, q] = (ax - base[0]) / CURVE_FD_LOG_STEP
+            dlat[:, q] = (lat - base[1]) / CURVE_FD_LOG_STEP
+        return dax, dlat
 
     def matched(self, strains: tuple[str, ...]) -> tuple[str, ...]:
         """The strains this test contributes to a fit."""
@@ -170,10 +220,11 @@ class Calibration:
     def outcome(self, tm: TestModel, values: dict[str, float],
                 cov_log: np.ndarray | None) -> TestOutcome:
         """A test at the final values: its metric, checks, model curve and strain uncertainty.
-        The curve may run to ``curve.MAX_STRAIN`` here, to reach the largest measured force,
+        The curve may run to ``curve.MAX_STRAIN`` (3-D: ``SPATIAL_MAX_STRAIN``) here, to reach
+        the largest measured force,
         and it runs at least to the strain the checks read (``CHECKS_STRAIN``), past that force
         where the model is stiffer than the fabric."""
-        tm.strain_limit, tm.min_strain = MAX_STRAIN, CHECKS_STRAIN
+        tm.strain_limit, tm.min_strain = tm.max_strain, CHECKS_STRAIN
         c = tm.curve(values)
         forces = np.array(self.spec.forces)
         ax, lat = tm.strains(values, forces)
@@ -196,16 +247,21 @@ class Calibration:
                                 [(r.axial, r.force) for r in tm.measured.runs], tm.width())
         return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
                            c.complete, dict(self.spec.targets.get(tm.test.use, {})), reason,
-                           checks, final_check(tm, c.xs[-1], curve))
+                           checks, final_check(tm, c, curve))
 
 
-def final_check(tm: TestModel, x: np.ndarray, curve: ModelCurve) -> dict:
+def final_check(tm: TestModel, c: Curve, curve: ModelCurve) -> dict:
     """The own check every weft result carries (``output.check.own_check``, as
-    ``WeftResult.checked``) of a test's answer at the final values and its largest load: the
-    model curve's last node ``x``. Only that node is checked: the check of every node of every
-    curve would cost as many checks as forward solves (``at`` says where it was made)."""
-    wnlp = tm.model.eq.wnlp
-    _, block = own_check(tm.specimen.problem, wnlp.coefficients(x), wnlp.starts(x))
+    ``WeftResult.checked``; in 3-D ``spatial_own_check``, all pairs of yarn pieces) of a
+    test's answer at the final values and its largest load: the model curve's last node. Only
+    that node is checked: the check of every node of every curve would cost as many checks as
+    forward solves (``at`` says where it was made)."""
+    wnlp, x = tm.model.eq.wnlp, c.xs[-1]
+    if tm.model.spatial:
+        pr = tm.specimen.problem
+        block = spatial_own_check(pr, wnlp.centrelines3d(x, spatial_samples(pr)))
+    else:
+        _, block = own_check(tm.specimen.problem, wnlp.coefficients(x), wnlp.starts(x))
     return {**block, "at": {"force_N": float(curve.force[-1]),
                             "axial_strain": float(curve.axial[-1]),
                             "node": "the model curve's last (largest load); the others are "
@@ -238,5 +294,11 @@ def calibrate(spec_or_path: CalibrationSpec | str | Path,
     timings = {"build_s": cal.build_s, "fit_s": t2 - t1, "evaluate_s": t3 - t2,
                "total_s": t3 - t0, "forward_solves": sum(tm.solves for tm in cal.models),
                "ipopt_iterations": sum(tm.iterations for tm in cal.models)}
-    return CalibrationResult(spec, values, ans, outcomes, timings)
+    beside = None
+    if spec.beside is not None:       # the other model's figures, reported beside these
+        say = progress or (lambda line: None)
+        say(f"beside: calibrating {spec.beside}, {time.perf_counter() - t0:.0f} s")
+        beside = calibrate(spec.beside, lambda line: say(f"beside: {line}"))
+        timings["beside_s"] = beside.timings["total_s"]
+    return CalibrationResult(spec, values, ans, outcomes, timings, beside)
 

@@ -63,10 +63,11 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
         lines.append(f"    checks: {describe(t.checks)}")
         lines.append(f"    {t.check_line()}")
     for key, ratio in result.checks().items():
-        if ratio is not None:
+        if ratio is not None and key.startswith("wale_over_course"):
             show = lambda v: "n/a" if v is None else f"{v:.3g}"     # noqa: E731
             lines.append(f"  {key.replace('_', ' ')}: {show(ratio['model'])} (measured "
                          f"{show(ratio['measured'])})")
+    lines += figures_lines(result)
     for w in (result.fit.warnings if result.fit is not None else []):
         lines.append(f"  warning: {w}")
     lines.append(f"  wrote {', '.join(str(p) for p in paths)}")
@@ -74,3 +75,35 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
                  else f"verdict (the fit did not converge: {result.fit.status}):")
     lines += [f"  {t.verdict()}" for t in result.tests]
     return "\n".join(lines)
+
+
+def figures_lines(result: CalibrationResult) -> list[str]:
+    """With ``[calibrate] beside``: a table of what a researcher checks first (issue 40 item
+    4), this model's row beside the other's and the measured one, per test."""
+    if result.beside is None:
+        return []
+    show = lambda v, f=".3g": "n/a" if v is None else format(v, f)     # noqa: E731
+    rows = [("model", result.figures()), ("beside", result.beside.figures())]
+    key = next(k for k in result.checks() if k.startswith("wale_over_course"))
+    out = [f"  figures, model beside model (measured last): rms axial, lateral; F(10%), "
+           f"F(30%) N; stiffening 5 -> 45%"]
+    for k, t in enumerate(result.tests):
+        axis = "x" if t.test.direction == "courses" else "y"
+        for _, fig in rows:
+            f = fig["tests"][k] if k < len(fig["tests"]) else None
+            if f is None or f["file"] != t.test.file:
+                continue
+            c, e = f["checks"]["model"], f["rms_strain_error"]
+            out.append(f"    {axis} {fig['geometry']:>6} {fig['name']} ({f['use']}, "
+                       f"{f['courses']} x {f['wales']}): {show(e['axial'], '.4f')}, "
+                       f"{show(e['lateral'], '.4f')}; {show(c['force_N']['0.1'])}, "
+                       f"{show(c['force_N']['0.3'])}; {show(c['stiffening'])}")
+        m = t.checks["measured"]
+        out.append(f"    {axis} measured: {show(m['force_N']['0.1'])}, "
+                   f"{show(m['force_N']['0.3'])}; {show(m['stiffening'])}")
+    ratios = [(fig["geometry"], fig[key]) for _, fig in rows]
+    if all(r is not None for _, r in ratios):
+        out.append("    wale / course stiffness per width at 10%: " + ", ".join(
+            f"{g} {show(r['model'])}" for g, r in ratios)
+            + f" (measured {show(ratios[0][1]['measured'])})")
+    return out

@@ -15,10 +15,16 @@ node (``implicit``: one KKT factorization per node, :meth:`Equilibrium.sensitivi
 force, dε/dθ = −(∂F/∂θ)/(∂F/∂u)/L0 and the lateral strain's likewise; or from curves re-solved at
 perturbed values on the same clamp positions, warm-started from the base nodes
 (``finite_differences``). ``scripts/bench_calibration.py`` measures both.
+
+The 3-D model (``[yarn] geometry = "3d"``) has neither yet: its sensitivities are differences
+of whole curves (``curve_differences``, ``calibrate.TestModel.derivatives``). Its curve steps
+are single IPOPT solves warm-started from the last node (``SpecimenModel._solve``), and its
+lateral points are read on the space curves' projection (``spatial_points``).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
@@ -27,10 +33,12 @@ from scipy.sparse.linalg import splu
 
 from ..forward import CURVE_KEEP, equilibrium_for
 from ..points import point_function, point_jacobian
+from ...model.basis import n_coeffs
 from ...model.params import WeftParams
+from ...model.spatial.curve3d import loop_displacements3d
 from .specimen import PULLED, Specimen
 
-SENSITIVITIES = ("implicit", "finite_differences")
+SENSITIVITIES = ("implicit", "finite_differences", "curve_differences")
 NODES = 12                  # force increments aimed at between zero and the goal (measured:
                             # strains at the metric forces within 2.3e-4 of 96 increments)
 FIRST_STRAIN = 0.01         # the first step, before any stiffness is known
@@ -66,9 +74,12 @@ class SpecimenModel:
 
     def __init__(self, specimen: Specimen) -> None:
         self.specimen = specimen
+        yarn = specimen.problem.yarn
+        self.spatial = yarn is not None and yarn.spatial
         self.eq = equilibrium_for(specimen.problem, CURVE_KEEP)
         low, high = specimen.lateral_points
-        self._points = point_jacobian(point_function(self.eq.wnlp, [*low, *high]))
+        points = (spatial_points if self.spatial else point_function)(self.eq.wnlp, [*low, *high])
+        self._points = point_jacobian(points)
         self._n_low = len(low)
         self.base = WeftParams.of(specimen.problem)
         rows = np.arange(self.eq.wnlp.rigid_rows[PULLED - 1].start,
@@ -101,10 +112,23 @@ class SpecimenModel:
         solve with contact is one load step from that state instead of rounds from the
         paper's solution (measured on c4k's course pull: the same curve to 5 digits, 311
         IPOPT iterations instead of 410, 28 s instead of 43 s; the paper's model ignores it)."""
-        rep = self.eq.solve(p, x0, origin=None if p0 is None else (x0, p0))
+        if self.spatial and x0 is not None:
+            rep = self._step3d(p, x0)
+        else:
+            rep = self.eq.solve(p, x0, origin=None if p0 is None else (x0, p0))
         curve.solves += 1
         curve.iterations += rep.iterations
         return rep
+
+    def _step3d(self, p: np.ndarray, x0: np.ndarray):
+        """A 3-D curve step: one IPOPT solve from the last node's state ``x0`` (the default
+        3-D solve steps the load from the natural state in 4 solves whatever ``x0``; on a
+        5 x 3 wale pull that ran over 4000 iterations at 7.5 % strain where single warm steps
+        took 4-6 each, measured). A failed step is halved by the caller; ``[solver] max_iter``
+        bounds each."""
+        solver = self.eq.solver
+        solver.start_clock()
+        return self.eq.solution(solver.once(p, x0), p)
 
     def curve(self, material: dict[str, float], goal: float,
               strain_limit: float = MAX_STRAIN, min_strain: float = 0.0) -> Curve:
@@ -153,6 +177,40 @@ class SpecimenModel:
             step = float(np.clip(aim, MIN_STRAIN_STEP * L0, min(MAX_STRAIN_STEP * L0, 3 * step)))
         if fs[-1] >= goal:          # stopped on the way to min_strain: the goal was reached
             c.complete, c.reason = True, ""
+        c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
+        return c
+
+    def pull_to(self, material: dict[str, float], strains: np.ndarray,
+                report: Callable[[float, Any], None] | None = None) -> Curve:
+        """The curve at given axial strains (negative: pushed together), in order, each solve
+        warm-started from the last; a failed step is halved (``MAX_HALVINGS``) through
+        intermediate strains, which are not recorded. Stops at the first strain it cannot reach
+        (``reason``). ``report(strain, solution)`` is called at every recorded node."""
+        L0 = self.specimen.gauge
+        c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
+        rep = self._solve(self.params(material, 0.0), None, c)
+        us, fs, lats = [0.0], [0.0], [self.lateral(rep.x)[0]]
+        c.xs, c.lams = [rep.x], [rep.lam_g]
+        for target in np.asarray(strains, dtype=float) * L0:
+            u, x, step, halvings = us[-1], c.xs[-1], target - us[-1], 0
+            while u != target and halvings <= MAX_HALVINGS:
+                nxt = target if abs(target - u) <= abs(step) else u + step
+                rep = self._solve(self.params(material, nxt), x, c, self.params(material, u))
+                if rep.success:
+                    u, x = nxt, rep.x
+                else:
+                    halvings, step = halvings + 1, step / 2
+            if u != target:
+                c.complete, c.reason = False, (f"no equilibrium past strain {u / L0:.3g} "
+                                               f"({rep.status})")
+                break
+            us.append(float(target))
+            fs.append(float(self.force(rep.lam_g)))
+            lats.append(self.lateral(rep.x)[0])
+            c.xs.append(rep.x)
+            c.lams.append(rep.lam_g)
+            if report is not None:
+                report(target / L0, rep)
         c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
         return c
 
@@ -209,6 +267,25 @@ class SpecimenModel:
             Lt.append(dL[1:])
         return np.array(Fu), np.array(Ft).reshape(len(c.u), -1), np.array(Lu), np.array(
             Lt).reshape(len(c.u), -1)
+
+
+def spatial_points(wnlp, points: list[tuple[tuple[int, int], float]]) -> ca.Function:
+    """Function x -> the projection (2 × P) of material points ((course, wale), s) of the 3-D
+    model: the loop's start plus the displacement (S2) of ``curve3d.loop_displacements3d``
+    (what ``points.point_function`` is for the planar full model)."""
+    pr = wnlp.problem
+    q = wnlp.shape.modes
+    x = ca.MX.sym("x", wnlp.n_variables)
+    A = ca.reshape(x[wnlp.x.slice("coeffs")], n_coeffs(pr.t), pr.n_loops)
+    B = ca.reshape(x[wnlp.x.slice("elev")], n_coeffs(q), pr.n_loops)
+    X = ca.reshape(x[wnlp.x.slice("starts")], 3, pr.n_loops)
+    cols = []
+    for (i, j), s in points:
+        k = (i - 1) * pr.wales + (j - 1)
+        disp = loop_displacements3d(pr.L, pr.t, q, np.array([s]), pr.quadrature_nodes)
+        cols.append((X[:, k] + disp(A[:, k], B[:, k]))[:2])
+    out = ca.horzcat(*cols) if cols else ca.MX(2, 0)
+    return ca.Function("points3d", [x], [out], ["x"], ["P"])
 
 
 def strains_at(c: Curve, specimen: Specimen, forces: np.ndarray,

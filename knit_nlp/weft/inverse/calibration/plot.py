@@ -17,7 +17,7 @@ COLOURS = {"axial": "tab:blue", "lateral": "tab:orange"}
 BAND_POINTS = 150
 
 
-def _panel(ax, t: Any) -> None:
+def _panel(ax, t: Any, other: Any = None, other_name: str = "") -> None:
     measured = t.test.measured
     forces = np.linspace(0.0, measured.common_force, BAND_POINTS)
     style = "-" if t.test.use == "fit" else "--"
@@ -35,6 +35,11 @@ def _panel(ax, t: Any) -> None:
         shown = t.curve.sample_force <= right       # (the curve may run on past the data)
         ax.plot(t.curve.sample_force[shown], model[shown], color=colour, lw=2.0, ls=style,
                 label=f"{what} ({kind})")
+        if other is not None and len(other.curve.sample_force):
+            o_model = other.curve.sample_axial if kind == "axial" else other.curve.sample_lateral
+            o_shown = other.curve.sample_force <= right
+            ax.plot(other.curve.sample_force[o_shown], o_model[o_shown], color=colour, lw=1.0,
+                    ls="-.", alpha=0.7, label=f"{other_name} ({kind})")
         points = t.metric.measured_axial if kind == "axial" else t.metric.measured_lateral
         ax.plot(t.metric.forces, points, "o", ms=4, mfc="white", color=colour)
     ax.axhline(0.0, color="0.6", lw=0.5)
@@ -48,10 +53,23 @@ def _panel(ax, t: Any) -> None:
     sp = t.specimen.problem
     ax.set_title(f"{t.test.file}: pulled along the {t.test.direction} ({t.test.use})\n"
                  f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
-                 f"{axial}{lat}{state}\n{_checks_line(t.checks)}\n{t.verdict()}\n"
-                 f"{t.check_line()}", fontsize=8, wrap=True)
+                 f"{axial}{lat}{state}\n{_checks_line(t.checks)}\n{_other_line(other, other_name)}"
+                 f"{t.verdict()}\n{t.check_line()}", fontsize=8, wrap=True)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     ax.grid(alpha=0.3)
+
+
+def _other_line(other: Any, name: str) -> str:
+    """The other model's figures on the same test, for a panel's title ('' without one)."""
+    if other is None:
+        return ""
+    show = lambda v, f=".3g": "n/a" if v is None else format(v, f)     # noqa: E731
+    c = other.checks["model"]
+    lat = other.metric.rms_lateral
+    return (f"{name}: rms axial {show(other.metric.rms_axial, '.3f')}"
+            + ("" if lat is None else f", lateral {lat:.3f}")
+            + f"; F(10%) {show(c['force_N']['0.1'])}, F(30%) {show(c['force_N']['0.3'])} N; "
+              f"stiffening {show(c['stiffening'])}\n")
 
 
 def _checks_line(c: dict[str, Any]) -> str:
@@ -70,8 +88,12 @@ def plot_calibration(path: Path, result: Any) -> Path:
     rows = (n + cols - 1) // cols
     fig = new_figure(figsize=(6.4 * cols, 5.6 * rows + 0.6), constrained_layout=True)
     axes = fig.subplots(rows, cols, squeeze=False)
+    beside = getattr(result, "beside", None)
+    others = {} if beside is None else {o.test.file: o for o in beside.tests}
+    name = "" if beside is None else (
+        f"beside: {beside.name} ({'3-D' if beside.spec.spatial else 'planar'} model, dash-dot)")
     for ax, t in zip(axes.ravel(), result.tests):
-        _panel(ax, t)
+        _panel(ax, t, others.get(t.test.file), name)
     for ax in axes.ravel()[n:]:
         ax.set_visible(False)
     units = result.spec.base.units
@@ -80,12 +102,31 @@ def plot_calibration(path: Path, result: Any) -> Path:
         for k, v in result.parameters().items())
     ratio = ""
     for key, r in result.checks().items():
-        if r is not None:
+        if r is not None and key.startswith("wale_over_course"):
             show = lambda v: "n/a" if v is None else f"{v:.3g}"     # noqa: E731
             ratio = (f"; wale / course stiffness per width at 10 % strain: model "
                      f"{show(r['model'])}, measured {show(r['measured'])}")
     fig.suptitle(f"{result.name}: {vals}; clamp width {result.spec.clamp_width:g} {units.length}"
-                 f"\n(k_a, k_b in {units.force}/{units.length}, R_f in "
-                 f"{units.force}·{units.length}²; circles: measured medians at the metric forces)"
-                 f"{ratio}", fontsize=9)
+                 f"\n({_units(result)}; circles: measured medians at the metric forces)"
+                 f"{ratio}{_beside_ratio(result)}", fontsize=9)
     return save_figure(fig, path, dpi=110)
+
+
+def _beside_ratio(result: Any) -> str:
+    """The other model's wale / course stiffness ratio, for the figure's title."""
+    beside = result.checks().get("beside")
+    if not beside:
+        return ""
+    r = next((v for k, v in beside.items() if k.startswith("wale_over_course")), None)
+    shown = "n/a" if r is None or r["model"] is None else f"{r['model']:.3g}"
+    return f"; {beside['name']} ({beside['geometry']}): {shown}"
+
+
+def _units(result: Any) -> str:
+    """The units of the values in the figure's title (those the model uses)."""
+    u = result.spec.base.units
+    f, length = u.force, u.length
+    if not result.spec.spatial:
+        return f"k_a, k_b in {f}/{length}, R_f in {f}·{length}²"
+    return (f"R_f in {f}·{length}², radius and core_radius in {length}, contact_rigidity in "
+            f"{f}/{length}³")

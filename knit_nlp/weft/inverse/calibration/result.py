@@ -20,7 +20,7 @@ from ...model.params import MATERIAL
 from .checks import RATIO_STRAIN, wale_over_course
 from .metric import MetricPoints
 from .plot import plot_calibration
-from .spec import CLAMP_SOURCE, CLAMP_WIDTH_MM, MEASURED
+from .spec import CLAMP_SOURCE, CLAMP_WIDTH_MM, MEASURED, YARN_VALUES
 
 if TYPE_CHECKING:
     from .fit import FitOutcome
@@ -134,6 +134,7 @@ class CalibrationResult:
     fit: "FitOutcome | None"
     tests: list[TestOutcome]
     timings: dict[str, float] = field(default_factory=dict)
+    beside: "CalibrationResult | None" = None      # ``[calibrate] beside``: another model
 
     @property
     def name(self) -> str:
@@ -175,7 +176,7 @@ class CalibrationResult:
         for a measured value (``spec.MEASURED``) what the spec gives as its measurement."""
         fitted = list(self.spec.fit)
         out = {}
-        for name in MATERIAL:
+        for name in self.reported():
             row: dict[str, Any] = {"value": self.values[name], "fitted": name in fitted,
                                    "initial": self.spec.values[name]}
             if name in fitted and self.fit is not None:
@@ -185,10 +186,39 @@ class CalibrationResult:
             out[name] = row
         return out
 
+    def reported(self) -> tuple[str, ...]:
+        """The values the model uses: k_a, k_b, R_f; in 3-D R_f, the springs only where the
+        file turns them on, and the crossings' compression law (``spec.YARN_VALUES``)."""
+        if not self.spec.spatial:
+            return MATERIAL
+        springs = ("k_a", "k_b") if self.spec.base.yarn.crossing_springs else ()
+        return (*springs, "R_f", *YARN_VALUES)
+
     def checks(self) -> dict[str, Any]:
-        """Across tests: the ratio of wale to course stiffness per width (``checks``)."""
+        """Across tests: the ratio of wale to course stiffness per width (``checks``), and with
+        ``[calibrate] beside`` the other model's figures (:meth:`figures`)."""
         ratio = wale_over_course([(t.test.direction, t.checks) for t in self.tests])
-        return {f"wale_over_course_stiffness_per_width_at_{RATIO_STRAIN:g}": ratio}
+        out: dict[str, Any] = {f"wale_over_course_stiffness_per_width_at_{RATIO_STRAIN:g}": ratio}
+        if self.beside is not None:
+            out["beside"] = self.beside.figures()
+        return out
+
+    def figures(self) -> dict[str, Any]:
+        """What a researcher checks first, per test, model beside measured (issue 40 item 4):
+        RMS axial and lateral strain error, the force at 10 and 30 % strain, the stiffening
+        5 -> 45 %; and the wale / course stiffness ratio per width at 10 %."""
+        key = f"wale_over_course_stiffness_per_width_at_{RATIO_STRAIN:g}"
+        return {"name": self.name, "geometry": "3d" if self.spec.spatial else "planar",
+                "status": self.status,
+                "values": {k: v["value"] for k, v in self.parameters().items()},
+                "fitted": list(self.spec.fit),
+                "tests": [{"file": t.test.file, "use": t.test.use, "direction": t.test.direction,
+                           "courses": t.specimen.problem.courses,
+                           "wales": t.specimen.problem.wales,
+                           "rms_strain_error": {"axial": t.metric.rms_axial,
+                                                "lateral": t.metric.rms_lateral},
+                           "complete": t.complete, "checks": t.checks} for t in self.tests],
+                key: wale_over_course([(t.test.direction, t.checks) for t in self.tests])}
 
     def given(self) -> dict[str, Any]:
         """What the source gives and the calibration holds: the clamp width (mm, and where it
@@ -196,7 +226,8 @@ class CalibrationResult:
         return {"clamp_width_mm": self.spec.clamp_width,
                 "clamp_width_source": CLAMP_SOURCE if self.spec.clamp_width == CLAMP_WIDTH_MM
                 else "the spec's [calibrate] clamp_width_mm",
-                "loop_length_mm": self.spec.base.L}
+                "loop_length_mm": self.spec.base.L,
+                "geometry": "3d" if self.spec.spatial else "planar"}
 
     def correlation(self) -> dict[str, Any]:
         names = list(self.spec.fit)

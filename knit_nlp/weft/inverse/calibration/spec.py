@@ -24,11 +24,22 @@ from .metric import METRIC_FORCES, check_reaches
 from .specimen import DIRECTIONS, loop_counts
 
 FITTABLE = MATERIAL
+# The 3-D model ([yarn] geometry = "3d", docs/weft3d.md): the crossings' soft-shell law
+# (model/compression.py) in the yarn's values. Only its rigidity k may be fitted: the yarn's
+# compression tests give k times the probe's unrecorded width, never k itself
+# (docs/real_fabric.md, "The yarn's compression law"), and it enters the NLP exactly as an
+# overall energy scale (``calibrate.TestModel``: no rebuild). k_a, k_b act in 3-D only with
+# [yarn] crossing_springs = true; the radius, core and exponent shape the natural 3-D loop and
+# the law's form and are held (bench_calibration.py --breaks moves them one at a time).
+YARN_VALUES = ("radius", "core_radius", "contact_rigidity", "contact_exponent")
+SPATIAL_FITTABLE = ("R_f", "contact_rigidity")
 # Values the yarn's own tests measure (stitch-by-stitch, Singal et al. 2024: the acrylic's
-# bending modulus from cantilever tests, data/Yarn_bending/): held unless the spec fits them,
-# and a fitted one is reported beside the value the spec gives for it. k_a and k_b, the planar
-# model's crossing springs, have no measurement: their spec values are only starting values.
-MEASURED = {"R_f": "the yarn's bending modulus"}
+# bending modulus from cantilever tests, data/Yarn_bending/; its radius,
+# code/fabric_simulations/stockinetteconfig.dat): held unless the spec fits them, and a fitted
+# one is reported beside the value the spec gives for it. k_a and k_b, the planar model's
+# crossing springs, and the 3-D model's contact rigidity have no measurement: their spec
+# values are only starting values.
+MEASURED = {"R_f": "the yarn's bending modulus", "radius": "the yarn's radius"}
 # The testing machine's clamp, mm: stitch-by-stitch data/uniaxial_experiments/template.nb sets
 # clampSizeInPhysicalUnits = 35.5 and computes stress as force / (fabricSize · 35.5 / clampSize);
 # a tracking file's clamp_size_px / fabric_width_px give the width in clamp widths.
@@ -101,6 +112,12 @@ class CalibrationSpec:
     min_loops: int
     sensitivities: str
     targets: dict[str, dict[str, float]]   # by use, by strain: the largest RMS error allowed
+    beside: Path | None = None             # a spec whose model's figures are shown beside
+
+    @property
+    def spatial(self) -> bool:
+        """The 3-D model ([yarn] geometry = "3d")."""
+        return self.base.yarn is not None and self.base.yarn.spatial
 
     def test_name(self, k: int) -> str:
         return f"{self.name}_test{k + 1}"
@@ -150,7 +167,8 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
     if cal.has("length_scale") or (isinstance(cal.data.get("fit"), list)
                                    and "length_scale" in cal.data["fit"]):
         raise cal.error("length_scale" if cal.has("length_scale") else "fit", LENGTH_SCALE_GONE)
-    fit = tuple(cal.strings("fit", choices=FITTABLE))
+    spatial = base.yarn is not None and base.yarn.spatial
+    fit = tuple(cal.strings("fit", choices=fittable(base)))
     if len(set(fit)) != len(fit):
         raise cal.error("fit", "lists a value twice")
     clamp_width = cal.number("clamp_width_mm", CLAMP_WIDTH_MM, positive=True)
@@ -161,7 +179,13 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
     if not strains or len(set(strains)) != len(strains) or "axial" not in strains:
         raise cal.error("strains", "must list axial (and optionally lateral), each once")
     min_loops = cal.integer("min_loops", DEFAULT_MIN_LOOPS, minimum=2, maximum=MAX_LOOPS_SPEC)
-    sens = cal.string("sensitivities", "implicit", choices=SENSITIVITIES)
+    sens = cal.string("sensitivities", "curve_differences" if spatial else "implicit",
+                      choices=SENSITIVITIES)
+    if spatial and sens != "curve_differences":
+        raise cal.error("sensitivities", f"{quoted(sens)} is not offered for the 3-D model "
+                        "(its KKT sensitivities are not taken through the calibration yet); "
+                        "write \"curve_differences\" or leave it out")
+    beside = _beside(cal, source)
     targets = _targets(cal.table("targets"))
     cal.finish()
     tests = tuple(_read_test(t, source, base, fixed, min_loops, forces)
@@ -173,6 +197,8 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
     if fit and not any(t.use == "fit" for t in tests):
         raise top.error("test", "fitting needs at least one test with use = \"fit\"")
     values = {"k_a": base.k_a, "k_b": base.k_b, "R_f": base.R_f}
+    if spatial:
+        values.update({k: float(getattr(base.yarn, k)) for k in YARN_VALUES})
     zero = [n for n in fit if values[n] <= 0]
     if zero:
         raise ProblemError(source, "material", zero[0], "a fitted value starts from its "
@@ -180,7 +206,35 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
                            "logarithm)")
     name = top.stem("name")
     return CalibrationSpec(name, top.string("description", ""), source, shared, base, tests,
-                           fit, values, clamp_width, forces, strains, min_loops, sens, targets)
+                           fit, values, clamp_width, forces, strains, min_loops, sens, targets,
+                           beside)
+
+
+def fittable(base: WeftProblem) -> tuple[str, ...]:
+    """The values a spec may fit: the planar model's k_a, k_b, R_f; in 3-D R_f and the
+    contact rigidity, with k_a, k_b where the file turns the crossing springs on."""
+    yarn = base.yarn
+    if yarn is None or not yarn.spatial:
+        return FITTABLE
+    return (*SPATIAL_FITTABLE, *(("k_a", "k_b") if yarn.crossing_springs else ()))
+
+
+def _beside(cal: Table, source: Path) -> Path | None:
+    """``[calibrate] beside``: another calibration spec (a path relative to this one, or a
+    shipped spec's name) on the same tests, whose model's figures are reported beside this
+    one's (issue 40 item 4: the planar model's beside the 3-D model's); None without it."""
+    text = cal.string("beside", None)
+    if text is None:
+        return None
+    path = spec_path(str(source.parent / text))
+    if not path.is_file():
+        path = spec_path(text)
+    if not path.is_file():
+        raise cal.error("beside", f"no calibration spec {quoted(text)} (a path relative to "
+                        "this spec, or a shipped spec's name)")
+    if path.resolve() == source.resolve():
+        raise cal.error("beside", "names this spec itself")
+    return path
 
 
 def _targets(tab: Table) -> dict[str, dict[str, float]]:
