@@ -96,11 +96,19 @@ def synthetic_columns(path: Path, truth: dict[str, float] = SYNTH_TRUTH, courses
     sp = build_specimen({**SYNTH_DOC, "material": truth}, "<synthetic>", "courses", courses,
                         wales, "synthetic")
     c = SpecimenModel(sp).curve(truth, goal=1e9, strain_limit=strain)
-    width = top / c.force[-1] * sp.pitch_width
+    return noisy_columns(path, c, sp, top, noise, runs, rows, seed)
+
+
+def noisy_columns(path: Path, c, sp, top: float, noise: float, runs: int, rows: int,
+                  seed: int) -> float:
+    """A model curve ``c`` of specimen ``sp`` written as a ``columns`` test of ``runs`` runs of
+    ``rows`` rows with Gaussian strain noise (none at zero force), its forces scaled so that
+    the curve's last force is ``top`` N; returns the specimen width (mm) of that scale."""
+    from knit_nlp.weft.inverse.calibration.curve import strains_at
     forces = np.linspace(0.0, 0.99 * c.force[-1], rows)
     axial, lateral = strains_at(c, sp, forces)
     rng = np.random.default_rng(seed)
-    cols = [[], [], [], []]
+    cols: list[list[float]] = [[], [], [], []]
     for run in range(runs):
         da, dl = rng.normal(0, noise, rows), rng.normal(0, noise, rows)
         da[0] = dl[0] = 0.0
@@ -108,9 +116,8 @@ def synthetic_columns(path: Path, truth: dict[str, float] = SYNTH_TRUTH, courses
         cols[1] += list(axial + da)
         cols[2] += list(lateral + dl)
         cols[3] += [run + 1] * rows
-    write_columns(path, np.array(cols[0]), np.array(cols[1]), np.array(cols[2]),
-                  np.array(cols[3]))
-    return float(width)
+    write_columns(path, *(np.array(col) for col in cols))
+    return float(top / c.force[-1] * sp.pitch_width)
 
 
 def synthetic_spec(folder: Path, width: float, fit: str, start: dict[str, float],

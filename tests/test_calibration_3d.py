@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import PchipInterpolator
 
-from calibration_files import write_columns, write_spec
+from calibration_files import noisy_columns, write_columns, write_spec
 from knit_nlp.cli import main
 from knit_nlp.errors import ProblemError
 from knit_nlp.tomlio import load_toml
@@ -36,20 +36,7 @@ def synthetic_3d(path, top: float = 10.0, runs: int = 3, rows: int = 400,
     model's force at 20 % is ``top`` N."""
     sp = build_specimen(DOC, "<synthetic3d>", "courses", 2, 2, "synthetic3d")
     c = SpecimenModel(sp).pull_to(DOC["material"], np.linspace(0.02, 0.2, 10))
-    width = top / c.force[-1] * sp.pitch_width
-    force = np.linspace(0.0, 0.99 * c.force[-1], rows)
-    axial, lateral = strains_at(c, sp, force)
-    rng = np.random.default_rng(3)
-    cols = [[], [], [], []]
-    for run in range(runs):
-        da, dl = rng.normal(0, noise, rows), rng.normal(0, noise, rows)
-        da[0] = dl[0] = 0.0
-        cols[0] += list(force * top / c.force[-1])
-        cols[1] += list(axial + da)
-        cols[2] += list(lateral + dl)
-        cols[3] += [run + 1] * rows
-    write_columns(path, *(np.array(col) for col in cols))
-    return float(width)
+    return noisy_columns(path, c, sp, top, noise, runs, rows, seed=3)
 
 
 SPEC_3D = """\
