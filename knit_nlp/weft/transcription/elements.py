@@ -24,11 +24,13 @@ CasADi's AD, so a new energy term is correct whether or not it is registered as 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import casadi as ca
 import numpy as np
-import scipy.sparse as sp
+
+if TYPE_CHECKING:                 # scipy is imported where an NLP is built (tests/test_imports.py)
+    import scipy.sparse as sp
 
 
 # common subexpressions merged in the elements' AD Functions (exact: measured on a crossing
@@ -119,6 +121,7 @@ def _constant_coefficients(f_s: ca.MX, g_s: ca.MX, x: ca.MX, p: ca.MX, yv: ca.MX
                            ) -> tuple[np.ndarray, sp.csc_matrix]:
     """c (dense, len Y) and G (sparse, ng × len Y): ∂f/∂Y and ∂g/∂Y, refused unless constant
     and unless ∂f/∂x, ∂g/∂x do not depend on Y."""
+    import scipy.sparse as sp    # with a 3-D build, not at start-up
     if yv.numel() == 0:
         return np.zeros(0), sp.csc_matrix((g_s.numel(), 0))
     jf, jg = ca.jacobian(f_s, yv), ca.jacobian(g_s, yv)
@@ -133,6 +136,7 @@ def _constant_coefficients(f_s: ca.MX, g_s: ca.MX, x: ca.MX, p: ca.MX, yv: ca.MX
 
 
 def _to_dm(A: sp.spmatrix) -> ca.DM:
+    import scipy.sparse as sp    # with a 3-D build, not at start-up
     A = sp.csc_matrix(A)
     A.sum_duplicates()
     A.sort_indices()
@@ -141,6 +145,7 @@ def _to_dm(A: sp.spmatrix) -> ca.DM:
 
 
 def _to_scipy(m: ca.DM) -> sp.csc_matrix:
+    import scipy.sparse as sp    # with a 3-D build, not at start-up
     s = m.sparsity()
     return sp.csc_matrix((np.asarray(m.nonzeros()), s.row(), s.colind()), shape=m.shape)
 
@@ -174,6 +179,7 @@ class _Local:
         """The needed outputs' local Jacobian nonzeros (MX, instance-major) and, for every
         nonzero of G_Y ∂Y/∂x they make, its global (row, column), source nonzero and
         coefficient (the ``_assemble`` part)."""
+        import scipy.sparse as sp    # with a 3-D build, not at start-up
         e, M = self.e, self.e.count
         closed = e.jacobian is not None and tuple(self.var) == e.jacobian.variables
         parts, yidx, cols = [], [], []
@@ -230,6 +236,7 @@ class _Local:
 def _assemble(nrow: int, ncol: int, parts: list, rest: ca.MX) -> ca.MX:
     """Σ parts (local nonzeros scattered to (row, col) with coefficients) + rest, as one sparse
     MX: a constant sparse matrix times the stacked local nonzeros."""
+    import scipy.sparse as sp    # with a 3-D build, not at start-up
     rest_sp = rest.sparsity()
     rr, rc = rest_sp.get_triplet()
     rows, cols, src, coef, vals = [np.asarray(rr, dtype=int)], [np.asarray(rc, dtype=int)], [], [], []
