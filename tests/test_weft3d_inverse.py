@@ -194,3 +194,17 @@ def test_the_shipped_3d_control_converges_with_no_crossing_flipped_or_through_th
     assert r["check"]["model"] == "3d" and r["check"]["flipped"] == 0 and spatial["flipped"] == 0
     assert spatial["smallest_separation"] > core
     assert all(c["separation"] > core for c in spatial["crossings"])
+
+
+def test_the_inverse_problems_solve_3d_without_rebuilding_rounds() -> None:
+    """`solve` runs the other contacts' rounds (each rebuilds the NLP with more variables); the
+    inverse problems' forward equilibrium does not, so the states an outer iteration keeps fit
+    its NLP (a round inside a control step would hand it vectors of another length)."""
+    from knit_nlp.weft.solving.rounds3d import ROUNDS, SpatialEquilibrium
+    from knit_nlp.weft.solving.variants import equilibrium
+    from knit_nlp.weft.model.parametrisation import Full
+
+    pr = parse_problem(copy.deepcopy(DOC), "inverse3d.toml")
+    assert isinstance(equilibrium(pr, Full()), SpatialEquilibrium)
+    assert equilibrium(pr, Full()).rounds_max == ROUNDS > 0
+    assert equilibrium_for(pr).rounds_max == 0

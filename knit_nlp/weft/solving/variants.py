@@ -10,9 +10,10 @@ fit and calibrate:
   ``[yarn] radius`` (the reduced models refuse a radius: their loops are interpolated);
 - ``AdaptiveEquilibrium`` (``adaptive.py``): the adaptive-representatives strategy, which
   refines its grid afresh at every solve and has no sensitivities;
-- the 3-D model (``[yarn] geometry = "3d"``): a ``SpatialEquilibrium`` of its full transcription
-  (``transcription.spatial``, through ``transcribe``); its crossings are persistent contacts
-  in the NLP itself, so it needs no contact rounds; the reduced models are planar and refuse it.
+- the 3-D model (``[yarn] geometry = "3d"``): a ``SpatialEquilibrium`` (``rounds3d.py``) of its
+  full transcription (``transcription.spatial``, through ``transcribe``); its designed crossings
+  are persistent contacts in the NLP itself, and the other contacts' rounds add the pairs the
+  independent check finds closer than touch; the reduced models are planar and refuse it.
 
 A new model variant (a new transcription, or a new kind of contact) joins here.
 """
