@@ -131,10 +131,16 @@ def test_a_solve_ends_at_the_shared_deadline_not_a_whole_budget_later(verbose):
     solver = WeftSolver(nlp, verbose=verbose)
     p = WeftParams.of(pr).vector()
     solver.deadline = time.perf_counter() + 0.1
+    t0 = time.perf_counter()
     late = solver.once(p, nlp.x0)
-    assert late.status == OUT_OF_TIME and not late.success and late.iterations <= 3
+    took = time.perf_counter() - t0
     solver.deadline = time.perf_counter() + 600.0
-    assert solver.once(p, nlp.x0).success
+    full = solver.once(p, nlp.x0)
+    assert full.success
+    # stopped at the deadline, short of convergence (the iterations that fit in 0.1 s depend on
+    # the machine: 4 of 13 on a quiet one), within a second of it, not a budget later
+    assert late.status == OUT_OF_TIME and not late.success and late.iterations < full.iterations
+    assert took < 1.1
 
 
 def test_the_line_shows_how_far_the_rows_are_outside_their_bounds(monkeypatch):
