@@ -52,7 +52,8 @@ def segment_distance(p: np.ndarray, dp: np.ndarray, q: np.ndarray, dq: np.ndarra
     """Exact distances between segments p + a·dp and q + b·dq, a, b ∈ [0, 1], row by row
     ((k, 3) arrays), and the parameters (a, b) of a pair of closest points (Ericson 5.1.9:
     the unconstrained closest points, b clamped, a recomputed for the clamped b and clamped;
-    parallel segments take a = 0 first, which gives the right distance)."""
+    (nearly) parallel segments take a = 0 first and then the nearest of their four ends'
+    closest points, ``_ends``)."""
     r = p - q
     A = np.einsum("ki,ki->k", dp, dp)
     E = np.einsum("ki,ki->k", dq, dq)
