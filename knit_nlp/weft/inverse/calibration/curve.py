@@ -19,7 +19,7 @@ perturbed values on the same clamp positions, warm-started from the base nodes
 The 3-D model (``[yarn] geometry = "3d"``) has neither yet: its sensitivities are differences
 of whole curves (``curve_differences``, ``calibrate.TestModel.derivatives``). Its curve steps
 are single IPOPT solves warm-started from the last node (``SpecimenModel._solve``), and its
-lateral points are read on the space curves' projection (``spatial_points``).
+lateral points are read on the space curves' projection (``points.point_function``).
 """
 from __future__ import annotations
 
@@ -33,9 +33,7 @@ from scipy.sparse.linalg import splu
 
 from ..forward import CURVE_KEEP, equilibrium_for
 from ..points import point_function, point_jacobian
-from ...model.basis import n_coeffs
 from ...model.params import WeftParams
-from ...model.spatial.curve3d import loop_displacements3d
 from .specimen import PULLED, Specimen
 
 SENSITIVITIES = ("implicit", "finite_differences", "curve_differences")
@@ -78,7 +76,7 @@ class SpecimenModel:
         self.spatial = yarn is not None and yarn.spatial
         self.eq = equilibrium_for(specimen.problem, CURVE_KEEP)
         low, high = specimen.lateral_points
-        points = (spatial_points if self.spatial else point_function)(self.eq.wnlp, [*low, *high])
+        points = point_function(self.eq.wnlp, [*low, *high])
         self._points = point_jacobian(points)
         self._n_low = len(low)
         self.base = WeftParams.of(specimen.problem)
@@ -267,25 +265,6 @@ class SpecimenModel:
             Lt.append(dL[1:])
         return np.array(Fu), np.array(Ft).reshape(len(c.u), -1), np.array(Lu), np.array(
             Lt).reshape(len(c.u), -1)
-
-
-def spatial_points(wnlp, points: list[tuple[tuple[int, int], float]]) -> ca.Function:
-    """Function x -> the projection (2 × P) of material points ((course, wale), s) of the 3-D
-    model: the loop's start plus the displacement (S2) of ``curve3d.loop_displacements3d``
-    (what ``points.point_function`` is for the planar full model)."""
-    pr = wnlp.problem
-    q = wnlp.shape.modes
-    x = ca.MX.sym("x", wnlp.n_variables)
-    A = ca.reshape(x[wnlp.x.slice("coeffs")], n_coeffs(pr.t), pr.n_loops)
-    B = ca.reshape(x[wnlp.x.slice("elev")], n_coeffs(q), pr.n_loops)
-    X = ca.reshape(x[wnlp.x.slice("starts")], 3, pr.n_loops)
-    cols = []
-    for (i, j), s in points:
-        k = (i - 1) * pr.wales + (j - 1)
-        disp = loop_displacements3d(pr.L, pr.t, q, np.array([s]), pr.quadrature_nodes)
-        cols.append((X[:, k] + disp(A[:, k], B[:, k]))[:2])
-    out = ca.horzcat(*cols) if cols else ca.MX(2, 0)
-    return ca.Function("points3d", [x], [out], ["x"], ["P"])
 
 
 def strains_at(c: Curve, specimen: Specimen, forces: np.ndarray,
