@@ -31,7 +31,7 @@ import numpy as np
 from knit_nlp.weft.model.contact.near import close_pairs
 from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.model.spatial.proximity import ROWS, Courses, segment_distance
-from knit_nlp.weft.output.check import spatial_natural, spatial_samples, spatial_state
+from knit_nlp.weft.model.spatial.proximity import spatial_natural, spatial_samples, spatial_state
 from knit_nlp.problems import resolve
 from knit_nlp.tomlio import load_toml
 

@@ -37,11 +37,10 @@ from ..model.contact.natural import NaturalFabric
 from ..model.contact.near import TooLarge
 from ..model.contact.pairs import (CHECK_REACH, GAP_TOL, SAMPLES, Grid, Pairs, check_samples,
                                    checked_pairs, short as short_of)
-from ..model.centrelines import SAMPLES as CENTRELINE_SAMPLES
 from ..model.problem import WeftProblem
 from ..model.quadrature import positions
 from ..model.spatial.curve3d import positions3d
-from ..model.spatial.proximity import ProximityReport, check_3d, natural_lines
+from ..model.spatial.proximity import ProximityReport, spatial_samples, spatial_state
 
 REACH = CHECK_REACH        # pairs within this many r of their required gap are looked at
 #                            (GAP_TOL: no gap below its requirement·(1 − 1e-3); both shared
@@ -366,25 +365,6 @@ class SpatialCheckReport:
         stem = (self.problem if result_path is None
                 else Path(result_path).name.removesuffix(".json"))
         return [write_json(Path(out_dir) / f"{stem}.check.json", self.to_json())]
-
-
-def spatial_samples(problem: WeftProblem, samples: int = SAMPLES) -> int:
-    """Samples per loop of the 3-D check: ``check_samples`` (4 per radius, at least 16, at
-    most ``samples``), and never fewer than the result pictures' 61."""
-    return max(CENTRELINE_SAMPLES, check_samples(problem.L, problem.yarn.radius, samples))
-
-
-def spatial_natural(problem: WeftProblem, samples: int) -> np.ndarray:
-    """The natural 3-D centrelines the check reads the designed crossings on
-    (``proximity.natural_lines``)."""
-    return natural_lines(problem.yarn.natural3d, problem.wales, samples)
-
-
-def spatial_state(problem: WeftProblem, centrelines: np.ndarray) -> ProximityReport:
-    """The independent 3-D check of deformed centrelines (m, n, S, 3) of a problem."""
-    yarn = problem.yarn
-    return check_3d(centrelines, spatial_natural(problem, centrelines.shape[2]), problem.L,
-                    yarn.radius, yarn.core_radius)
 
 
 def spatial_own_check(problem: WeftProblem, centrelines: np.ndarray) -> dict[str, Any]:

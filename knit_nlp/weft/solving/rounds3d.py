@@ -14,10 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from ..model.spatial.proximity import check_3d, natural_lines
+from ..model.spatial.proximity import spatial_samples, spatial_state
 from ..model.spatial.repulsion import Neighbours, missing
-from ..model.contact.pairs import check_samples
-from ..model.centrelines import SAMPLES
 from ..transcription.spatial import SpatialNLP, build_spatial
 from .solve import Solution, SpatialSteps
 
@@ -55,9 +53,7 @@ class SpatialEquilibrium(SpatialSteps):
         found inside the core would make the energy infinite at the answer)."""
         nlp: SpatialNLP = self.nlp
         pr, shape = self.problem, nlp.shape
-        S = max(SAMPLES, check_samples(pr.L, pr.yarn.radius))
-        rep = check_3d(nlp.centrelines3d(x, S), natural_lines(shape, pr.wales, S), pr.L,
-                       pr.yarn.radius, pr.yarn.core_radius)
+        rep = spatial_state(pr, nlp.centrelines3d(x, spatial_samples(pr)))
         new = missing(rep.close, nlp.neighbours, pr.L, pr.wales, shape)
         if not len(new):
             return new

@@ -18,7 +18,8 @@ from typing import Callable
 import numpy as np
 
 from ...model.params import MATERIAL
-from ...output.check import own_check, spatial_own_check, spatial_samples
+from ...model.spatial.proximity import spatial_samples
+from ...output.check import own_check, spatial_own_check
 from .checks import HALF, STIFFENING, outcome_checks
 from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives,
                     strains_at)
