@@ -35,7 +35,7 @@ def test_the_solver_passes_the_transcriptions_bounds(param):
     the bounds."""
     problem = knit_nlp.load_problem("wada_fig7")
     nlp = transcribe(problem, param)
-    rows = nlp.clamp_rows[1].position
+    rows = nlp.clamp_table.clamp_rows[1].position
     target = problem.clamps[1].target
     natural = problem.natural_position(problem.clamps[1].loop, problem.clamps[1].s)
     nlp.lbg, nlp.ubg = nlp.lbg.copy(), nlp.ubg.copy()
@@ -46,7 +46,7 @@ def test_the_solver_passes_the_transcriptions_bounds(param):
     # a box in x only, reaching 0.5 short of the natural x: the point is pulled to its edge
     nlp.lbg[rows], nlp.ubg[rows] = [natural[0] - target[0] + 0.5, -np.inf], [np.inf, np.inf]
     pulled = solve_nlp(nlp, WeftSolver(nlp), start="natural")
-    x_end = nlp.special_positions(pulled.x)[0, nlp.clamp_points[1]]
+    x_end = nlp.special_positions(pulled.x)[0, nlp.clamp_table.clamp_points[1]]
     assert pulled.success and x_end == pytest.approx(natural[0] + 0.5, abs=1e-6)
     assert pulled.lam_g[rows][0] < 0 and abs(pulled.lam_g[rows][1]) < 1e-8
     solver = WeftSolver(nlp)

@@ -115,7 +115,7 @@ def test_envelope_theorem_with_crossing_contacts(small) -> None:
     assert base.success
     state = nlp.crossing_state(base.x)
     assert np.any(state["h"] < 2 * 0.74)                     # some crossing is pressed
-    row = nlp.clamp_rows[1].position
+    row = nlp.clamp_table.clamp_rows[1].position
     reaction = -base.lam_g[row]
     target = params.targets[1]
     step = 1e-4

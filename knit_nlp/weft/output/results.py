@@ -111,10 +111,9 @@ class WeftResult(Outcome):
 
     @cached_property
     def clamps(self) -> list[ClampReaction]:
-        pr, lam, pc = self.problem, self.report.lam_g, self._points()
+        pr, lam, pc, table = self.problem, self.report.lam_g, self._points(), self.nlp.clamp_table
         out = []
-        for q, (c, sp, rows) in enumerate(zip(pr.clamps, self.nlp.clamp_points,
-                                              self.nlp.clamp_rows)):
+        for q, (c, sp, rows) in enumerate(zip(pr.clamps, table.clamp_points, table.clamp_rows)):
             force = np.zeros(2)
             if rows.position is not None:
                 force[list(rows.dims)] = -lam[rows.position]
@@ -132,9 +131,9 @@ class WeftResult(Outcome):
 
     @cached_property
     def rigid_clamps(self) -> list[RigidClampReaction]:
-        pc, out = self._points(), []
-        for q, (rc, idx, rows) in enumerate(zip(self.problem.rigid_clamps, self.nlp.rigid_points,
-                                                self.nlp.rigid_rows)):
+        pc, out, table = self._points(), [], self.nlp.clamp_table
+        for q, (rc, idx, rows) in enumerate(zip(self.problem.rigid_clamps, table.rigid_points,
+                                                table.rigid_rows)):
             forces = -self.report.lam_g[rows].reshape(2, -1, order="F")
             motion = self.params.rigid[q]
             out.append(RigidClampReaction(q + 1, tuple((lp, label) for lp, label, _ in rc.points),
@@ -144,11 +143,11 @@ class WeftResult(Outcome):
 
     @cached_property
     def loads(self) -> list[LoadResult]:
-        pc = self._points()
+        pc, table = self._points(), self.nlp.clamp_table
         return [LoadResult(q + 1, ld.loop, ld.point, self.params.forces[q].copy(),
                            float(self.params.moments[q]), pc[:, sp].copy(),
                            ld.table if ld.expanded else None)
-                for q, (ld, sp) in enumerate(zip(self.problem.loads, self.nlp.load_points))]
+                for q, (ld, sp) in enumerate(zip(self.problem.loads, table.load_points))]
 
     def loading_path(self) -> list[tuple[float, "WeftResult"]]:
         """The continuation steps reached, each as (load factor τ, the result at parameters

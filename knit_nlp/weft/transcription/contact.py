@@ -103,12 +103,7 @@ class ContactNLP(WeftNLP):
 
     problem = _from_base("problem")
     params = _from_base("params")
-    specials = _from_base("specials")
-    clamp_points = _from_base("clamp_points")
-    load_points = _from_base("load_points")
-    rigid_points = _from_base("rigid_points")
-    clamp_rows = _from_base("clamp_rows")
-    rigid_rows = _from_base("rigid_rows")
+    clamp_table = _from_base("clamp_table")
     n_parameters = _from_base("n_parameters")
 
     @property

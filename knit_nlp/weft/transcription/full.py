@@ -31,14 +31,14 @@ from ..model.kinematics import loop_displacements
 from ..model.parametrisation import Full
 from ..model.params import WeftParams, param_layout
 from ..model.problem import WeftProblem
-from .protocol import WeftNLP
-from .rows import (SPRINGS, ClampRows, SpecialPoint, add_clamp_rows, eval_points, has_springs,
-                   held_dims, loop_index, n_parameters, rigid_natural_points, rigid_targets,
-                   special_points)
+from .protocol import Assembled
+from .rows import (SPRINGS, ClampRows, ClampTable, SpecialPoint, add_clamp_rows, eval_points,
+                   has_springs, held_dims, loop_index, n_parameters, rigid_natural_points,
+                   rigid_targets, special_points)
 
 
 @dataclass
-class FullNLP(WeftNLP):
+class FullNLP(Assembled):
     """The full NLP (module docstring) with everything needed to solve it and read its solution
     (the members of :class:`~knit_nlp.weft.transcription.protocol.WeftNLP`).
 
@@ -46,22 +46,7 @@ class FullNLP(WeftNLP):
     ``energy_terms`` the Function (x, p) -> (spring, bending, load_work).
     """
 
-    problem: WeftProblem
-    nlp: dict[str, ca.MX]
-    x: Layout
-    p: Layout
-    g: Layout
-    lbg: np.ndarray
-    ubg: np.ndarray
-    params: WeftParams
-    specials: list[SpecialPoint]
-    clamp_points: list[int]
-    load_points: list[int]
-    rigid_points: list[list[int]]
-    clamp_rows: list[ClampRows]
-    rigid_rows: list[slice]
     energy_terms: ca.Function
-    n_parameters: int
     displacements: ca.MX
     x0: np.ndarray = field(default_factory=lambda: np.zeros(0))
     nlpsol_options: dict[str, Any] = field(default_factory=dict)   # the factory's derivatives
@@ -71,7 +56,7 @@ class FullNLP(WeftNLP):
     @property
     def eval_points(self) -> list[float]:
         """The s-values of each loop's columns of ``displacements``."""
-        return eval_points(self.problem, self.specials)
+        return eval_points(self.problem, self.clamp_table.specials)
 
     def energy(self, x: np.ndarray, p: np.ndarray) -> tuple[float, float, float]:
         spring, bending, work = self.energy_terms(x, p)
@@ -86,7 +71,7 @@ class FullNLP(WeftNLP):
         return self.x.get(x, "starts").T.reshape(pr.courses, pr.wales, 2)
 
     def special_positions(self, x: np.ndarray) -> np.ndarray:
-        return self.x.get(x, "PC") if self.specials else np.zeros((2, 0))
+        return self.x.get(x, "PC") if self.clamp_table.specials else np.zeros((2, 0))
 
     def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
         """The decision vector of these loops (exact: every loop is free), with the lifted
@@ -97,7 +82,7 @@ class FullNLP(WeftNLP):
         xval = np.zeros(self.x.size)
         self.x.put(xval, "coeffs", a)
         self.x.put(xval, "starts", x_st)
-        for name, value in _point_positions(pr, a, x_st, self.specials).items():
+        for name, value in _point_positions(pr, a, x_st, self.clamp_table.specials).items():
             self.x.put(xval, name, value)
         return xval
 
@@ -139,15 +124,15 @@ def build_nlp(pr: WeftProblem) -> FullNLP:
     pb = {name: ca.reshape(psym[pl.slice(name)], *shape) for name, (_, _, shape) in pl.blocks.items()}
     rows = _Constraints()
     D = _constraints(pr, xb, pb, specials, rows)
-    clamp_rows, rigid_rows = _clamp_constraints(pr, xb, pb, clamp_pts, rigid_pts, rows)
+    clamp_rows, rigid_rows = clamp_constraints(pr, xb, pb, clamp_pts, rigid_pts, rows)
     spring, bend, work = _energy_terms(pr, xb, pb, specials, load_pts)
     g = rows.expression()
     nlp = {"x": xsym, "p": psym, "f": spring + bend - work, "g": g}
     energy = ca.Function("energy", [xsym, psym], [spring, bend, work],
                          ["x", "p"], ["spring", "bending", "load_work"])
+    table = ClampTable(specials, clamp_pts, load_pts, rigid_pts, clamp_rows, rigid_rows)
     result = FullNLP(pr, nlp, xl, pl, rows.layout, rows.lower(), rows.upper(), WeftParams.of(pr),
-                     specials, clamp_pts, load_pts, rigid_pts, clamp_rows, rigid_rows, energy,
-                     n_parameters(pr, Full()), D)
+                     table, n_parameters(pr, Full()), energy_terms=energy, displacements=D)
     result.x0 = result.lift(np.broadcast_to(pr.natural.coeffs, (m, n, nc)).copy(),
                             pr.natural_starts())
     return result
@@ -237,11 +222,12 @@ def _constraints(pr: WeftProblem, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
     return D
 
 
-def _clamp_constraints(pr: WeftProblem, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
-                       clamp_pts: list[int], rigid_pts: list[list[int]],
-                       rows: _Constraints) -> tuple[list[ClampRows], list[slice]]:
+def clamp_constraints(pr: WeftProblem, xb: dict[str, ca.MX], pb: dict[str, ca.MX],
+                      clamp_pts: list[int], rigid_pts: list[list[int]],
+                      rows: _Constraints) -> tuple[list[ClampRows], list[slice]]:
     """The clamp rows of ``rows.add_clamp_rows``: held coordinates P[dims] − target[dims],
-    angles θ(s) − angle, rigid-clamp points P − (c + R(φ)(P0 − c) + t)."""
+    angles θ(s) − angle, rigid-clamp points P − (c + R(φ)(P0 − c) + t), on the lifted points'
+    x and y (the first two rows of ``PC``: the 3-D NLP's too, ``spatial``)."""
     clamp_rows, rigid_rows = add_clamp_rows(rows.layout, pr)
     n_angle = 0
     for q, (c, sp) in enumerate(zip(pr.clamps, clamp_pts)):
@@ -254,8 +240,8 @@ def _clamp_constraints(pr: WeftProblem, xb: dict[str, ca.MX], pb: dict[str, ca.M
             n_angle += 1
     for q, (rc, idx, p0) in enumerate(zip(pr.rigid_clamps, rigid_pts, rigid_natural_points(pr))):
         motion = pb["rigid"][:, q]
-        rows.put(f"rigid{q}", xb["PC"][:, idx] - rigid_targets(rc, p0, motion[0], motion[1],
-                                                               motion[2]))
+        rows.put(f"rigid{q}", xb["PC"][:2, idx] - rigid_targets(rc, p0, motion[0], motion[1],
+                                                                motion[2]))
     return clamp_rows, rigid_rows
 
 

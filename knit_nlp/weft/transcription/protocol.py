@@ -19,18 +19,20 @@ Members a transcription provides (data):
   derivative oracles: closed forms for both models);
 - layouts ``x``, ``p``, ``g``; bounds ``lbg``, ``ubg`` (arrays of g's size); start ``x0``
   (the natural configuration); ``params`` (the problem's own values);
-- ``specials`` (clamped and loaded material points, ``rows.SpecialPoint``), ``clamp_points``,
-  ``load_points``, ``rigid_points`` (indices among them); ``clamp_rows`` and ``rigid_rows``
-  (``rows.ClampRows`` / slices of g: reactions are read from the multipliers there);
+- ``clamp_table`` (``rows.ClampTable``): the clamped and loaded material points, each clamp's,
+  load's and rigid clamp's indices among them, and the clamps' rows of g (reactions are read
+  from the multipliers there);
 - ``n_parameters`` (counted as the paper counts, ``rows.n_parameters``).
 
 Methods it provides: ``energy``, ``coefficients``, ``starts``, ``special_positions``, ``lift``
 and ``representatives``. The protocol itself implements what follows from those (``p0``,
 ``n_variables``, ``n_constraints``, ``centrelines``, ``violation``); a transcription class
-inherits them by naming the protocol as its base.
+inherits them by naming the protocol as its base. The transcriptions assembled as one CasADi
+graph (full, 3-D) hold the data members their builders fill in :class:`Assembled`.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import casadi as ca
@@ -41,7 +43,7 @@ from ..model.centrelines import SAMPLES, centrelines
 from ..model.parametrisation import Full, Reduced
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
-from .rows import ClampRows, SpecialPoint
+from .rows import ClampTable
 
 
 class WeftNLP(Protocol):
@@ -59,12 +61,7 @@ class WeftNLP(Protocol):
     ubg: np.ndarray
     x0: np.ndarray
     params: WeftParams
-    specials: list[SpecialPoint]
-    clamp_points: list[int]
-    load_points: list[int]
-    rigid_points: list[list[int]]
-    clamp_rows: list[ClampRows]
-    rigid_rows: list[slice]
+    clamp_table: ClampTable
     n_parameters: int
 
     def energy(self, x: np.ndarray, p: np.ndarray) -> tuple[float, float, float]:
@@ -120,3 +117,21 @@ class WeftNLP(Protocol):
         if not g.size:
             return 0.0
         return float(np.max(np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0)))
+
+
+@dataclass
+class Assembled(WeftNLP):
+    """The data members a CasADi-assembled transcription's builder fills (``full.FullNLP``,
+    ``spatial.SpatialNLP``), as dataclass fields; each subclass adds its own and the members
+    set after the build (``x0``, ``nlpsol_options``)."""
+
+    problem: WeftProblem
+    nlp: dict[str, ca.MX]
+    x: Layout
+    p: Layout
+    g: Layout
+    lbg: np.ndarray
+    ubg: np.ndarray
+    params: WeftParams
+    clamp_table: ClampTable
+    n_parameters: int

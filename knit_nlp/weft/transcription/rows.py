@@ -9,6 +9,8 @@
   θ(s) − angle; per rigid clamp, every point P − (c + R(φ)(P0 − c) + t). :func:`add_clamp_rows`
   places them in a constraint layout and :class:`ClampRows` records where; results read the
   reactions from the multipliers at those rows.
+
+Every transcription keeps both, the points and the rows, in one :class:`ClampTable`.
 """
 from __future__ import annotations
 
@@ -42,6 +44,20 @@ class ClampRows:
     position: slice | None
     dims: tuple[int, ...]
     angle: slice | None
+
+
+@dataclass(frozen=True)
+class ClampTable:
+    """Where an NLP holds and loads its fabric: the special points (:func:`special_points`),
+    each clamp's, load's and rigid clamp's indices among them, and the clamps' and rigid
+    clamps' constraint rows (:func:`add_clamp_rows`)."""
+
+    specials: list[SpecialPoint]
+    clamp_points: list[int]
+    load_points: list[int]
+    rigid_points: list[list[int]]
+    clamp_rows: list[ClampRows]
+    rigid_rows: list[slice]
 
 
 def loop_index(pr: WeftProblem, loop: tuple[int, int]) -> int:

@@ -49,11 +49,10 @@ from ..model.spatial.natural3d import PAIRS, Natural3D, flat
 from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
 from ..model.centrelines import SAMPLES
 from .elements import Elements, element_derivatives
-from .full import Constraints
+from .full import Constraints, clamp_constraints
 from .loop_hessians import bending_hessian, displacement_hessian, displacement_jacobian
-from .protocol import WeftNLP
-from .rows import (SPRINGS, ClampRows, SpecialPoint, add_clamp_rows, held_dims, loop_index,
-                   rigid_natural_points, rigid_targets, special_points)
+from .protocol import Assembled
+from .rows import SPRINGS, ClampRows, ClampTable, loop_index, special_points
 
 class PlanarOnly(ProblemError, ValueError):
     """A model or option that exists only in the plane (one line; exit 2 on the command line)."""
@@ -89,30 +88,15 @@ class Spatial:
 
 
 @dataclass
-class SpatialNLP(WeftNLP):
+class SpatialNLP(Assembled):
     """The 3-D NLP (module docstring), with the members of the ``WeftNLP`` protocol."""
 
-    problem: WeftProblem
     options: Spatial
     shape: Natural3D
-    nlp: dict[str, ca.MX]
-    x: Layout
-    p: Layout
-    g: Layout
-    lbg: np.ndarray
-    ubg: np.ndarray
-    params: WeftParams
-    specials: list[SpecialPoint]
-    clamp_points: list[int]
-    load_points: list[int]
-    rigid_points: list[list[int]]
-    clamp_rows: list[ClampRows]
-    rigid_rows: list[slice]
     z_rows: dict[int, int]                 # special point -> its z row (held points)
     terms: ca.Function                     # (x, p) -> spring, contact, bend, work, h, sin α
     lifted: ca.Function                    # primary blocks -> lifted blocks
     signs: np.ndarray
-    n_parameters: int
     x0: np.ndarray = field(default_factory=lambda: np.zeros(0))
     # CasADi's AD (expanding the graph to scalars cost 16-53 s of set-up on 6 x 6 for the same
     # time per iteration); a trial step into a yarn's core evaluates to NaN, which IPOPT's line
@@ -151,7 +135,7 @@ class SpatialNLP(WeftNLP):
         return self.x.get(x, "starts").T.reshape(pr.courses, pr.wales, 3)
 
     def special_positions(self, x: np.ndarray) -> np.ndarray:
-        return self.x.get(x, "PC")[:2] if self.specials else np.zeros((2, 0))
+        return self.x.get(x, "PC")[:2] if self.clamp_table.specials else np.zeros((2, 0))
 
     def lift(self, coeffs: np.ndarray, starts: np.ndarray) -> np.ndarray:
         """Loops with planar coefficients and starts (2-D: z = 0), the natural elevation and
@@ -335,10 +319,11 @@ class _Builder:
         names = [n for n in LIFTED if n in xl.blocks]
         lift_fn = ca.Function("lifted", [xs], [lifted[n] for n in names])
         npar = pr.courses * pr.wales * (self.nc + (self.nq if self.opt.elevation else 0)) + 3 * pr.courses
-        out = SpatialNLP(pr, self.opt, self.shape, nlp, xl, pl, rows.layout, rows.lower(),
-                         rows.upper(), WeftParams.of(pr), self.specials, self.clamp_pts,
-                         self.load_pts, self.rigid_pts, clamp_rows, rigid_rows, z_rows, terms,
-                         lift_fn, self.signs, npar)
+        table = ClampTable(self.specials, self.clamp_pts, self.load_pts, self.rigid_pts,
+                           clamp_rows, rigid_rows)
+        out = SpatialNLP(pr, nlp, xl, pl, rows.layout, rows.lower(), rows.upper(),
+                         WeftParams.of(pr), table, npar, options=self.opt, shape=self.shape,
+                         z_rows=z_rows, terms=terms, lifted=lift_fn, signs=self.signs)
         if self.opt.derivatives == "elements":
             out.nlpsol_options = {**out.nlpsol_options, **element_derivatives(
                 xs, ps, nlp["f"], nlp["g"], self.elements, xl.size)}
@@ -458,24 +443,10 @@ class _Builder:
 
     def _clamps(self, xb: dict[str, ca.MX], pb: dict[str, ca.MX], rows: Constraints
                 ) -> tuple[list[ClampRows], list[slice], dict[int, int]]:
-        """The planar clamp rows (``rows.add_clamp_rows``) on x, y, and z held at its natural
+        """The planar clamp rows (``full.clamp_constraints``) on x, y, and z held at its natural
         value at every held point (unless φ is frozen: then each course's start)."""
-        pr = self.pr
-        clamp_rows, rigid_rows = add_clamp_rows(rows.layout, pr)
-        n_angle = 0
-        for q, (c, sp) in enumerate(zip(pr.clamps, self.clamp_pts)):
-            dims = list(held_dims(c.fix))
-            if dims:
-                rows.put(f"clamp{q}_pos", xb["PC"][dims, sp] - pb["targets"][dims, q])
-            if c.angle is not None:
-                angle = ca.mtimes(ca.DM(phi(c.s, pr.L, pr.t)), xb["coeffs"][:, loop_index(pr, c.loop)])
-                rows.put(f"clamp{q}_angle", angle - pb["angles"][n_angle])
-                n_angle += 1
-        for q, (rc, idx, p0) in enumerate(zip(pr.rigid_clamps, self.rigid_pts,
-                                              rigid_natural_points(pr))):
-            motion = pb["rigid"][:, q]
-            rows.put(f"rigid{q}", xb["PC"][:2, idx] - rigid_targets(rc, p0, motion[0], motion[1],
-                                                                    motion[2]))
+        clamp_rows, rigid_rows = clamp_constraints(self.pr, xb, pb, self.clamp_pts,
+                                                   self.rigid_pts, rows)
         held = sorted({sp for sp in self.clamp_pts} | {i for idx in self.rigid_pts for i in idx})
         z_rows: dict[int, int] = {}
         if self.opt.elevation and held:

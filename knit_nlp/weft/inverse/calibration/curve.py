@@ -80,8 +80,8 @@ class SpecimenModel:
         self._points = point_jacobian(points)
         self._n_low = len(low)
         self.base = WeftParams.of(specimen.problem)
-        rows = np.arange(self.eq.wnlp.rigid_rows[PULLED - 1].start,
-                         self.eq.wnlp.rigid_rows[PULLED - 1].stop)
+        pulled = self.eq.nlp.clamp_table.rigid_rows[PULLED - 1]
+        rows = np.arange(pulled.start, pulled.stop)
         self._rows = rows.reshape(-1, 2)[:, specimen.axis]     # the pull's component per point
         self.build_s = self.eq.build_s
 

@@ -60,7 +60,7 @@ class Assembly(Lagrangian):
         fills them: a clamp's held coordinates (columns of its course), its angle (the course's
         z only), each rigid-clamp point, and per course its chaining rows."""
         pr, blocks, r = self.problem, [], 0
-        for c, sp in zip(pr.clamps, self.clamp_points):
+        for c, sp in zip(pr.clamps, self.clamp_table.clamp_points):
             i = self.sp_points[sp].i
             if sum(c.fix):
                 blocks.append((r + np.arange(sum(c.fix)), self.cw[i]))
@@ -68,7 +68,7 @@ class Assembly(Lagrangian):
             if c.angle is not None:
                 blocks.append((np.array([r]), self.maps[i].cols))
                 r += 1
-        for idx in self.rigid_points:
+        for idx in self.clamp_table.rigid_points:
             for sp in idx:
                 blocks.append((r + np.arange(2), self.cw[self.sp_points[sp].i]))
                 r += 2
@@ -129,13 +129,13 @@ class Assembly(Lagrangian):
                                     self.seg_of[[pt.j]])[0]
 
         vals = []
-        for c, sp in zip(pr.clamps, self.clamp_points):
+        for c, sp in zip(pr.clamps, self.clamp_table.clamp_points):
             if sum(c.fix):
                 vals.append(dpos(sp)[list(held_dims(c.fix))])
             if c.angle is not None:
                 pt, cm = self.sp_points[sp], self.maps[self.sp_points[sp].i]
                 vals.append((phi(c.s, pr.L, pr.t)[0] @ cm.T[pt.j])[None])
-        for idx in self.rigid_points:
+        for idx in self.clamp_table.rigid_points:
             vals += [dpos(sp) for sp in idx]
         S = self.n_seg
         for i in range(pr.courses if S > 1 and not whole_courses else 0):

@@ -30,7 +30,7 @@ class Lagrangian(Shooting):
         dA = st["A"] - pr.natural.coeffs
         bend = 0.5 * par["R_f"] * float(np.einsum("ijc,c,ijc->", dA, self.bend_diag, dA))
         work = 0.0
-        for q, (ld, sp) in enumerate(zip(pr.loads, self.load_points)):
+        for q, (ld, sp) in enumerate(zip(pr.loads, self.clamp_table.load_points)):
             pt = self.sp_points[sp]
             work += par["forces"][:, q] @ (st["pos"][pt.i, pt.j, pt.col]
                                            - pr.natural_position(ld.loop, ld.s))
@@ -48,7 +48,7 @@ class Lagrangian(Shooting):
         pr, par = self.problem, self._params(p)
         st = self._state(w)
         out, n_angle = [], 0
-        for q, (c, sp) in enumerate(zip(pr.clamps, self.clamp_points)):
+        for q, (c, sp) in enumerate(zip(pr.clamps, self.clamp_table.clamp_points)):
             pt = self.sp_points[sp]
             dims = list(held_dims(c.fix))
             out.append(st["pos"][pt.i, pt.j, pt.col][dims] - par["targets"][dims, q])
@@ -56,7 +56,7 @@ class Lagrangian(Shooting):
                 out.append([phi(c.s, pr.L, pr.t)[0] @ st["A"][pt.i, pt.j]
                             - par["angles"][n_angle, 0]])
                 n_angle += 1
-        for q, (rc, idx, p0) in enumerate(zip(pr.rigid_clamps, self.rigid_points,
+        for q, (rc, idx, p0) in enumerate(zip(pr.rigid_clamps, self.clamp_table.rigid_points,
                                               rigid_natural_points(pr))):
             target = np.asarray(rigid_targets(rc, p0, *par["rigid"][:, q]))
             pts = np.array([st["pos"][self.sp_points[s].i, self.sp_points[s].j,
@@ -79,12 +79,12 @@ class Lagrangian(Shooting):
             gv = sigma * v @ self._spring_matrix(F, par)
             psi[:-1, :, low] += gv
             psi[1:, :, up] -= gv
-        for q, (ld, sp) in enumerate(zip(pr.loads, self.load_points)):
+        for q, (ld, sp) in enumerate(zip(pr.loads, self.clamp_table.load_points)):
             pt = self.sp_points[sp]
             psi[pt.i, pt.j, pt.col] -= sigma * par["forces"][:, q]
             dA[pt.i, pt.j] -= sigma * par["moments"][q, 0] * phi(ld.s, pr.L, pr.t)[0]
         r = 0
-        for c, sp in zip(pr.clamps, self.clamp_points):
+        for c, sp in zip(pr.clamps, self.clamp_table.clamp_points):
             pt = self.sp_points[sp]
             for d in held_dims(c.fix):
                 psi[pt.i, pt.j, pt.col, d] += lam[r]
@@ -92,7 +92,7 @@ class Lagrangian(Shooting):
             if c.angle is not None:
                 dA[pt.i, pt.j] += lam[r] * phi(c.s, pr.L, pr.t)[0]
                 r += 1
-        for idx in self.rigid_points:
+        for idx in self.clamp_table.rigid_points:
             for s in idx:
                 pt = self.sp_points[s]
                 psi[pt.i, pt.j, pt.col] += lam[r:r + 2]

@@ -20,7 +20,8 @@ from ...model.params import WeftParams, param_layout
 from ...model.parametrisation import Reduced
 from ...model.problem import WeftProblem
 from ..reduction import CourseMap, course_maps, n_reduced
-from ..rows import add_clamp_rows, eval_points, has_springs, n_parameters, special_points
+from ..rows import (ClampTable, add_clamp_rows, eval_points, has_springs, n_parameters,
+                    special_points)
 
 SEGMENT = 12           # loops per shooting segment along a course (docs/measurements.md)
 
@@ -53,8 +54,8 @@ class Shooting:
         S = self.n_seg
         self.cw = [np.concatenate([cm.cols, self.nz + 2 * S * i + np.arange(2 * S)])
                    for i, cm in enumerate(self.maps)]
-        self.specials, self.clamp_points, self.load_points, self.rigid_points = special_points(pr)
-        evals = eval_points(pr, self.specials)
+        specials, *indices = special_points(pr)
+        evals = eval_points(pr, specials)
         self.P, col = len(evals), {s: q for q, s in enumerate(evals)}
         self.pL = col[pr.L]
         self.springs = has_springs(pr)
@@ -62,14 +63,14 @@ class Shooting:
         if self.springs:
             c = pr.crossings
             self.pB, self.pE, self.pR, self.pH = (col[c.s[k]] for k in ("B", "E", "R", "H"))
-        self.sp_points = [_Point(*divmod(sp.k, n), col[sp.s]) for sp in self.specials]
+        self.sp_points = [_Point(*divmod(sp.k, n), col[sp.s]) for sp in specials]
         self.x = Layout()
         self.x.add("coeffs", self.nz, 1)
         self.x.add("segment_starts", 2, m * self.n_seg)
         self.p = param_layout(pr)
         self.params = WeftParams.of(pr)
         self.g = Layout()
-        self.clamp_rows, self.rigid_rows = add_clamp_rows(self.g, pr)
+        self.clamp_table = ClampTable(specials, *indices, *add_clamp_rows(self.g, pr))
         if self.n_seg > 1:               # each segment starts where the last one ends (eq. 1)
             self.g.add("chain", 2 * (self.n_seg - 1), m)
         self.lbg = self.ubg = np.zeros(self.g.size)
