@@ -7,16 +7,15 @@ from __future__ import annotations
 
 import csv
 import json
-import textwrap
 
 import numpy as np
 import pytest
 from scipy.interpolate import PchipInterpolator
 
-from calibration_files import noisy_columns, write_columns, write_spec
+from calibration_files import noisy_columns
 from knit_nlp.cli import main
 from knit_nlp.errors import ProblemError
-from knit_nlp.tomlio import load_toml
+from knit_nlp.tomlio import load_toml, toml_text
 from knit_nlp.weft.inverse.calibration.calibrate import TestModel as SpecimenTest
 from knit_nlp.weft.inverse.calibration.curve import SpecimenModel, strains_at
 from knit_nlp.weft.inverse.calibration.spec import load_spec, parse_spec
@@ -39,63 +38,26 @@ def synthetic_3d(path, top: float = 10.0, runs: int = 3, rows: int = 400,
     return noisy_columns(path, c, sp, top, noise, runs, rows, seed=3)
 
 
-SPEC_3D = """\
-    name = "{name}"
-    [fabric]
-    courses = 2
-    wales = 2
-    [loop]
-    length = 11.28
-    [material]
-    R_f = {R_f}
-    [yarn]
-    radius = 0.74
-    geometry = "3d"
-    [units]
-    length = "mm"
-    force = "N"
-    [calibrate]
-    fit = {fit}
-    forces = [2.0, 5.0, 8.0]
-    {more}
-    [[test]]
-    file = "synthetic3d.csv"
-    format = "columns"
-    direction = "courses"
-    use = "fit"
-    width = {width}
-    """
-
-SPEC_PLANAR = """\
-    name = "planar"
-    [fabric]
-    courses = 2
-    wales = 2
-    [loop]
-    length = 11.28
-    [material]
-    k_a = 0.0354
-    k_b = 0.000354
-    R_f = 0.045
-    [units]
-    length = "mm"
-    force = "N"
-    [calibrate]
-    fit = []
-    forces = [2.0, 5.0, 8.0]
-    [[test]]
-    file = "synthetic3d.csv"
-    format = "columns"
-    direction = "courses"
-    use = "fit"
-    width = {width}
-    """
+PLANAR = {"k_a": 0.0354, "k_b": 0.000354}       # the paper's crossing springs
 
 
-def spec_3d(folder, width: float, fit: str = "[]", R_f: float = TRUTH_R_F, more: str = "",
-            name: str = "synthetic3d"):
-    return write_spec(folder, SPEC_3D.format(name=name, R_f=R_f, fit=fit, more=more, width=width),
-                      f"{name}.toml")
+def spec_file(folder, width: float, fit: tuple[str, ...] = (), R_f: float = TRUTH_R_F,
+              planar: bool = False, **calibrate: str):
+    """The calibration spec of the 2 x 2 course pull in ``synthetic3d.csv`` (``width`` mm),
+    written to ``folder``: the 3-D model's, ``synthetic3d.toml`` (the yarn of ``DOC``), or with
+    ``planar`` the paper's, ``planar.toml`` (crossing springs, no yarn); ``fit``, ``R_f`` and
+    further ``[calibrate]`` keys (``beside``) as given."""
+    name = "planar" if planar else "synthetic3d"
+    model = ({"material": {**PLANAR, "R_f": R_f}} if planar
+             else {"material": {"R_f": R_f}, "yarn": YARN})
+    doc = {"name": name, "fabric": {"courses": 2, "wales": 2}, "loop": DOC["loop"],
+           "units": DOC["units"], **model,
+           "calibrate": {"fit": list(fit), "forces": list(FORCES), **calibrate},
+           "test": [{"file": "synthetic3d.csv", "format": "columns", "direction": "courses",
+                     "use": "fit", "width": width}]}
+    path = folder / f"{name}.toml"
+    path.write_text(toml_text(doc))
+    return path
 
 
 @pytest.fixture(scope="module")
@@ -110,9 +72,9 @@ def fitted(data):
     curve (truth 0.045), with the planar spec on the same test beside it; and the planar spec
     alone."""
     folder, width = data
-    write_spec(folder, SPEC_PLANAR.format(width=width), "planar.toml")
-    spec = spec_3d(folder, width, '["R_f"]', 0.06, 'beside = "planar.toml"')
+    spec_file(folder, width, planar=True)
     out = folder / "out"
+    spec = spec_file(folder, width, ("R_f",), 0.06, beside="planar.toml")
     code = main(["calibrate", str(spec), "--out", str(out)])
     main(["calibrate", str(folder / "planar.toml"), "--out", str(folder / "planar_out")])
     doc = json.loads((out / "synthetic3d.calibration.json").read_text())
@@ -125,11 +87,11 @@ def test_a_3d_spec_holds_its_measured_values_and_refuses_what_it_cannot_fit(data
     contact rigidity may be fitted (k_a, k_b are off in 3-D without crossing springs, the radius
     shapes the natural loop), its sensitivities are curve differences (no KKT ones in 3-D)."""
     folder, width = data
-    spec = load_spec(spec_3d(folder, width))
+    spec = load_spec(spec_file(folder, width))
     assert spec.spatial and spec.sensitivities == "curve_differences" and spec.fit == ()
     assert spec.values["radius"] == 0.74 and spec.values["R_f"] == TRUTH_R_F
     assert spec.values["contact_rigidity"] == pytest.approx(0.0012)
-    doc = load_toml(spec_3d(folder, width))
+    doc = load_toml(spec_file(folder, width))
     for key, value, words in (("fit", ["radius"], "contact_rigidity"),
                               ("fit", ["k_a"], "R_f"),
                               ("sensitivities", "implicit", "curve_differences"),
@@ -145,7 +107,7 @@ def test_the_contact_rigidity_is_an_exact_energy_scale(data):
     λ = k / k0 and its forces times λ, is the NLP built at k (``TestModel.energy_scale``):
     the same forces at the same clamp strains, to the solver's tolerance."""
     folder, width = data
-    spec = load_spec(spec_3d(folder, width))
+    spec = load_spec(spec_file(folder, width))
     tm = SpecimenTest(spec, 0)
     values = {**spec.values, "contact_rigidity": 4 * spec.values["contact_rigidity"]}
     strains = [0.05, 0.1]
