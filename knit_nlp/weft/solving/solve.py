@@ -282,10 +282,6 @@ class Equilibrium:
         return self.nlp.params
 
     @property
-    def n(self) -> int:
-        return self.nlp.n_variables
-
-    @property
     def build_s(self) -> float:
         """Seconds spent building: the NLP, its IPOPT instance, the KKT Functions once used."""
         return self._build_s

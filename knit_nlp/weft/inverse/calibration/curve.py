@@ -80,7 +80,7 @@ class SpecimenModel:
         self._points = point_jacobian(points)
         self._n_low = len(low)
         self.base = WeftParams.of(specimen.problem)
-        pulled = self.eq.nlp.clamp_table.rigid_rows[PULLED - 1]
+        pulled = self.eq.wnlp.clamp_table.rigid_rows[PULLED - 1]
         rows = np.arange(pulled.start, pulled.stop)
         self._rows = rows.reshape(-1, 2)[:, specimen.axis]     # the pull's component per point
         self.build_s = self.eq.build_s
@@ -243,7 +243,7 @@ class SpecimenModel:
             dz = np.full(rhs.shape, np.nan)
         bad = np.linalg.norm(mat @ dz - rhs, axis=0) > KKT_RESIDUAL * (1 + np.linalg.norm(rhs, axis=0))
         dz[:, bad] = np.nan
-        return dz[:self.eq.n], dz[nz:]
+        return dz[:self.eq.wnlp.n_variables], dz[nz:]
 
     def node_sensitivities(self, c: Curve, names: list[str]) -> tuple[np.ndarray, np.ndarray,
                                                                       np.ndarray, np.ndarray]:
