@@ -17,6 +17,19 @@ the 3-D model radius 0.74 mm and stitch-by-stitch's soft-shell law (its defaults
 
     python scripts/physics_weft3d.py [--size 6] [--big 12] [--skip-big] [--out results]
 
+3. ``--straight``: the experiment of a *straight* bending reference (stitch-by-stitch's yarn,
+   whose bending energy is 1/2 B int kappa^2 with no natural curvature) instead of the natural
+   loop's (S4): the calibration spec's 3-D model (problems/real_fabric/acrylic_3d_x.toml, its
+   fitted contact rigidity) with the reference curvature (1 - beta) times the natural loop's,
+   relaxed at zero load (clamps at their natural positions) by raising beta from 0 towards 1
+   in steps of ``--beta-step``, each one IPOPT solve warm-started from the last, until a solve
+   fails; then the course and wale pulls from the furthest relaxed state reached and from the
+   natural one (beta = 0), with forces relative to the relaxed state's clamp reaction, at the
+   test's real width (clamp width 35.5 mm), beside the measured figures. Writes
+   physics_weft3d_straight.json.
+
+    python scripts/physics_weft3d.py --straight [--beta-step 0.05] [--out results]
+
 Prints one line per solved node (stderr) and the tables (stdout); writes physics_weft3d.json.
 Times are wall seconds on whatever machine runs it.
 """
@@ -26,14 +39,19 @@ import argparse
 import json
 import sys
 import time
+import tomllib
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
-from knit_nlp.weft.inverse.calibration.checks import HALF
-from knit_nlp.weft.inverse.calibration.curve import SpecimenModel
+from knit_nlp.weft.inverse.calibration.checks import HALF, curve_checks
+from knit_nlp.weft.inverse.calibration.curve import MAX_HALVINGS, SpecimenModel
+from knit_nlp.weft.inverse.calibration.measured import read_stitch_by_stitch
+from knit_nlp.weft.inverse.calibration.spec import CLAMP_WIDTH_MM
 from knit_nlp.weft.inverse.calibration.specimen import build_specimen
+from knit_nlp.weft.transcription import spatial
 
 L, R_F = 11.28, 0.045
 BASE = {"units": {"length": "mm", "force": "N"}, "loop": {"length": L},
@@ -121,6 +139,192 @@ def show(v: float | None, fmt: str = ".3g") -> str:
     return "n/a" if v is None else format(v, fmt)
 
 
+# -- 3. the straight bending reference (module docstring, item 3) ---------------------------
+SPEC = Path(__file__).resolve().parents[1] / "problems" / "real_fabric" / "acrylic_3d_x.toml"
+FITTED_RIGIDITY = 0.0108897     # N/mm^3: the shipped calibration's fit (docs/real_fabric.md)
+SPECIMENS = {"courses": (3, 5), "wales": (3, 7)}    # the calibration's (min_loops = 3)
+TESTS = {"courses": "acrylic_stockinette_x.csv", "wales": "acrylic_stockinette_y.csv"}
+STRAIGHT_PULL = np.round(np.arange(STEP, 0.5 + 1e-9, STEP), 4)
+
+
+class _Scaled:
+    """The natural 3-D loop with its angles' coefficients times ``factor`` (the bending's
+    reference only: positions, crossings and the start keep the natural loop)."""
+
+    def __init__(self, shape: Any, factor: float) -> None:
+        self._shape, self._factor = shape, factor
+
+    @property
+    def coeffs(self) -> np.ndarray:
+        return self._factor * self._shape.coeffs
+
+    @property
+    def elevation(self) -> np.ndarray:
+        return self._factor * self._shape.elevation
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._shape, name)
+
+
+@contextmanager
+def reference_scaled(factor: float) -> Iterator[None]:
+    """NLPs built inside measure bending (S4) from ``factor`` times the natural loop's angles
+    (theta0, phi0): 1 the model's own, 0 a straight yarn. The builder's energy reads the shape's
+    ``coeffs`` and elevation (``_b0``) for the bending reference and, for applied moments,
+    theta0; the specimens here have none."""
+    original = spatial._Builder._energy
+
+    def energy(self: Any, xb: Any, pb: Any) -> Any:
+        shape = self.shape
+        self.shape = _Scaled(shape, factor)
+        try:
+            return original(self, xb, pb)
+        finally:
+            self.shape = shape
+    spatial._Builder._energy = energy
+    try:
+        yield
+    finally:
+        spatial._Builder._energy = original
+
+
+def straight_doc(rigidity: float, max_time: float) -> dict[str, Any]:
+    """The calibration spec's model (loop, material, yarn, units, solver) at ``rigidity``."""
+    spec = tomllib.loads(SPEC.read_text())
+    doc = {k: spec[k] for k in ("units", "loop", "material", "yarn", "solver")}
+    doc["yarn"] = {**doc["yarn"], "contact_rigidity": rigidity}
+    doc["solver"] = {"max_iter": 300, "max_time": max_time}
+    return doc
+
+
+def crossing_stats(sm: SpecimenModel, x: np.ndarray, p: np.ndarray) -> dict[str, Any]:
+    """Compression h - 2r at the crossings (negative: pressed) and the crossing points slid off
+    their loop, at state x."""
+    st = sm.eq.wnlp.crossing_state(x)
+    comp = st["compression"]
+    return {"compression_min_mm": float(comp.min()),
+            "compression_median_mm": float(np.median(comp)),
+            "pressed": int(np.sum(comp < 0)), "crossings": int(comp.size),
+            "contact_force_sum_N": float(np.sum(st["force"])),
+            "sin_angle_min": float(st["sin_angle"].min()),
+            "slid_off_loop": sm.eq.wnlp.spatial_block(x, p)["slid_off_loop"]}
+
+
+def relax(doc: dict[str, Any], direction: str, betas: np.ndarray
+          ) -> tuple[list[dict[str, Any]], dict[float, tuple[SpecimenModel, np.ndarray, float]]]:
+    """Zero load, clamps at their natural positions: beta raised step by step, each solve one
+    IPOPT solve from the last state; stops at the first failure. Returns a row per beta and,
+    per beta relaxed, (its specimen model, state, clamp reaction F0)."""
+    m, n = SPECIMENS[direction]
+    rows, states, x = [], {}, None
+    for beta in betas:
+        t0 = time.perf_counter()
+        with reference_scaled(1.0 - float(beta)):
+            sp = build_specimen(doc, "<physics>", direction, m, n, f"straight_{direction}")
+            sm = SpecimenModel(sp)
+        p0 = sm.params(doc["material"], 0.0)
+        rep = sm._step3d(p0, sm.eq.wnlp.x0 if x is None else x)
+        row = {"beta": float(beta), "status": rep.status, "iterations": rep.iterations,
+               "wall_s": time.perf_counter() - t0,
+               "F0_model_N": float(sm.force(rep.lam_g)) if rep.success else None,
+               **crossing_stats(sm, rep.x, p0)}
+        rows.append(row)
+        log(f"relax {direction} {m} x {n}: beta {beta:.3f} {rep.status} ({rep.iterations} it); "
+            f"h - 2r min {row['compression_min_mm']:.3f} median {row['compression_median_mm']:.3f}"
+            f" mm, {row['pressed']}/{row['crossings']} pressed, slid {row['slid_off_loop']}, "
+            f"sin a min {row['sin_angle_min']:.3f}")
+        if not rep.success:
+            break
+        x = rep.x
+        states[float(beta)] = (sm, x, row["F0_model_N"])
+    return rows, states
+
+
+def pull_relative(sm: SpecimenModel, x: np.ndarray, f0: float, material: dict[str, float],
+                  strains: np.ndarray, label: str) -> dict[str, Any]:
+    """The pull from the relaxed state x, each node one IPOPT solve from the last (a failed
+    step halved up to MAX_HALVINGS times), force relative to the relaxed reaction f0."""
+    L0, t0 = sm.specimen.gauge, time.perf_counter()
+    es, fs, reason, u = [0.0], [0.0], "", 0.0
+    for strain in np.asarray(strains, dtype=float):
+        target = strain * L0
+        step, halvings = target - u, 0
+        while u != target and halvings <= MAX_HALVINGS:
+            nxt = target if abs(target - u) <= abs(step) else u + step
+            rep = sm._step3d(sm.params(material, nxt), x)
+            if rep.success:
+                u, x = nxt, rep.x
+            else:
+                halvings, step = halvings + 1, step / 2
+        if u != target:
+            reason = f"no equilibrium past strain {u / L0:.3g} ({rep.status})"
+            break
+        es.append(float(strain))
+        fs.append(float(sm.force(rep.lam_g)) - f0)
+        log(f"  {label}: strain {target / L0:.3f} F - F0 {fs[-1]:.4g} N (model) "
+            f"({time.perf_counter() - t0:.0f} s)")
+    return {"strain": es, "force_model_N": fs, "reason": reason,
+            "pitch_width_mm": sm.specimen.pitch_width, "wall_s": time.perf_counter() - t0,
+            "final": crossing_stats(sm, x, sm.params(material, u))}
+
+
+def straight_experiment(args: argparse.Namespace, out: Path) -> dict[str, Any]:
+    """Item 3 of the module docstring; prints its tables."""
+    doc = straight_doc(args.rigidity, args.max_time)
+    betas = np.round(np.arange(0.0, 1.0 + 1e-9, args.beta_step), 6)
+    result: dict[str, Any] = {"rigidity": args.rigidity, "directions": {}}
+    for direction in ("courses", "wales"):
+        test = read_stitch_by_stitch(SPEC.parent / TESTS[direction], TESTS[direction])
+        width = test.width_clamps * CLAMP_WIDTH_MM
+        measured = curve_checks([(r.axial, r.force) for r in test.runs], width)
+        rows, states = relax(doc, direction, betas)
+        pulls = {}
+        for beta in sorted({0.0, max(states)}):
+            sm, x, f0 = states[beta]
+            run = pull_relative(sm, x, f0, doc["material"], STRAIGHT_PULL,
+                                f"{direction} beta {beta:g}")
+            scale = width / run["pitch_width_mm"]
+            run["checks"] = curve_checks([(np.array(run["strain"]),
+                                           np.array(run["force_model_N"]) * scale)], width)
+            pulls[f"{beta:g}"] = run
+        result["directions"][direction] = {"width_mm": width, "measured": measured,
+                                           "relax": rows, "pulls": pulls}
+        json.dump(result, open(out / "physics_weft3d_straight.json", "w"), indent=1)
+    print("| reference | pull | F(10 %) N | F(30 %) N | stiffening 5 -> 45 % | K(10 %)/W N/mm "
+          "| reached | relaxed: h - 2r min, median (mm); pressed |")
+    print("|---|---|---|---|---|---|---|---|")
+    for direction, d in result["directions"].items():
+        last = d["relax"][-1]
+        for beta, run in d["pulls"].items():
+            c = run["checks"]
+            rel = next(r for r in d["relax"] if f"{r['beta']:g}" == beta)
+            print(f"| beta = {beta} | {direction} | {show(c['force_N']['0.1'])} | "
+                  f"{show(c['force_N']['0.3'])} | {show(c['stiffening'])} | "
+                  f"{show(c['stiffness_per_width'])} | {run['strain'][-1]:.3f} "
+                  f"{run['reason']} | {rel['compression_min_mm']:.3f}, "
+                  f"{rel['compression_median_mm']:.3f}; {rel['pressed']}/{rel['crossings']} |")
+        m = d["measured"]
+        print(f"| measured | {direction} | {show(m['force_N']['0.1'])} | "
+              f"{show(m['force_N']['0.3'])} | {show(m['stiffening'])} | "
+              f"{show(m['stiffness_per_width'])} | | |")
+        print(f"|  | {direction}: relaxation stopped at beta = {last['beta']:g}: "
+              f"{last['status']} | | | | | | |")
+    for strain in (0.10, 0.05):
+        ratio = {}
+        for key in {b for d in result["directions"].values() for b in d["pulls"]}:
+            k = []
+            for d in ("courses", "wales"):
+                run = result["directions"][d]["pulls"].get(key)
+                k.append(None if run is None else tangent(
+                    {**run, "force_N": run["force_model_N"]}, strain))
+            ratio[key] = None if None in k or k[0] == 0 else k[1] / k[0]
+        result[f"wale_over_course_at_{strain:g}"] = ratio
+        print(f"wale / course stiffness per width at {strain:.0%}: " + ", ".join(
+            f"beta {b}: {show(v)}" for b, v in sorted(ratio.items())))
+    json.dump(result, open(out / "physics_weft3d_straight.json", "w"), indent=1)
+    return result
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", type=int, default=6, help="loops per side of the pulls (>= 6)")
@@ -132,10 +336,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--big-runs", default="", help="comma list of direction:strain of the big "
                     "3-D runs (default: courses:0.5,wales:0.3,courses:-0.2,wales:-0.2)")
     ap.add_argument("--out", default="results")
+    ap.add_argument("--straight", action="store_true", help="only the straight-reference "
+                    "experiment (module docstring, item 3)")
+    ap.add_argument("--beta-step", type=float, default=0.05, help="--straight: step of beta")
+    ap.add_argument("--rigidity", type=float, default=FITTED_RIGIDITY,
+                    help="--straight: contact rigidity (N/mm^3)")
     args = ap.parse_args(argv)
     BASE["solver"]["max_time"] = args.max_time
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.straight:
+        straight_experiment(args, out)
+        return 0
     only = {tuple(s.split(":")) for s in args.only.split(",") if s}
     runs = []
     for model in MODELS:
