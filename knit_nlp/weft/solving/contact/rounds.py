@@ -114,6 +114,16 @@ RESTARTS = 2
 # took 37 iterations instead of 26)
 SETTLE = 1e-2
 SETTLE_MU = 0.1
+# the closest points of a contact slide along the yarns while the slot holds the gap at fixed
+# material points: in the final step a round whose short pairs all lie within a sample of a
+# slot of the solve that just ended (sliding contacts, not new ones) and are short by at most
+# SLIDE_MOST / SLIDE is followed by rounds whose slots keep SLIDE times that shortfall more
+# than the required gap (the margin only grows within a step). Without it the 10 x 10 pushes
+# by a third found 10-30 pairs 0.1-0.9 % short beside the slots round after round (7.0e-3,
+# 6.2e-3, 1.1e-3, 6.0e-3 on the diagonal push) and ran out of time. The answer is judged
+# against the required gap itself, by the rounds (TOL) and by the check.
+SLIDE = 2.0
+SLIDE_MOST = 0.02
 
 
 @dataclass
@@ -415,12 +425,12 @@ class ContactSolver(OnClock):
         added (:meth:`_restart`), and they stay in every later round (:meth:`_again`).
         The :class:`Step`: its status says why when a solve failed or yarns crossed."""
         tol = TOL if final else STEP_TOL
-        restarts, settle, checks = 0, False, 0
+        restarts, settle, checks, margin = 0, False, 0, 0.0
         deep_met = Pairs.empty()        # the pairs a restart was for: in every later round
         checked = Pairs.empty()         # the pairs the check found short: in every later round
         for k in range(MAX_ROUNDS):
             begun_x, begun_pairs, begun_warm = x, pairs, warm   # a restart repeats this round
-            rep, lam = self.solve_once(p, x, pairs, warm, report, rounds,
+            rep, lam = self.solve_once(p, x, _margined(pairs, margin), warm, report, rounds,
                                        note if k == 0 else f"{note}, round {k + 1}", settle)
             if not rep.success:
                 return Step(rep.status)
@@ -455,7 +465,11 @@ class ContactSolver(OnClock):
             touching = pairs.select(self.touching())
             lost = lost_contacts(touching, found, self.grid.h * SAME)
             held = unrepeated(found, self._hold(xn, lost), self.grid.h * SAME)
-            moved = final and contacts_moved(touching, found.concat(held), self.grid.h * MOVED)
+            # sliding contacts held by a margin (SLIDE) need not stop moving: the margin is
+            # for them (the 10 x 10 diagonal push, margin 1.4e-2: no pair short in its
+            # rounds 2-4, a contact moved more than half a sample in each)
+            moved = final and margin == 0 and contacts_moved(touching, found.concat(held),
+                                                              self.grid.h * MOVED)
             x, warm = xn, Warm(rep.lam_g[:self.base.n_constraints], pairs, lam)
             report.x, report.objective = x, rep.objective
             report.lam_g = rep.lam_g[:self.base.n_constraints]
@@ -473,10 +487,12 @@ class ContactSolver(OnClock):
                     self.log(f"  the check finds {len(refuted)} pairs short: "
                              f"{self.named(refuted)}; solving on with them")
                 found = found.concat(unrepeated(found, refuted, self.grid.h * SAME))
+            if final:
+                margin = max(margin, slide_margin(pairs, found, tol, self.grid.h))
             if self.log is not None:
                 short = np.max(1 - found.gap / np.maximum(found.required, 1e-300), initial=0)
                 self.log(f"  again: {int(self.violations(found, tol).sum())} short (worst "
-                         f"{short:.2e}), moved {moved}")
+                         f"{short:.2e}), moved {moved}, margin {margin:.2e}")
             pairs = found.concat(held)
             pairs = pairs.concat(self._again(xn, deep_met.concat(checked), pairs))
             settle = not self.violations(pairs, SETTLE).any()
@@ -627,3 +643,26 @@ class ContactSolver(OnClock):
                           0 if self.cnlp is None else self.cnlp.n_variables,
                           0 if self.cnlp is None else self.cnlp.n_constraints, warm)
 
+
+def _margined(pairs: Pairs, margin: float) -> Pairs:
+    """The pairs with their required gaps ``margin`` (relative) wider (``SLIDE``)."""
+    if margin <= 0:
+        return pairs
+    return Pairs(pairs.kA, pairs.sA, pairs.kB, pairs.sB, pairs.sigma,
+                 pairs.required * (1 + margin), pairs.gap)
+
+
+def slide_margin(slots: Pairs, found: Pairs, tol: float, h: float) -> float:
+    """The margin (relative to the required gap) the next round's slots keep when the pairs of
+    ``found`` short by more than ``tol`` are contacts that slid (``SLIDE``): each within a
+    sample ``h`` (in s_A, s_B) of a pair of the solve that just ended (``slots``), none short by
+    more than ``SLIDE_MOST / SLIDE``; else 0 (a new contact, or one far inside its gap, is
+    met by its own slot, not by a margin)."""
+    short = found.select((found.gap < found.required * (1 - tol)) & (found.required > 0))
+    if len(short) == 0 or len(slots) == 0:
+        return 0.0
+    _, dist = match(slots, short)
+    worst = float(np.max(1 - short.gap / short.required))
+    if np.all(dist < h) and SLIDE * worst <= SLIDE_MOST:
+        return SLIDE * worst
+    return 0.0
