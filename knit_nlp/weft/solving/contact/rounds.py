@@ -432,7 +432,8 @@ class ContactSolver(OnClock):
         checked = Pairs.empty()         # the pairs the check found short: in every later round
         for k in range(MAX_ROUNDS):
             begun_x, begun_pairs, begun_warm = x, pairs, warm   # a restart repeats this round
-            rep, lam = self.solve_once(p, x, _margined(pairs, margin), warm, report, rounds,
+            held_apart = _margined(pairs, margin)        # the rows this solve holds
+            rep, lam = self.solve_once(p, x, held_apart, warm, report, rounds,
                                        note if k == 0 else f"{note}, round {k + 1}", settle)
             if not rep.success:
                 return Step(rep.status)
@@ -472,7 +473,7 @@ class ContactSolver(OnClock):
             # rounds 2-4, a contact moved more than half a sample in each)
             moved = final and margin == 0 and contacts_moved(touching, found.concat(held),
                                                               self.grid.h * MOVED)
-            x, warm = xn, Warm(rep.lam_g[:self.base.n_constraints], pairs, lam)
+            x, warm = xn, Warm(rep.lam_g[:self.base.n_constraints], held_apart, lam)
             report.x, report.objective = x, rep.objective
             report.lam_g = rep.lam_g[:self.base.n_constraints]
             if not self.violations(found, tol).any() and not moved:
