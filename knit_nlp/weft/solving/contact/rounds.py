@@ -11,7 +11,8 @@
 4. The new state is searched again; the rounds stop when every pair meets its required gap to
    ``TOL`` (relative) with no crossing, and the contact points stopped moving along the yarns.
    A round whose pairs all nearly meet their gaps already starts IPOPT at a small barrier
-   parameter (``SETTLE``).
+   parameter (``SETTLE``). In the last step, contacts whose closest points keep sliding beside
+   their slots are held a little wider apart than their gap (``SLIDE``) and need not stop.
 5. The checker has the last word: at the target, the answer the rounds accept is searched as
    ``check`` searches it (pairs.checked_pairs: its own, finer sampling, its reach, its
    tolerance; the same rule, zones and crossing count). Pairs it finds short join the rounds
