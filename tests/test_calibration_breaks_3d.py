@@ -48,7 +48,7 @@ SPEC = """\
     use = "fit"
     width = {width}
     """
-YARN_3D = '[yarn]\n    radius = 0.74\n    geometry = "3d"\n    core_radius = 0.2'
+YARN_3D = '[yarn]\n    radius = 0.74\n    geometry = "3d"'       # the core: its default, r·0.325/0.74
 
 
 def spec(folder, width: float, name: str = "held", R_f: float = 2 * TRUTH_R_F,
@@ -70,8 +70,8 @@ def test_the_3d_scan_finds_the_held_value_that_meets_the_target(data):
     """R_f held at twice the truth misses the course pull's target; scanned alone by 0.5 and
     2 it meets it at 0.5 (the truth), bracketed by the answer, with the figure a calibration
     run at R_f = 0.045 gives. A loop length the problem refuses (halved: a yarn too thick for
-    its loop) is reported, not evaluated; moving the radius holds the core radius the spec
-    gives."""
+    its loop) is reported, not evaluated; moving the radius holds the answer's core radius
+    (which, left out of the spec, would follow the radius)."""
     folder, width = data
     held = calibrate(spec(folder, width))
     assert held.tests[0].metric.rms_axial > 0.03              # the held value misses
@@ -89,7 +89,8 @@ def test_the_3d_scan_finds_the_held_value_that_meets_the_target(data):
     assert "radius" in refused.scans[0].errors[0] and refused.scans[0].figures[1] == [None]
     assert "refused at ×0.5" in refused.markdown()[2]
     moved = moved_spec(held, "radius", 0.8)
-    assert moved.values["core_radius"] == 0.2 and moved.values["R_f"] == 2 * TRUTH_R_F
+    assert moved.values["radius"] == 0.8 and moved.values["R_f"] == 2 * TRUTH_R_F
+    assert moved.values["core_radius"] == pytest.approx(0.325) == held.values["core_radius"]
 
 
 def test_the_bracket_is_the_nearest_factor_that_meets_a_target():
