@@ -87,7 +87,7 @@ def test_the_3d_scan_finds_the_held_value_that_meets_the_target(data):
     assert table.to_json()["values"][0]["targets"][0]["met"]
     refused = where_it_breaks(held, evaluate, names=("loop_length",), factors=(0.5,))
     assert "radius" in refused.scans[0].errors[0] and refused.scans[0].figures[1] == [None]
-    assert "refused at ×0.5" in refused.markdown()[2]
+    assert "no model at ×0.5" in refused.markdown()[2]
     moved = moved_spec(held, "radius", 0.8)
     assert moved.values["radius"] == 0.8 and moved.values["R_f"] == 2 * TRUTH_R_F
     assert moved.values["core_radius"] == pytest.approx(0.325) == held.values["core_radius"]

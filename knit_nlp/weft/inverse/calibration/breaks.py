@@ -15,7 +15,8 @@ issue 40's two checks where the test measured them (``CHECK_TARGETS``): the tang
 5 % -> 45 % within 30 % of the measured one, and the force at 30 % strain within 20 %. Per
 value and target the table gives the scan's factor nearest 1 (in log) at which the target is
 met, with the factor before it that missed (the bracket), or "not met" with the best figure any
-factor reached. docs/real_fabric.md, "Where the model breaks".
+factor reached. A factor at which the problem refuses the value, or the model cannot be built
+(``errors``: why), counts as missed and is named in the table ("no model at"). docs/real_fabric.md, "Where the model breaks".
 """
 from __future__ import annotations
 
@@ -224,7 +225,7 @@ class Breaks:
             scan = f"× {_g(min(qs))} .. {_g(max(qs))} ({len(qs)})"
             cells = [_cell(s.cell(q, t), t, unit) for q, t in enumerate(self.targets)]
             refused = [f"×{_g(q)}" for q, e in zip(qs, s.errors) if e]
-            note = f"; refused at {', '.join(refused)}" if refused else ""
+            note = f"; no model at {', '.join(refused)}" if refused else ""
             rows.append(f"| {label} ({s.answer:.4g} {unit}) | {scan}{note} | "
                         + " | ".join(cells) + " |")
         return rows
@@ -282,9 +283,13 @@ def where_it_breaks(result: "CalibrationResult", evaluate: Evaluate,
                 f"{time.perf_counter() - t0:.0f} s")
             try:
                 outcomes = evaluate(moved_spec(result, name, answer * q))
-            except ProblemError as err:
+            except (ProblemError, ValueError, RuntimeError) as err:
+                # the problem refuses the value (ProblemError), or the model cannot be built
+                # or solved there (a radius ×0.7 in 3-D: the natural loops' projections no
+                # longer cross, ValueError): reported in the table, the scan goes on
                 figures.append([None] * len(targets_))
-                errors.append(str(err))
+                errors.append(str(err) if isinstance(err, ProblemError)
+                              else f"{type(err).__name__}: {err}")
                 continue
             figures.append([t.figure(outcomes[t.test]) for t in targets_])
             errors.append("")
