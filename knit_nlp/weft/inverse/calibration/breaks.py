@@ -226,7 +226,8 @@ class Breaks:
             cells = [_cell(s.cell(q, t), t, unit) for q, t in enumerate(self.targets)]
             refused = [f"×{_g(q)}" for q, e in zip(qs, s.errors) if e]
             note = f"; no model at {', '.join(refused)}" if refused else ""
-            rows.append(f"| {label} ({s.answer:.4g} {unit}) | {scan}{note} | "
+            answer = f"{s.answer:.4g}" + (f" {unit}" if unit else "")
+            rows.append(f"| {label} ({answer}) | {scan}{note} | "
                         + " | ".join(cells) + " |")
         return rows
 
