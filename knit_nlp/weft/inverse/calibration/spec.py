@@ -30,7 +30,7 @@ FITTABLE = MATERIAL
 # (docs/real_fabric.md, "The yarn's compression law"), and it enters the NLP exactly as an
 # overall energy scale (``calibrate.TestModel``: no rebuild). k_a, k_b act in 3-D only with
 # [yarn] crossing_springs = true; the radius, core and exponent shape the natural 3-D loop and
-# the law's form and are held (bench_calibration.py --breaks moves them one at a time).
+# the law's form and are held (`knit-nlp calibrate --breaks` moves them one at a time: breaks.py).
 YARN_VALUES = ("radius", "core_radius", "contact_rigidity", "contact_exponent")
 SPATIAL_FITTABLE = ("R_f", "contact_rigidity")
 # Values the yarn's own tests measure (stitch-by-stitch, Singal et al. 2024: the acrylic's
