@@ -48,7 +48,7 @@ SPEC = """\
     use = "fit"
     width = {width}
     """
-YARN_3D = '[yarn]\n    radius = 0.74\n    geometry = "3d"'       # the core: its default, r·0.325/0.74
+YARN_3D = '[yarn]\n    radius = 0.74\n    geometry = "3d"'   # the core: its default, r·0.325/0.74
 
 
 def spec(folder, width: float, name: str = "held", R_f: float = 2 * TRUTH_R_F,

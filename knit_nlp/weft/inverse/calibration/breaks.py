@@ -16,7 +16,8 @@ issue 40's two checks where the test measured them (``CHECK_TARGETS``): the tang
 value and target the table gives the scan's factor nearest 1 (in log) at which the target is
 met, with the factor before it that missed (the bracket), or "not met" with the best figure any
 factor reached. A factor at which the problem refuses the value, or the model cannot be built
-(``errors``: why), counts as missed and is named in the table ("no model at"). docs/real_fabric.md, "Where the model breaks".
+(``errors``: why), counts as missed and is named in the table ("no model at").
+docs/real_fabric.md, "Where the model breaks".
 """
 from __future__ import annotations
 
