@@ -78,8 +78,10 @@ def find_crossings(curves: Curves, grid: Grid) -> Crossings:
     length = np.hypot(d[:, 0], d[:, 1])        # a third of norm's time on 2 million segments
     if length.size == 0:
         return _empty()
+    mid = d * 0.5              # the midpoints p0 + d / 2 in one array (halving is exact)
+    mid += p0
     parts = [_crossing_segments(p0, d, K, uv)
-             for uv in close_pairs(p0 + d / 2, float(length.max()) + 1e-12, ROWS)]
+             for uv in close_pairs(mid, float(length.max()) + 1e-12, ROWS)]
     parts = [p for p in parts if len(p[0])]
     if not parts:
         return _empty()
