@@ -179,8 +179,9 @@ def course_samples(curves: Curves, grid: Grid) -> np.ndarray:
     h = s[1:] - s[:-1]
     nodes = s[:-1, None] + h[:, None] * (x + 1.0) / 2.0                 # (p, G)
     basis = basis_at(nodes, grid.L, curves.t).reshape(-1, curves.coeffs.shape[1])
-    body = np.empty((m * n, p, 2))       # each loop's samples but its end: loop k's rows
-    ends = np.empty((m * n, 2))
+    pts = np.empty((m, n * p + 1, 2))
+    body = np.reshape(pts[:, :-1], (m, n, p, 2), copy=False)   # each loop's samples but
+    #                                                             its end: a view of pts
     rows = max(1, ROWS // (p * G))       # loops per block: bounded temporaries
     for lo in range(0, m * n, rows):
         theta = (curves.coeffs[lo:lo + rows] @ basis.T).reshape(-1, p, G)
@@ -188,12 +189,27 @@ def course_samples(curves: Curves, grid: Grid) -> np.ndarray:
         start = curves.starts[lo:lo + rows, None, :]
         block = np.cumsum(inc, axis=1)
         block += start
-        body[lo:lo + rows, 0] = start[:, 0]
-        body[lo:lo + rows, 1:] = block[:, :-1]
-        ends[lo:lo + rows] = block[:, -1]
-    pts = np.concatenate([body.reshape(m, n * p, 2), ends.reshape(m, n, 2)[:, -1:]], axis=1)
+        _write_loops(pts, body, lo, start[:, 0], block, n)
     _SAMPLED.update(key=key, curves=curves, pts=pts)
     return pts
+
+
+def _write_loops(pts: np.ndarray, body: np.ndarray, lo: int, start: np.ndarray,
+                 block: np.ndarray, n: int) -> None:
+    """Loops lo, lo + 1, ... (their starts and cumulated increments ``block``) into the course
+    samples ``pts`` (m, n·p + 1, 2) through ``body`` (m, n, p, 2), a view of all but each
+    course's last point, course by course (a block of loops may span courses): no array of
+    the loops' samples copied into the courses' afterwards (32 MB at 100 x 100)."""
+    k, hi = lo, lo + len(block)
+    while k < hi:
+        c, j = divmod(k, n)
+        e = min(hi, (c + 1) * n)                       # this course's loops of the block
+        sl = slice(k - lo, e - lo)
+        body[c, j:j + e - k, 0] = start[sl]
+        body[c, j:j + e - k, 1:] = block[sl, :-1]
+        if e == (c + 1) * n:                           # the course's last loop: its end
+            pts[c, -1] = block[e - lo - 1, -1]
+        k = e
 
 
 _SAMPLED: dict = {}          # the last course samples (course_samples)
