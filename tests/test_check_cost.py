@@ -106,3 +106,15 @@ def test_the_pair_counts_are_the_crossings_of_each_pair_of_loops():
     assert list(zip(a.tolist(), b.tolist())) == sorted(plain)
     assert Crossings(z[:0].astype(int), z[:0], z[:0].astype(int), z[:0],
                      np.zeros((0, 2))).counts() == {}
+
+
+def test_a_course_end_crossing_the_next_course_start_is_counted():
+    """Course 1 straight along x from the origin; course 2 straight up from (9.99, −0.01), its
+    first segment through course 1's last: one crossing, though the two segments are numbered
+    one after the other (they are neighbours only within a course)."""
+    coeffs = np.zeros((2, 1, 8))
+    coeffs[1, 0, 7] = np.pi / 2
+    curves = Curves.of(coeffs, np.array([[[0.0, 0.0]], [[9.99, -0.01]]]), L)
+    found = find_crossings(curves, Grid(2, 1, L, 200))
+    assert (found.kA.tolist(), found.kB.tolist()) == ([0], [1])
+    assert found.sA[0] == pytest.approx(9.99) and found.sB[0] == pytest.approx(0.01)
