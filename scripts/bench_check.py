@@ -1,7 +1,8 @@
 """Benchmark the answer's own check (issue 41, item 1: at most 10 % of the solve and 500 MB): the
 n x n diagonal pull (eq. 28 scaled) solved in the paper's model, then its own check
 (``WeftResult.checked``: crossings against the natural fabric), both timed in one process, and
-the check repeated (its k-d tree and natural tables then warm), with the peak RSS of the
+the check repeated (its k-d tree and natural tables then warm), wall and CPU times (the CPU
+time of this process: what other jobs on a shared machine move least), with the peak RSS of the
 process (the solve's, mostly) and of the check alone: the same state checked in a fresh Python
 process (``knit-nlp check``'s work: imports, natural tables, crossings), its wall time and
 peak RSS.
