@@ -1,7 +1,8 @@
 """Benchmark the answer's own check (issue 41, item 1: at most 10 % of the solve and 500 MB): the
 n x n diagonal pull (eq. 28 scaled) solved in the paper's model, then its own check
 (``WeftResult.checked``: crossings against the natural fabric), both timed in one process, and
-the check repeated (its k-d tree and natural tables then warm), with the peak RSS of the
+the check repeated (its k-d tree and natural tables then warm), wall and CPU times (the CPU
+time of this process: what other jobs on a shared machine move least), with the peak RSS of the
 process (the solve's, mostly) and of the check alone: the same state checked in a fresh Python
 process (``knit-nlp check``'s work: imports, natural tables, crossings), its wall time and
 peak RSS.
@@ -56,14 +57,17 @@ def main() -> None:
     n = args.size
     pr = parse_problem(diagonal_pull(n), f"<bench {n}x{n}>")
     print(f"load average {os.getloadavg()[0]:.2f} at the start; cores={os.cpu_count()}")
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     res = solve(pr, Full())
-    solved = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    solved, solved_cpu = time.perf_counter() - t0, time.process_time() - c0
+    t0, c0 = time.perf_counter(), time.process_time()
     block = res.checked
-    checked = time.perf_counter() - t0
+    checked, checked_cpu = time.perf_counter() - t0, time.process_time() - c0
     print(f"{n} x {n}: solve (build included) {solved:.2f} s, {res.status}; own check "
           f"{checked:.2f} s = {100 * checked / solved:.1f} % of it: {block['verdict']}")
+    # CPU time (this process, all its threads): less moved by other jobs on a shared machine
+    print(f"  CPU time: solve {solved_cpu:.2f} s, own check {checked_cpu:.2f} s = "
+          f"{100 * checked_cpu / solved_cpu:.1f} % of it")
     judged = pr if args.radius is None else dataclasses.replace(pr, yarn=Yarn(args.radius))
     for k in range(args.repeats):
         t0 = time.perf_counter()

@@ -179,8 +179,7 @@ def course_samples(curves: Curves, grid: Grid) -> np.ndarray:
     h = s[1:] - s[:-1]
     nodes = s[:-1, None] + h[:, None] * (x + 1.0) / 2.0                 # (p, G)
     basis = basis_at(nodes, grid.L, curves.t).reshape(-1, curves.coeffs.shape[1])
-    body = np.empty((m * n, p, 2))       # each loop's samples but its end: loop k's rows
-    ends = np.empty((m * n, 2))
+    pts = np.empty((m, n * p + 1, 2))
     rows = max(1, ROWS // (p * G))       # loops per block: bounded temporaries
     for lo in range(0, m * n, rows):
         theta = (curves.coeffs[lo:lo + rows] @ basis.T).reshape(-1, p, G)
@@ -188,12 +187,29 @@ def course_samples(curves: Curves, grid: Grid) -> np.ndarray:
         start = curves.starts[lo:lo + rows, None, :]
         block = np.cumsum(inc, axis=1)
         block += start
-        body[lo:lo + rows, 0] = start[:, 0]
-        body[lo:lo + rows, 1:] = block[:, :-1]
-        ends[lo:lo + rows] = block[:, -1]
-    pts = np.concatenate([body.reshape(m, n * p, 2), ends.reshape(m, n, 2)[:, -1:]], axis=1)
+        _write_loops(pts, lo, start[:, 0], block, n)
     _SAMPLED.update(key=key, curves=curves, pts=pts)
     return pts
+
+
+def _write_loops(pts: np.ndarray, lo: int, start: np.ndarray, block: np.ndarray, n: int
+                 ) -> None:
+    """Loops lo, lo + 1, ... (their starts and cumulated increments ``block``, p per loop)
+    into the course samples ``pts`` (m, n·p + 1, 2), course by course (a block of loops may
+    span courses): no array of the loops' samples copied into the courses' afterwards (32 MB
+    at 100 x 100)."""
+    k, hi, p = lo, lo + len(block), block.shape[1]
+    while k < hi:
+        c, j = divmod(k, n)
+        e = min(hi, (c + 1) * n)                       # this course's loops of the block
+        sl = slice(k - lo, e - lo)
+        # a contiguous run of one course's samples: reshaped, a view (each loop's p samples)
+        run = pts[c, j * p:(j + e - k) * p].reshape(e - k, p, 2)
+        run[:, 0] = start[sl]
+        run[:, 1:] = block[sl, :-1]
+        if e == (c + 1) * n:                           # the course's last loop: its end
+            pts[c, -1] = block[e - lo - 1, -1]
+        k = e
 
 
 _SAMPLED: dict = {}          # the last course samples (course_samples)

@@ -1,0 +1,120 @@
+"""What the answer's own check was made cheaper with (issue 41, docs/measurements.md, "The own
+check's cost") still finds what the plain ways find: the crossing count's segments read from
+the course samples without a copy against every segment pair intersected, the course samples
+written loop block by loop block against one block, the natural interlocks' candidate segments
+from k-d trees against every segment pair, the per-pair counts against a plain count."""
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from knit_nlp.weft.model.cases import unclamped
+from knit_nlp.weft.model.contact import natural, pairs
+from knit_nlp.weft.model.contact.crossings import Crossings, find_crossings, segments_crossing
+from knit_nlp.weft.model.contact.curves import Curves
+from knit_nlp.weft.model.contact.pairs import Grid, course_samples
+from knit_nlp.weft.model.problem import parse_problem
+
+L = 10.0
+
+
+def _shifted(d: float) -> tuple[Curves, Grid]:
+    """A 3 x 3 natural jersey with its middle course moved by d along x (d = 4: crossings
+    that the natural fabric has and new ones, tests/test_contact_zones.py)."""
+    pr = parse_problem(unclamped(3, 3), "shifted")
+    starts = np.array(pr.natural_starts(), dtype=float)
+    starts[1, :, 0] += d
+    return Curves.of(np.broadcast_to(pr.natural.coeffs, (3, 3, 8)), starts, L), Grid(3, 3, L, 200)
+
+
+@pytest.mark.parametrize("shift", [0.0, 1.0, 4.0])
+def test_the_crossing_count_finds_what_every_segment_pair_intersected_finds(shift):
+    """find_crossings (segment starts read as rows u + u // (K − 1) of the course samples)
+    against all 1.6 million pairs of the 1800 segments, starts copied out course by course,
+    on the jersey as knitted (24 crossings), its middle course moved 1 (10, slid) and 4 (8,
+    new): the same crossings, on the same loops at the same material points and places."""
+    curves, grid = _shifted(shift)
+    found = find_crossings(curves, grid)
+    pts = course_samples(curves, grid)
+    m, K = pts.shape[:2]
+    p0 = pts[:, :-1].reshape(-1, 2)
+    d = (pts[:, 1:] - pts[:, :-1]).reshape(-1, 2)
+    u, v = np.triu_indices(len(d), 1)
+    one = (v - u == 1) & (v % (K - 1) != 0)            # neighbours along a course
+    u, v, tu, tv = segments_crossing(p0, d, u[~one], v[~one])
+    cu, iu = np.divmod(u, K - 1)
+    cv, iv = np.divmod(v, K - 1)
+    kA, sA = grid.loop_of(cu, grid.S[iu] + tu * grid.h)
+    kB, sB = grid.loop_of(cv, grid.S[iv] + tv * grid.h)
+    swap = (kA > kB) | ((kA == kB) & (sA > sB))
+    brute = sorted(zip(np.where(swap, kB, kA).tolist(), np.where(swap, sB, sA).tolist(),
+                       np.where(swap, kA, kB).tolist(), np.where(swap, sA, sB).tolist()))
+    got = sorted(zip(found.kA.tolist(), found.sA.tolist(), found.kB.tolist(),
+                     found.sB.tolist()))
+    assert len(brute) >= 8 and len({k for k, *_ in brute}) >= 2
+    assert got == brute
+    xy = p0[u] + tu[:, None] * d[u]
+    assert sorted(map(tuple, found.xy.tolist())) == sorted(map(tuple, xy.tolist()))
+
+
+@pytest.mark.parametrize("loops_per_block", [1, 2, 4, 5])
+def test_the_course_samples_put_every_loop_block_in_its_course(monkeypatch, loops_per_block):
+    """Blocks of 1, 2, 4 or 5 loops on 3 courses of 3 (blocks that end inside a course, at its
+    end, or run into the next one) give the samples of one block of all 9 loops: each loop's
+    first sample its start, each course's last sample its last loop's end."""
+    curves, grid = _shifted(4.0)
+    p, G = grid.per_loop, pairs.INTERVAL_NODES
+    pairs._SAMPLED.clear()
+    whole = course_samples(curves, grid).copy()
+    monkeypatch.setattr(pairs, "ROWS", loops_per_block * p * G)
+    pairs._SAMPLED.clear()
+    blocks = course_samples(curves, grid)
+    pairs._SAMPLED.clear()
+    np.testing.assert_allclose(blocks, whole, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(blocks[:, :-1:p], curves.starts.reshape(3, 3, 2))
+    ends = curves.points(np.array([2, 5, 8]), np.full(3, L))
+    np.testing.assert_allclose(blocks[:, -1], ends, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 2, 4])
+def test_the_natural_crossings_near_each_other_are_those_of_every_segment_pair(seed):
+    """natural_crossings with ``near`` (candidate segments from k-d trees) on two wiggly walks
+    with steps of very uneven length: the crossings of every segment pair intersected."""
+    rng = np.random.default_rng(seed)
+    s = np.linspace(0.0, 1.0, 301)
+    a = np.cumsum(rng.normal(size=(301, 2)) * rng.lognormal(0.0, 1.0, (301, 1)), axis=0)
+    b = np.cumsum(rng.normal(size=(301, 2)) * rng.lognormal(0.0, 1.0, (301, 1)), axis=0)
+    b += a.mean(0) - b.mean(0)
+    dense = sorted(natural.natural_crossings(a, b, s))
+    assert len(dense) > 5
+    assert sorted(natural.natural_crossings(a, b, s, near=True)) == dense
+
+
+def test_the_pair_counts_are_the_crossings_of_each_pair_of_loops():
+    """Crossings.pair_counts (the judge's arrays) and counts (the report's dict) against a
+    plain count of 500 random crossings on 40 loops."""
+    rng = np.random.default_rng(11)
+    ka, kb = rng.integers(0, 40, 500), rng.integers(0, 40, 500)
+    ka, kb = np.minimum(ka, kb), np.maximum(ka, kb)
+    z = np.zeros(500)
+    found = Crossings(ka, z, kb, z, np.zeros((500, 2)))
+    plain = Counter(zip(ka.tolist(), kb.tolist()))
+    a, b, n = found.pair_counts()
+    assert dict(zip(zip(a.tolist(), b.tolist()), n.tolist())) == plain == found.counts()
+    assert list(zip(a.tolist(), b.tolist())) == sorted(plain)
+    assert Crossings(z[:0].astype(int), z[:0], z[:0].astype(int), z[:0],
+                     np.zeros((0, 2))).counts() == {}
+
+
+def test_a_course_end_crossing_the_next_course_start_is_counted():
+    """Course 1 straight along x from the origin; course 2 straight up from (9.99, −0.01), its
+    first segment through course 1's last: one crossing, though the two segments are numbered
+    one after the other (they are neighbours only within a course)."""
+    coeffs = np.zeros((2, 1, 8))
+    coeffs[1, 0, 7] = np.pi / 2
+    curves = Curves.of(coeffs, np.array([[[0.0, 0.0]], [[9.99, -0.01]]]), L)
+    found = find_crossings(curves, Grid(2, 1, L, 200))
+    assert (found.kA.tolist(), found.kB.tolist()) == ([0], [1])
+    assert found.sA[0] == pytest.approx(9.99) and found.sB[0] == pytest.approx(0.01)
