@@ -14,6 +14,7 @@ from knit_nlp.weft.model.quadrature import positions
 from knit_nlp.weft.model.spatial.curve3d import (bending3d, bending3d_numpy, loop_displacements3d,
                                                   positions3d, segment, symbolic_phi)
 from knit_nlp.weft.model.spatial.natural3d import PAIRS
+from knit_nlp.weft.model.spatial.natural_fit import gap
 
 L, T, Q = 10.0, 3, 3
 
@@ -83,18 +84,30 @@ def problem3d():
     return parse_problem(doc, "pull3d.toml")
 
 
-def test_natural_3d_loop_touches_in_the_plain_knit_order(problem3d) -> None:
-    """At every designed crossing the closest points are 2r apart, the upper course's yarn is
-    in front (+z) at C/F and Q/G (its legs over the head below) and behind at A/D and S/P (its
-    sinker loop under the legs below); the loop closes on the planar lattice."""
+def test_natural_3d_loop_interlocks_in_the_plain_knit_order(problem3d) -> None:
+    """The natural 3-D loop (``natural_fit``, N1-N5): the projections cross at the four designed
+    crossings with the upper course's yarn in front (+z) at C/F and Q/G (its legs over the
+    head below) and behind at A/D and S/P (its sinker loop under the legs below); each wrap's
+    points are closest points (N4) at least g apart; the loop closes on its lattice; for a thin
+    yarn the projection stays near the paper's loop."""
     sh = problem3d.yarn.natural3d
-    np.testing.assert_allclose(sh.separations(), 2 * 0.15, rtol=1e-9)
-    up = sh.xyz(sh.s_upper) + [0.0, sh.course_spacing, 0.0]
-    dz = up[:, 2] - sh.xyz(sh.s_lower)[:, 2]
-    assert [np.sign(v) for v in dz] == [-1, 1, 1, -1]       # A/D, C/F, Q/G, S/P
+    shift = [0.0, sh.course_spacing, 0.0]
+    up, low = sh.xyz(sh.cross_upper) + shift, sh.xyz(sh.cross_lower)
+    np.testing.assert_allclose(up[:, :2], low[:, :2], atol=1e-7)
+    assert [int(np.sign(v)) for v in up[:, 2] - low[:, 2]] == [-1, 1, 1, -1]   # A/D C/F Q/G S/P
     assert [order for _, _, order in PAIRS] == [-1, 1, 1, -1]
+    d = sh.xyz(sh.s_upper) + shift - sh.xyz(sh.s_lower)
+    tangents = [positions3d(sh.coeffs, sh.elevation, [s + 1e-6], sh.length, sh.harmonics,
+                            sh.modes) - positions3d(sh.coeffs, sh.elevation, [s - 1e-6],
+                                                    sh.length, sh.harmonics, sh.modes)
+                for s in (*sh.s_upper, *sh.s_lower)]
+    t = np.concatenate(tangents) / 2e-6
+    np.testing.assert_allclose(np.einsum("ki,ki->k", d, t[:2]), 0.0, atol=1e-6)
+    np.testing.assert_allclose(np.einsum("ki,ki->k", d, t[2:]), 0.0, atol=1e-6)
+    assert np.all(sh.h0 >= gap(0.15, problem3d.yarn.core_radius) - 1e-7)
+    np.testing.assert_allclose(sh.separations(), sh.h0, rtol=1e-12)
     end = sh.xyz([sh.length])[0]
-    np.testing.assert_allclose(end, [problem3d.natural.wale_spacing, 0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(end, [sh.wale_spacing, 0.0, 0.0], atol=1e-8)
     assert sh.projection_rms < 0.05 * sh.length
 
 

@@ -23,7 +23,7 @@ from .reach import unreachable
 from .crossing_points import LABELS, CrossingError, Crossings, find_crossings
 from .parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .natural_loop import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
-from .spatial.natural3d import NaturalShapeError, flat, natural_3d
+from .spatial.natural3d import NaturalShapeError, flat
 
 GEOMETRIES = ("planar", "3d")
 SPATIAL_KEYS = ("core_radius", "contact_rigidity", "contact_exponent", "elevation_modes",
@@ -291,8 +291,9 @@ def _read_yarn(tab: Table, natural: NaturalLoop, crossings: Crossings | None) ->
     modes = tab.integer("elevation_modes", 4, minimum=2, maximum=MAX_ELEVATION_MODES)
     springs = tab.boolean("crossing_springs", False)
     tab.finish()
+    from .spatial.natural_fit import natural_3d  # it checks with proximity, which reads problems
     try:
-        shape = (natural_3d(natural, crossings, modes, radius) if crossings is not None
+        shape = (natural_3d(natural, modes, radius, core) if crossings is not None
                  else flat(natural, modes, radius))
     except NaturalShapeError as err:
         raise tab.error("radius", f"{err}; try a smaller radius or more elevation_modes") from None

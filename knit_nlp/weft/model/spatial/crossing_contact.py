@@ -12,11 +12,17 @@ Their signed separation along the common normal n = t_u × t_l is (S6)
 
     h = ς (p_u − p_l)·n / |n|,    sin α = |n|,
 
-with ς = ±1 fixed once, from the natural state, so that h = +2r there: the topology (which yarn
-is over) fixes the sign, and h cannot pass through 0 while the energy (S7), the soft-shell
+with ς = ±1 fixed once, from the natural state, so that h = +h₀ > 0 there: the topology (which
+side of the lower yarn the upper one wraps) fixes the sign, and h cannot pass through 0 while the energy (S7), the soft-shell
 crossing energy ``SoftShell.crossing_energy(h, sin α)`` (eq. C1 of ``compression``), is finite
 (it is +∞, NaN in CasADi, at h ≤ 2R_c). No inequality rows and no active set: every crossing is
 two equality rows and one energy term, whether its yarns touch (h < 2r) or not (energy 0).
+
+**The natural compression.** A tight fabric's natural wraps are closer than touch (h₀ < 2r:
+the knitting pressed the yarn). The law then starts where the natural fabric puts it: E is
+evaluated at h + c, c = max(0, 2r − min h₀) (``natural_shift``), as the other contacts' law
+is (``repulsion``, R1), so that the natural fabric carries no contact force. The model's own
+core is then c closer than 2R_c; the independent check (``proximity``) still judges at 2R_c.
 """
 from __future__ import annotations
 
@@ -26,15 +32,21 @@ import numpy as np
 from ..compression import SoftShell
 
 
-def crossing_terms(shell: SoftShell) -> ca.Function:
-    """Function (p_u, t_u, p_l, t_l, ς) -> (E (S7), closest-point rows (S5, 2), h, sin α)."""
+def natural_shift(shell: SoftShell, h0: np.ndarray) -> float:
+    """c of the module docstring: how far the natural wraps are pressed inside touch."""
+    return max(0.0, 2 * shell.radius - float(np.min(h0))) if np.size(h0) else 0.0
+
+
+def crossing_terms(shell: SoftShell, shift: float = 0.0) -> ca.Function:
+    """Function (p_u, t_u, p_l, t_l, ς) -> (E (S7) at h + ``shift``, closest-point rows (S5, 2),
+    h, sin α)."""
     pu, tu, pl, tl = (ca.SX.sym(n, 3) for n in ("p_u", "t_u", "p_l", "t_l"))
     sign = ca.SX.sym("sign")
     d = pu - pl
     n = ca.cross(tu, tl)
     sin_a = ca.norm_2(n)
     h = sign * ca.dot(d, n) / sin_a
-    energy = shell.casadi_crossing_energy(h, sin_a)
+    energy = shell.casadi_crossing_energy(h + shift, sin_a)
     rows = ca.vertcat(ca.dot(d, tu), ca.dot(d, tl))
     return ca.Function("crossing_terms", [pu, tu, pl, tl, sign], [energy, rows, h, sin_a],
                        ["p_u", "t_u", "p_l", "t_l", "sign"], ["E", "rows", "h", "sin_angle"])
