@@ -13,7 +13,7 @@ from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.transcription.spatial import Spatial, build_spatial
 from knit_nlp.problems import resolve
 from knit_nlp.weft.model.basis import phi
-from knit_nlp.weft.model.spatial.crossing_contact import separation
+from knit_nlp.weft.model.spatial.crossing_contact import natural_shift, separation
 from knit_nlp.weft.model.spatial.curve3d import bending3d_numpy, positions3d
 from knit_nlp.weft.model.spatial.repulsion import sample_s
 
@@ -54,14 +54,15 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
     A = nlp.coefficients(nlp.x0) + 0.02 * rng.normal(size=nlp.coefficients(nlp.x0).shape)
     B = nlp.elevations(nlp.x0) + 0.02 * rng.normal(size=nlp.elevations(nlp.x0).shape)
     X = nlp.starts3d(nlp.x0) + 0.02 * rng.normal(size=(2, 2, 3))
-    sig = nlp.x.get(nlp.x0, "sigma") + 0.05 * rng.normal(size=(2, 8))
+    sig = nlp.x.get(nlp.x0, "sigma") + 0.05 * rng.normal(size=(2, 4))
     x = nlp.lift3d(A, B, X, sig)
     sh, shell = nlp.shape, pr.yarn.shell()
     bend = sum(bending3d_numpy(A[i, j], B[i, j], sh.coeffs, sh.elevation, pr.L, pr.t, sh.modes,
                                pr.R_f) for i in range(2) for j in range(2))
     contact = 0.0
-    for c in range(8):                      # crossings of loops (2, j) over (1, j), 4 each
-        j = c // 4
+    shift = natural_shift(shell, sh.h0)
+    for c in range(4):                      # wraps of loops (2, j) over (1, j), 2 each
+        j = c // 2
         ends = []
         for (i, s) in ((1, sig[0, c]), (0, sig[1, c])):
             pos = X[i, j] + positions3d(A[i, j], B[i, j], [s], pr.L, pr.t, sh.modes)[0]
@@ -70,7 +71,7 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
             ends.append((pos, np.array([np.cos(el) * np.cos(th), np.cos(el) * np.sin(th), np.sin(el)])))
         h, sin_a = separation(ends[0][0][None], ends[0][1][None], ends[1][0][None],
                               ends[1][1][None], nlp.signs[c:c + 1])
-        contact += float(shell.crossing_energy(h, sin_a)[0])
+        contact += float(shell.crossing_energy(h + shift, sin_a)[0])
     assert contact > 0
     # the other contacts (R1): w² v(|x_a − x_b| + c) over the neighbour list, numpy samples
     nb = nlp.neighbours
@@ -114,7 +115,7 @@ def test_envelope_theorem_with_crossing_contacts(small) -> None:
     base = solver.continuation(params.vector(), nlp.x0, 4)
     assert base.success
     state = nlp.crossing_state(base.x)
-    assert np.any(state["h"] < 2 * 0.74)                     # some crossing is pressed
+    assert np.any(state["compression"] < 0)                  # some wrap is pressed
     row = nlp.clamp_table.clamp_rows[1].position
     reaction = -base.lam_g[row]
     target = params.targets[1]

@@ -21,10 +21,12 @@ lower one. A pair of closest points at each crossing of the projections (the fir
 model) sat on saddle points of the distance while the yarns passed through each other between
 them (0.028 mm apart for the acrylic). The wrap's closest points are a true minimum.
 
-**Start.** The paper's projection with yarns of radius r does not admit N5 at the paper's
-lattice (the lenses between A/D and C/F are thinner than the core); the NLP starts from a
-parametric stitch of the classical form x = w/(2π)(τ + 1.5 sin 2τ), y = β(1 − cos τ),
+**Start.** For a thick yarn (2r ≥ ``THIN``·c) the paper's projection does not admit N5 at the
+paper's lattice (the lenses between A/D and C/F are thinner than the core); the NLP starts from
+a parametric stitch of the classical form x = w/(2π)(τ + 1.5 sin 2τ), y = β(1 − cos τ),
 z = −γ cos 2τ, scaled to the loop length and fitted in the loop functions by least squares.
+A thin yarn starts from the paper's loop with its legs lifted; either start is tried when the
+other fails.
 """
 from __future__ import annotations
 
@@ -48,13 +50,14 @@ MARGIN = 0.1          # g = 2R_c + MARGIN (2r − 2R_c): the natural fabric's sm
 # the parametric start (x = w/2π (τ + α sin 2τ), y = β(1 − cos τ), z = −γ cos 2τ), per unit
 # of its own length: measured clean (all pairs at least 0.72 mm) for the acrylic
 START = {"alpha": 1.5, "beta": 1.6, "gamma": 0.65, "w": 3.2, "c": 1.9}
+THIN = 0.5            # 2r below THIN·c (the paper's course spacing): the paper's loop is tried first
 OFFSETS = tuple((di, dj) for di in (0, 1, 2) for dj in range(-2, 3) if di > 0 or dj >= 0)
 
 
 def natural_3d(natural: NaturalLoop, modes: int, radius: float, core: float) -> Natural3D:
     """The natural 3-D loop of a planar natural loop (module docstring), memoised."""
     return _solve(natural.coeffs.tobytes(), natural.length, natural.harmonics, modes,
-                  float(radius), float(core))
+                  float(radius), float(core), natural.wale_spacing, natural.course_spacing)
 
 
 def gap(radius: float, core: float) -> float:
@@ -121,17 +124,37 @@ def _gap_pairs(X0: np.ndarray, s: np.ndarray, w: float, c: float, L: float, r: f
 
 
 @functools.lru_cache(maxsize=32)
-def _solve(coeffs: bytes, L: float, t: int, q: int, r: float, core: float) -> Natural3D:
-    target = positions3d(np.frombuffer(coeffs), np.zeros(n_coeffs(q)),
-                         np.linspace(0.0, L, SAMPLES)[1:], L, t, q)[:, :2]
+def _solve(coeffs: bytes, L: float, t: int, q: int, r: float, core: float, w: float,
+           c: float) -> Natural3D:
+    a_plan = np.frombuffer(coeffs).copy()
+    target = positions3d(a_plan, np.zeros(n_coeffs(q)), np.linspace(0.0, L, SAMPLES)[1:], L,
+                         t, q)[:, :2]
     g = gap(r, core)
-    a0, b0, w0, c0 = parametric_start(L, t, q)
+    b_plan = np.zeros(n_coeffs(q))
+    if q >= 2:                       # legs in front, head and foot behind: z ≈ −α cos(4πs/L)
+        b_plan[1] = 4 * np.pi * (2 * r / 1.77) / L
+    starts = [parametric_start(L, t, q), (a_plan, b_plan, w, c)]
+    if 2 * r < THIN * c:             # a thin yarn: the paper's loop first
+        starts.reverse()
+    errors = []
+    for start in starts:
+        try:
+            return _rounds(L, t, q, r, core, g, target, *start)
+        except NaturalShapeError as err:
+            errors.append(str(err))
+    raise NaturalShapeError("; ".join(dict.fromkeys(errors)))
+
+
+def _rounds(L: float, t: int, q: int, r: float, core: float, g: float, target: np.ndarray,
+            a0: np.ndarray, b0: np.ndarray, w0: float, c0: float) -> Natural3D:
+    """The construction from one start (θ, φ coefficients, lattice): N5's coarse rows, then
+    the rounds adding the fine sampling's close pairs (module docstring)."""
     start = _shape(L, t, q, r, a0, b0, (np.zeros(2), np.zeros(2)), (np.zeros(4), np.zeros(4)),
                    w0, c0)
     try:
         cu0, cl0 = reference_crossings(Courses.of(natural_lines(start, 3, 241), L))
     except ValueError as err:
-        raise NaturalShapeError(f"the parametric start does not interlock ({err})") from None
+        raise NaturalShapeError(f"a start does not interlock ({err})") from None
     wraps0 = np.array([_closest(start, 0.5 * (cu0[i] + cu0[i + 1]), 0.5 * (cl0[i] + cl0[i + 1]),
                                 0.15 * L) for i in (0, 2)]).T
     x = np.concatenate([a0, b0, *wraps0, cu0, cl0, [w0, c0]])
