@@ -77,6 +77,28 @@ def test_a_step_that_let_yarns_cross_is_halved_after_one_widening():
     assert max(diverged) >= rounds.WIDEST * L                 # nothing stops it: widen further
 
 
+def test_a_step_whose_pairs_came_from_a_widened_search_is_halved_not_searched_again():
+    """The first step crosses, is widened (twice REACH) and solved; its pairs come
+    from that widened search. The next step crosses: a search at the same widened reach would
+    give it the same pairs (the 10 x 10 wale push solved its step twice so, 205 IPOPT
+    iterations and the same crossings each time); it is halved."""
+    contact, base = _solver()
+    seen: list[tuple[float, str]] = []
+
+    def step(p, x, pairs, warm, final, report, rounds_, note):
+        seen.append((contact.reach, note))
+        if len(seen) == 2:
+            return rounds.Step("Solve_Succeeded", x, pairs, None, np.zeros(len(pairs)))
+        return rounds.Step(rounds.CROSSED)
+
+    contact.step = step
+    report = SolveReport(False, "", base.x0, np.zeros(base.n_constraints), np.nan, 0, 0.0)
+    contact.run(base.params.vector(), WeftParams.natural(base.problem).vector(), base.x0, 2,
+                report, max_halvings=1)
+    r = rounds.REACH * 10.0
+    assert seen == [(r, "load 0.5"), (2 * r, "load 0.5"), (r, "load 1"), (r, "load 0.875")]
+
+
 def test_a_large_fabric_halves_a_failed_step_instead_of_widening_its_search(monkeypatch):
     """A widened search widens everywhere: doubling the reach triples the pairs. The 100 x 100
     pull (215,600 pairs, 7 GB) widened its search to 641,400 pairs; an earlier run of it was

@@ -179,19 +179,19 @@ def course_samples(curves: Curves, grid: Grid) -> np.ndarray:
     h = s[1:] - s[:-1]
     nodes = s[:-1, None] + h[:, None] * (x + 1.0) / 2.0                 # (p, G)
     basis = basis_at(nodes, grid.L, curves.t).reshape(-1, curves.coeffs.shape[1])
-    pts = np.empty((m, n * p + 1, 2))
+    body = np.empty((m * n, p, 2))       # each loop's samples but its end: loop k's rows
+    ends = np.empty((m * n, 2))
     rows = max(1, ROWS // (p * G))       # loops per block: bounded temporaries
-    loops = m * n
-    for lo in range(0, loops, rows):
+    for lo in range(0, m * n, rows):
         theta = (curves.coeffs[lo:lo + rows] @ basis.T).reshape(-1, p, G)
         inc = (h / 2.0)[:, None] * np.stack([np.cos(theta) @ w, np.sin(theta) @ w], axis=-1)
         start = curves.starts[lo:lo + rows, None, :]
-        block = np.concatenate([start, start + np.cumsum(inc, axis=1)], axis=1)
-        k = np.arange(lo, min(loops, lo + rows))
-        c, j = np.divmod(k, n)
-        pts[c[:, None], j[:, None] * p + np.arange(p)] = block[:, :-1]
-        last = j == n - 1
-        pts[c[last], -1] = block[last, -1]
+        block = np.cumsum(inc, axis=1)
+        block += start
+        body[lo:lo + rows, 0] = start[:, 0]
+        body[lo:lo + rows, 1:] = block[:, :-1]
+        ends[lo:lo + rows] = block[:, -1]
+    pts = np.concatenate([body.reshape(m, n * p, 2), ends.reshape(m, n, 2)[:, -1:]], axis=1)
     _SAMPLED.update(key=key, curves=curves, pts=pts)
     return pts
 
