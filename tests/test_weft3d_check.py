@@ -4,7 +4,6 @@ into each other and a course mirrored through the fabric found."""
 from __future__ import annotations
 
 import numpy as np
-from knit_nlp.weft.model.spatial.natural_fit import gap
 import pytest
 from hypothesis import given, settings, strategies as st
 
@@ -58,14 +57,14 @@ def test_segment_distance_is_the_exact_minimum(p0, p1, q0, q1, parallel) -> None
 
 
 def test_a_natural_fabric_is_clean(thin) -> None:
-    """Every designed crossing found in its plain-knit order, no pair closer than the natural
-    construction's g (N5, to the polyline's sag), and pieces of one yarn not judged against
-    each other."""
+    """Every designed crossing found in its plain-knit order, touching (2r, to the polyline's
+    sag), no pair inside the core, and pieces of one yarn not judged against each other."""
     pr, lines = thin
     rep = _check(pr, lines)
     assert rep.ok and rep.n_inside_core == 0 and not rep.flipped and rep.lost == 0
     assert rep.n_designed == 4 * 2 * 3
-    assert rep.smallest >= 0.99 * gap(pr.yarn.radius, pr.yarn.core_radius)
+    assert rep.smallest == pytest.approx(2 * pr.yarn.radius, rel=2e-3)
+    assert rep.smallest_where["designed"]
 
 
 def test_loops_moved_into_each_other_are_found(thin) -> None:

@@ -293,7 +293,7 @@ def _read_yarn(tab: Table, natural: NaturalLoop, crossings: Crossings | None) ->
     tab.finish()
     from .spatial.natural_fit import natural_3d  # it checks with proximity, which reads problems
     try:
-        shape = (natural_3d(natural, modes, radius, core) if crossings is not None
+        shape = (natural_3d(natural, crossings, modes, radius, core) if crossings is not None
                  else flat(natural, modes, radius))
     except NaturalShapeError as err:
         raise tab.error("radius", f"{err}; try a smaller radius or more elevation_modes") from None

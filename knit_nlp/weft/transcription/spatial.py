@@ -8,7 +8,7 @@ Decision variables, by block (``Layout``):
 - ``starts`` (3 × N): every loop's start point;
 - ``SL``, ``SR`` (2 × loops of courses 2..m): the paper's spring vectors, only with springs;
 - ``sigma`` (2 × K): each crossing's material coordinate on its upper and lower loop
-  (K = 2 interlock contacts, ``natural3d.WRAPS``, per loop of courses 2..m) and ``cp`` (12 × K): the lifted closest points
+  (K = 4 crossings or 2 wraps, ``Natural3D.labels``, per loop of courses 2..m) and ``cp`` (12 × K): the lifted closest points
   and tangents (p_u, t_u, p_l, t_l) there, each tied to one loop's coefficients by (S3);
 - ``PC`` (3 × specials): the clamped and loaded points.
 Every nonlinear function of the coefficients belongs to one loop (its integrals to the panel
@@ -45,7 +45,7 @@ from ..model.params import WeftParams, param_layout
 from ..model.problem import WeftProblem
 from ..model.spatial.crossing_contact import crossing_terms, natural_shift, separation
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
-from ..model.spatial.natural3d import WRAPS, Natural3D, flat
+from ..model.spatial.natural3d import Natural3D, flat
 from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
 from ..model.centrelines import SAMPLES
 from .elements import Elements, element_derivatives
@@ -227,11 +227,11 @@ class SpatialNLP(Assembled):
         n = self.problem.wales
         rows = []
         for c, h in enumerate(state["h"]):
-            k, wrap = divmod(c, len(WRAPS))
+            k, kind = divmod(c, self.shape.s_upper.size)
             i, j = divmod(k + n, n)
             rows.append({"upper": [i + 1, j + 1], "lower": [i, j + 1],
-                         "pairs": WRAPS[wrap],
-                         "natural_separation": float(self.shape.h0[wrap]),
+                         "pair": self.shape.labels[kind],
+                         "natural_separation": float(self.shape.h0[kind]),
                          "s_upper": float(state["sigma_upper"][c]),
                          "s_lower": float(state["sigma_lower"][c]),
                          "separation": float(h), "compression": float(state["compression"][c]),

@@ -34,8 +34,8 @@ class NaturalShapeError(ValueError):
 @dataclass(frozen=True)
 class Natural3D:
     """The natural 3-D loop: θ coefficients ``coeffs`` (2t+2), elevation coefficients
-    ``elevation`` (2q+2); the interlock contacts' (WRAPS) closest points on the upper and the
-    lower loop (``s_upper``, ``s_lower``) and their natural separations ``h0``; the designed
+    ``elevation`` (2q+2); the interlock contacts' (``labels``: the four designed crossings of
+    a thin yarn, or the two wraps) closest points on the upper and the lower loop (``s_upper``, ``s_lower``) and their natural separations ``h0``; the designed
     crossings of the projections (PAIRS: ``cross_upper``, ``cross_lower``, ``order``, +1 upper
     over); the lattice (w, c); ``projection_rms``: the RMS distance of the projection from the
     paper's loop."""
@@ -65,6 +65,13 @@ class Natural3D:
         """Natural loop starts (m, n, 3): the lattice at z = 0."""
         i, j = np.meshgrid(np.arange(m), np.arange(n), indexing="ij")
         return np.stack([j * self.wale_spacing, i * self.course_spacing, 0.0 * i], axis=-1)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """Each contact's name: the designed crossings (PAIRS, thin yarns) or the wraps."""
+        if self.s_upper.size == len(PAIRS):
+            return tuple(f"{u}/{lo}" for u, lo, _ in PAIRS)
+        return WRAPS
 
     def separations(self) -> np.ndarray:
         """Centreline distance at each interlock contact's closest points (h0)."""

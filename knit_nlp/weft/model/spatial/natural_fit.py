@@ -36,6 +36,7 @@ import casadi as ca
 import numpy as np
 
 from ..basis import continuity_rows, dphi, n_coeffs, phi
+from ..crossing_points import Crossings
 from ..natural_loop import NaturalLoop
 from .curve3d import loop_displacements3d, positions3d, segment
 from .natural3d import PAIRS, Natural3D, NaturalShapeError, WRAPS
@@ -54,10 +55,81 @@ THIN = 0.5            # 2r below THIN·c (the paper's course spacing): the paper
 OFFSETS = tuple((di, dj) for di in (0, 1, 2) for dj in range(-2, 3) if di > 0 or dj >= 0)
 
 
-def natural_3d(natural: NaturalLoop, modes: int, radius: float, core: float) -> Natural3D:
-    """The natural 3-D loop of a planar natural loop (module docstring), memoised."""
-    return _solve(natural.coeffs.tobytes(), natural.length, natural.harmonics, modes,
-                  float(radius), float(core), natural.wale_spacing, natural.course_spacing)
+def natural_3d(natural: NaturalLoop, crossings: Crossings, modes: int, radius: float,
+               core: float) -> Natural3D:
+    """The natural 3-D loop of a planar natural loop (module docstring), memoised: the four
+    touching crossings on the paper's lattice (``touching``) when the independent check calls
+    that fabric clean, else the two wraps (``_solve``)."""
+    args = (natural.coeffs.tobytes(), natural.length, natural.harmonics, modes, float(radius))
+    lattice = (natural.wale_spacing, natural.course_spacing)
+    try:
+        shape = touching(*args, *lattice, tuple(float(crossings.s[u]) for u, _, _ in PAIRS),
+                         tuple(float(crossings.s[lo]) for _, lo, _ in PAIRS))
+        if _clean(shape, core):
+            return shape
+    except NaturalShapeError:
+        pass
+    return _solve(*args, float(core), *lattice)
+
+
+@functools.lru_cache(maxsize=32)
+def touching(coeffs: bytes, L: float, t: int, q: int, r: float, w: float, c: float,
+             su0: tuple[float, ...], sl0: tuple[float, ...]) -> Natural3D:
+    """The natural loop of thin yarns (T1-T3): the projection as near as it can be to the
+    paper's (N1) on the paper's lattice (w, c); loops join (N2); at each of the four designed
+    crossings of the projections (PAIRS) a pair of closest points 2r apart, the upper yarn on
+    the plain-knit side (T1-T3, the contacts: four per loop, h₀ = 2r). For a thick yarn the
+    two closest-point pairs of one side are saddle points of the distance between two crossings
+    of one lens, and the yarns pass through each other between them: the check refuses it and
+    ``natural_3d`` builds the wraps instead."""
+    a_plan = np.frombuffer(coeffs).copy()
+    nc, nq = n_coeffs(t), n_coeffs(q)
+    a, b = ca.SX.sym("a", nc), ca.SX.sym("b", nq)
+    su, sl = ca.SX.sym("su", 4), ca.SX.sym("sl", 4)
+    seg = segment(L, t, q, GAUSS)
+    s = np.linspace(0.0, L, SAMPLES)
+    target = positions3d(a_plan, np.zeros(nq), s, L, t, q)
+    misfit = sum(ca.sumsqr(seg(a, b, 0.0, s[k])[0][:2] - ca.DM(target[k, :2]))
+                 for k in range(1, SAMPLES))
+    rows, lo, hi = [], [], []
+    end = seg(a, b, 0.0, L)[0]
+    rows += [end[0] - w, end[1], end[2]]
+    lo += [0.0] * 3
+    hi += [0.0] * 3
+    shift = ca.DM([0.0, c, 0.0])
+    for k, (_, _, order) in enumerate(PAIRS):
+        pu, tu = seg(a, b, 0.0, su[k])
+        pl, tl = seg(a, b, 0.0, sl[k])
+        d = pu + shift - pl
+        rows += [ca.dot(d, tu), ca.dot(d, tl), ca.dot(d, d) - 4 * r * r, order * d[2]]
+        lo += [0.0, 0.0, 0.0, 0.0]
+        hi += [0.0, 0.0, 0.0, ca.inf]
+    for deg, coef in ((q, b), (t, a)):
+        E, S = continuity_rows(L, deg)
+        rows += list(ca.vertsplit(ca.mtimes(ca.DM(E - S), coef)))
+        lo += [0.0] * 2
+        hi += [0.0] * 2
+    nodes = np.linspace(0.0, L, 200)
+    smooth = ca.sumsqr(ca.mtimes(ca.DM(dphi(nodes, L, q)), b)) * (L / nodes.size)
+    solver = ca.nlpsol("natural3d_touching", "ipopt",
+                       {"x": ca.vertcat(a, b, su, sl), "g": ca.vertcat(*rows),
+                        "f": misfit / (SAMPLES - 1) + SMOOTH * L * smooth},
+                       {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes",
+                                                       "tol": 1e-12, "max_iter": 500}})
+    b0 = np.zeros(nq)
+    if q >= 2:       # legs in front, head and foot behind: z ≈ −α cos(4πs/L)
+        b0[1] = 4 * np.pi * (2 * r / 1.77) / L
+    big = np.full(nc + nq, np.inf)
+    sol = solver(x0=np.concatenate([a_plan, b0, su0, sl0]), lbg=lo, ubg=hi,
+                 lbx=np.concatenate([-big, np.zeros(8)]), ubx=np.concatenate([big, np.full(8, L)]))
+    if not solver.stats()["success"]:
+        raise NaturalShapeError(f"no natural 3-D loop with touching crossings for radius {r:g} "
+                                f"and {q} elevation modes (IPOPT: {solver.stats()['return_status']})")
+    xs = np.asarray(sol["x"]).ravel()
+    a3, b3, su3, sl3 = xs[:nc], xs[nc:nc + nq], xs[nc + nq:nc + nq + 4], xs[nc + nq + 4:]
+    rms = float(np.sqrt(np.mean(np.sum((positions3d(a3, b3, s, L, t, q)[:, :2] - target[:, :2])
+                                       ** 2, axis=1))))
+    return _shape(L, t, q, r, a3, b3, (su3, sl3), (su3, sl3), w, c, rms)
 
 
 def gap(radius: float, core: float) -> float:
@@ -254,10 +326,10 @@ def _unpack(L: float, t: int, q: int, r: float, x: np.ndarray, target: np.ndarra
 
 
 def _clean(shape: Natural3D, core: float) -> bool:
-    return _check(shape, core).ok
+    return natural_check(shape, core).ok
 
 
-def _check(shape: Natural3D, core: float):
+def natural_check(shape: Natural3D, core: float):
     """The independent all-pairs check (``proximity.check_3d``) of four courses of four
     natural loops, sampled as the check samples (4 per radius, at least 241 per loop)."""
     S = max(241, int(np.ceil(4 * shape.length / shape.radius)))
@@ -268,6 +340,6 @@ def _check(shape: Natural3D, core: float):
 
 def _verify(shape: Natural3D, core: float) -> None:
     """Refuse a natural fabric the independent check does not call clean."""
-    rep = _check(shape, core)
+    rep = natural_check(shape, core)
     if not rep.ok:
         raise NaturalShapeError(f"the natural 3-D fabric is not clean: {rep.verdict()}")
