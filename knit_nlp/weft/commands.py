@@ -284,7 +284,11 @@ COMMANDS = (
                            "[calibrate] table, or one under the named problems' folder, e.g. "
                            "real_fabric/acrylic_fit_x"}), OUT,
       (("--force",), {"action": "store_true",
-                      "help": "overwrite results of another spec in --out"})), run_calibrate),
+                      "help": "overwrite results of another spec in --out"}),
+      (("--breaks",), {"action": "store_true",
+                       "help": "also where the model breaks: each measured value moved alone "
+                               "from the answer against the targets (as [calibrate] breaks = "
+                               "true; minutes in 3-D)"})), run_calibrate),
     ("check", "weft: count yarns passing through each other (crossings not in the natural "
      "fabric) and gaps below 2r in a result",
      ((("result",), {"metavar": "RESULT.json"}),

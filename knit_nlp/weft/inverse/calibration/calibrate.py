@@ -20,6 +20,7 @@ import numpy as np
 from ...model.params import MATERIAL
 from ...model.spatial.proximity import spatial_samples
 from ...output.check import own_check, spatial_own_check
+from .breaks import where_it_breaks
 from .checks import HALF, STIFFENING, outcome_checks
 from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives,
                     strains_at)
@@ -269,12 +270,21 @@ def final_check(tm: TestModel, c: Curve, curve: ModelCurve) -> dict:
                                     "not checked"}}
 
 
+def evaluate(spec: CalibrationSpec) -> list[TestOutcome]:
+    """Every test of ``spec`` at its values, nothing fitted, as the final evaluation makes it
+    (``breaks``: a measured value moved from the answer)."""
+    cal = Calibration(spec)
+    return [cal.outcome(tm, dict(spec.values), None) for tm in cal.models]
+
+
 def calibrate(spec_or_path: CalibrationSpec | str | Path,
               progress: Callable[[str], None] | None = None) -> CalibrationResult:
     """Fit a spec's ``[calibrate] fit`` values on its fit tests and evaluate every test
     (the Python entry point behind ``knit-nlp calibrate``). Bad input raises ProblemError.
     ``progress`` receives a line after every residual evaluation and before every test's
-    final evaluation (the command prints them on stderr)."""
+    final evaluation (the command prints them on stderr). With ``[calibrate] breaks = true``
+    the result also carries where the model breaks (``breaks``: each measured value moved
+    alone from the answer)."""
     spec = spec_or_path if isinstance(spec_or_path, CalibrationSpec) else load_spec(spec_or_path)
     t0 = time.perf_counter()
     cal = Calibration(spec, progress)
@@ -301,5 +311,9 @@ def calibrate(spec_or_path: CalibrationSpec | str | Path,
         say(f"beside: calibrating {spec.beside}, {time.perf_counter() - t0:.0f} s")
         beside = calibrate(spec.beside, lambda line: say(f"beside: {line}"))
         timings["beside_s"] = beside.timings["total_s"]
-    return CalibrationResult(spec, values, ans, outcomes, timings, beside)
+    result = CalibrationResult(spec, values, ans, outcomes, timings, beside)
+    if spec.breaks:
+        result.breaks = where_it_breaks(result, evaluate, progress=progress)
+        timings["breaks_s"] = result.breaks.seconds
+    return result
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from ....outdir import prepare_out
@@ -22,6 +23,8 @@ from .spec import load_spec
 def run(args: argparse.Namespace) -> int:
     """Read and check everything, then solve, then write: bad input writes nothing."""
     spec = load_spec(args.spec)
+    if getattr(args, "breaks", False):
+        spec = replace(spec, breaks=True)
     out = prepare_out(args.out, spec.name, ("calibration", "curves"))
     check_overwrite(out.glob(f"{spec.name}.calibration.json"), spec.source, args.force)
     result = calibrate(spec, progress=_progress)
@@ -68,6 +71,7 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
             lines.append(f"  {key.replace('_', ' ')}: {show(ratio['model'])} (measured "
                          f"{show(ratio['measured'])})")
     lines += figures_lines(result)
+    lines += breaks_lines(result)
     for w in (result.fit.warnings if result.fit is not None else []):
         lines.append(f"  warning: {w}")
     lines.append(f"  wrote {', '.join(str(p) for p in paths)}")
@@ -75,6 +79,16 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
                  else f"verdict (the fit did not converge: {result.fit.status}):")
     lines += [f"  {t.verdict()}" for t in result.tests]
     return "\n".join(lines)
+
+
+def breaks_lines(result: CalibrationResult) -> list[str]:
+    """With ``[calibrate] breaks`` (or ``--breaks``): where the model breaks (issue 40 item 5,
+    ``breaks``), the Markdown table docs/real_fabric.md shows."""
+    if result.breaks is None:
+        return []
+    return ([f"  where the model breaks: each measured value alone, times each factor, from "
+             f"the answer; nothing re-fitted ({result.breaks.seconds:.0f} s):"]
+            + [f"    {row}" for row in result.breaks.markdown()])
 
 
 def figures_lines(result: CalibrationResult) -> list[str]:

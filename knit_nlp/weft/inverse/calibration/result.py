@@ -135,6 +135,8 @@ class CalibrationResult:
     tests: list[TestOutcome]
     timings: dict[str, float] = field(default_factory=dict)
     beside: "CalibrationResult | None" = None      # ``[calibrate] beside``: another model
+    # ``[calibrate] breaks``: a breaks.Breaks (not imported here: breaks reads these results)
+    breaks: Any = None
 
     @property
     def name(self) -> str:
@@ -260,6 +262,8 @@ class CalibrationResult:
                "targets": self.spec.targets,
                "warnings": self.fit.warnings if self.fit is not None else [],
                "timings": self.timings}
+        if self.breaks is not None:
+            out["breaks"] = self.breaks.to_json()
         source = source_record(str(self.spec.source))
         if source:
             out["source"] = source

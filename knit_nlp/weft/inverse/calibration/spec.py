@@ -30,7 +30,7 @@ FITTABLE = MATERIAL
 # (docs/real_fabric.md, "The yarn's compression law"), and it enters the NLP exactly as an
 # overall energy scale (``calibrate.TestModel``: no rebuild). k_a, k_b act in 3-D only with
 # [yarn] crossing_springs = true; the radius, core and exponent shape the natural 3-D loop and
-# the law's form and are held (bench_calibration.py --breaks moves them one at a time).
+# the law's form and are held (`knit-nlp calibrate --breaks` moves them one at a time: breaks.py).
 YARN_VALUES = ("radius", "core_radius", "contact_rigidity", "contact_exponent")
 SPATIAL_FITTABLE = ("R_f", "contact_rigidity")
 # Values the yarn's own tests measure (stitch-by-stitch, Singal et al. 2024: the acrylic's
@@ -113,6 +113,7 @@ class CalibrationSpec:
     sensitivities: str
     targets: dict[str, dict[str, float]]   # by use, by strain: the largest RMS error allowed
     beside: Path | None = None             # a spec whose model's figures are shown beside
+    breaks: bool = False                   # also the table of where the model breaks (breaks.py)
 
     @property
     def spatial(self) -> bool:
@@ -186,6 +187,7 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
                         "(its KKT sensitivities are not taken through the calibration yet); "
                         "write \"curve_differences\" or leave it out")
     beside = _beside(cal, source)
+    breaks = cal.boolean("breaks", False)
     targets = _targets(cal.table("targets"))
     cal.finish()
     tests = tuple(_read_test(t, source, base, fixed, min_loops, forces)
@@ -196,9 +198,7 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
         raise top.error("test", f"{len(tests)} tests; at most {MAX_TESTS}")
     if fit and not any(t.use == "fit" for t in tests):
         raise top.error("test", "fitting needs at least one test with use = \"fit\"")
-    values = {"k_a": base.k_a, "k_b": base.k_b, "R_f": base.R_f}
-    if spatial:
-        values.update({k: float(getattr(base.yarn, k)) for k in YARN_VALUES})
+    values = spec_values(base)
     zero = [n for n in fit if values[n] <= 0]
     if zero:
         raise ProblemError(source, "material", zero[0], "a fitted value starts from its "
@@ -207,7 +207,16 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
     name = top.stem("name")
     return CalibrationSpec(name, top.string("description", ""), source, shared, base, tests,
                            fit, values, clamp_width, forces, strains, min_loops, sens, targets,
-                           beside)
+                           beside, breaks)
+
+
+def spec_values(base: WeftProblem) -> dict[str, float]:
+    """The material values a spec's problem gives: k_a, k_b, R_f, and in 3-D the yarn's
+    compression law (``YARN_VALUES``): the fit's starting values, or held."""
+    values = {"k_a": base.k_a, "k_b": base.k_b, "R_f": base.R_f}
+    if base.yarn is not None and base.yarn.spatial:
+        values.update({k: float(getattr(base.yarn, k)) for k in YARN_VALUES})
+    return values
 
 
 def fittable(base: WeftProblem) -> tuple[str, ...]:
