@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model.spatial.proximity import spatial_samples, spatial_state
+from ..model.spatial.state import spatial_samples, spatial_state
 from ..model.spatial.repulsion import Neighbours, missing
 from ..transcription.spatial import SpatialNLP, build_spatial
 from .solve import Solution, SpatialSteps
