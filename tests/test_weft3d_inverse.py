@@ -60,7 +60,7 @@ def test_sensitivities_equal_central_differences_of_3d_solves(pulled) -> None:
     p = eq.params.vector()
     block = eq.wnlp.spatial_block(sol.x, p)
     assert block["contact_energy"] > 0
-    assert sum(c["force"] > 0 for c in block["crossings"]) >= 4          # pressed crossings
+    assert sum(c["force"] > 0 for c in block["crossings"]) >= 1          # a pressed wrap
     pl = eq.wnlp.p
     cols = [pl.slice("targets").start + 2, pl.slice("targets").start + 3, pl.slice("R_f").start]
     E = np.zeros((pl.size, len(cols)))

@@ -71,7 +71,7 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
             ends.append((pos, np.array([np.cos(el) * np.cos(th), np.cos(el) * np.sin(th), np.sin(el)])))
         h, sin_a = separation(ends[0][0][None], ends[0][1][None], ends[1][0][None],
                               ends[1][1][None], nlp.signs[c:c + 1])
-        contact += float(shell.crossing_energy(h + shift, sin_a)[0])
+        contact += float(shell.crossing_energy(h + shift[c % 2], sin_a)[0])
     assert contact > 0
     # the other contacts (R1): w² v(|x_a − x_b| + c) over the neighbour list, numpy samples
     nb = nlp.neighbours

@@ -203,7 +203,7 @@ class SpatialNLP(Assembled):
         cp, sig = self.x.get(x, "cp"), self.x.get(x, "sigma")
         h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T, self.signs)
         shell = self.problem.yarn.shell()
-        hc = h + natural_shift(shell, self.shape.h0)
+        hc = h + np.tile(natural_shift(shell, self.shape.h0), h.size // max(self.shape.h0.size, 1))
         return {"sigma_upper": sig[0], "sigma_lower": sig[1], "h": h, "sin_angle": sin_a,
                 "compression": hc - 2 * shell.radius,
                 "force": np.where(hc < 2 * shell.radius, shell.crossing_force(hc, sin_a), 0.0)}
@@ -408,8 +408,9 @@ class _Builder:
             self.signs = self._signs()
             shell = self.pr.yarn.shell()
             self.crossing = self.elements.call(
-                "crossings", crossing_terms(shell, natural_shift(shell, self.shape.h0)), self.K, cp[0:3, :],
-                cp[3:6, :], cp[6:9, :], cp[9:12, :], ca.DM(self.signs).T)
+                "crossings", crossing_terms(shell), self.K, cp[0:3, :],
+                cp[3:6, :], cp[6:9, :], cp[9:12, :], ca.DM(self.signs).T,
+                ca.DM(np.tile(natural_shift(shell, self.shape.h0), self.K // self.shape.h0.size)).T)
             rows.add("closest", self.crossing[1])
         else:
             self.signs = np.zeros(0)

@@ -20,8 +20,8 @@ two equality rows and one energy term, whether its yarns touch (h < 2r) or not (
 
 **The natural compression.** A tight fabric's natural wraps are closer than touch (h₀ < 2r:
 the knitting pressed the yarn). The law then starts where the natural fabric puts it: E is
-evaluated at h + c, c = max(0, 2r − min h₀) (``natural_shift``), as the other contacts' law
-is (``repulsion``, R1), so that the natural fabric carries no contact force. The model's own
+evaluated at h + c, c = max(0, 2r − h₀) per contact (``natural_shift``), as the other contacts'
+law is (``repulsion``, R1), so that every natural wrap just touches and carries no force. The model's own
 core is then c closer than 2R_c; the independent check (``proximity``) still judges at 2R_c.
 """
 from __future__ import annotations
@@ -32,24 +32,25 @@ import numpy as np
 from ..compression import SoftShell
 
 
-def natural_shift(shell: SoftShell, h0: np.ndarray) -> float:
-    """c of the module docstring: how far the natural wraps are pressed inside touch."""
-    return max(0.0, 2 * shell.radius - float(np.min(h0))) if np.size(h0) else 0.0
+def natural_shift(shell: SoftShell, h0: np.ndarray) -> np.ndarray:
+    """c of the module docstring, per contact: how far its natural separation is inside touch."""
+    return np.maximum(0.0, 2 * shell.radius - np.asarray(h0, dtype=float))
 
 
-def crossing_terms(shell: SoftShell, shift: float = 0.0) -> ca.Function:
-    """Function (p_u, t_u, p_l, t_l, ς) -> (E (S7) at h + ``shift``, closest-point rows (S5, 2),
-    h, sin α)."""
+def crossing_terms(shell: SoftShell) -> ca.Function:
+    """Function (p_u, t_u, p_l, t_l, ς, c) -> (E (S7) at h + c, closest-point rows (S5, 2), h,
+    sin α)."""
     pu, tu, pl, tl = (ca.SX.sym(n, 3) for n in ("p_u", "t_u", "p_l", "t_l"))
-    sign = ca.SX.sym("sign")
+    sign, shift = ca.SX.sym("sign"), ca.SX.sym("shift")
     d = pu - pl
     n = ca.cross(tu, tl)
     sin_a = ca.norm_2(n)
     h = sign * ca.dot(d, n) / sin_a
     energy = shell.casadi_crossing_energy(h + shift, sin_a)
     rows = ca.vertcat(ca.dot(d, tu), ca.dot(d, tl))
-    return ca.Function("crossing_terms", [pu, tu, pl, tl, sign], [energy, rows, h, sin_a],
-                       ["p_u", "t_u", "p_l", "t_l", "sign"], ["E", "rows", "h", "sin_angle"])
+    return ca.Function("crossing_terms", [pu, tu, pl, tl, sign, shift],
+                       [energy, rows, h, sin_a],
+                       ["p_u", "t_u", "p_l", "t_l", "sign", "shift"], ["E", "rows", "h", "sin_angle"])
 
 
 def separation(pu: np.ndarray, tu: np.ndarray, pl: np.ndarray, tl: np.ndarray,
