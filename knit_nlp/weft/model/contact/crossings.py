@@ -179,14 +179,19 @@ def judge(fab: NaturalFabric, found: Crossings, courses: int, wales: int) -> Ver
     return Verdict(_pairs_dict(ek, ev, big), _pairs_dict(dk, dv, big))
 
 
+def _find(keys: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where each wanted key is in ``keys`` (unique, not empty), and whether it is there."""
+    order = np.argsort(keys, kind="stable")
+    at = order[np.minimum(np.searchsorted(keys[order], wanted), len(keys) - 1)]
+    return at, keys[at] == wanted
+
+
 def _lookup(keys: np.ndarray, values: np.ndarray, wanted: np.ndarray) -> np.ndarray:
     """The value of each wanted key (0 where ``keys``, unique, do not hold it)."""
     if not len(keys):
         return np.zeros(len(wanted), dtype=values.dtype)
-    order = np.argsort(keys, kind="stable")
-    at = np.minimum(np.searchsorted(keys[order], wanted), len(keys) - 1)
-    found = keys[order][at] == wanted
-    return np.where(found, values[order][at], 0)
+    at, found = _find(keys, wanted)
+    return np.where(found, values[at], 0)
 
 
 def _natural(fab: NaturalFabric, courses: int, wales: int) -> tuple[np.ndarray, np.ndarray]:
@@ -231,9 +236,8 @@ def _slides(ek: np.ndarray, ev: np.ndarray, dk: np.ndarray, dv: np.ndarray, wale
     na, nb = moved[..., 0], moved[..., 1]
     course = (na // wales == (a // wales)[:, None]) & (nb // wales == (b // wales)[:, None])
     key = np.minimum(na, nb) * big + np.maximum(na, nb)
-    order = np.argsort(dk, kind="stable")
-    at = order[np.minimum(np.searchsorted(dk[order], key), len(dk) - 1)]
-    hit = course & (dk[at] == key)
+    at, there = _find(dk, key)
+    hit = course & there
     owner, cols = expand(np.where(hit, hole0[at], 0).ravel(),
                          np.where(hit, hole0[at + 1], 0).ravel())
     if not len(cols):

@@ -24,7 +24,7 @@ A round needs a new build only when some pair of loops needs more slots than it 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -662,8 +662,7 @@ def _margined(pairs: Pairs, margin: float) -> Pairs:
     """The pairs with their required gaps ``margin`` (relative) wider (``SLIDE``)."""
     if margin <= 0:
         return pairs
-    return Pairs(pairs.kA, pairs.sA, pairs.kB, pairs.sB, pairs.sigma,
-                 pairs.required * (1 + margin), pairs.gap)
+    return replace(pairs, required=pairs.required * (1 + margin))
 
 
 def slide_margin(slots: Pairs, found: Pairs, tol: float, h: float) -> float:
