@@ -13,7 +13,7 @@ from knit_nlp.weft.transcription.factory import transcribe
 from knit_nlp.weft.transcription.spatial import Spatial, build_spatial
 from knit_nlp.problems import resolve
 from knit_nlp.weft.model.basis import phi
-from knit_nlp.weft.model.spatial.crossing_contact import natural_shift, separation
+from knit_nlp.weft.model.spatial.crossing_contact import separation
 from knit_nlp.weft.model.spatial.curve3d import bending3d_numpy, positions3d
 from knit_nlp.weft.model.spatial.repulsion import sample_s
 
@@ -51,8 +51,8 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
     other contacts' repulsion (R1) of numpy samples."""
     pr, nlp = small
     rng = np.random.default_rng(5)
-    A = nlp.coefficients(nlp.x0) + 0.02 * rng.normal(size=nlp.coefficients(nlp.x0).shape)
-    B = nlp.elevations(nlp.x0) + 0.02 * rng.normal(size=nlp.elevations(nlp.x0).shape)
+    A = nlp.coefficients(nlp.x0) + 0.005 * rng.normal(size=nlp.coefficients(nlp.x0).shape)
+    B = nlp.elevations(nlp.x0) + 0.005 * rng.normal(size=nlp.elevations(nlp.x0).shape)
     X = nlp.starts3d(nlp.x0) + 0.02 * rng.normal(size=(2, 2, 3))
     sig = nlp.x.get(nlp.x0, "sigma") + 0.05 * rng.normal(size=(2, 4))
     x = nlp.lift3d(A, B, X, sig)
@@ -60,7 +60,8 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
     bend = sum(bending3d_numpy(A[i, j], B[i, j], sh.coeffs, sh.elevation, pr.L, pr.t, sh.modes,
                                pr.R_f) for i in range(2) for j in range(2))
     contact = 0.0
-    shift = natural_shift(shell, sh.h0)
+    core = 2 * shell.core_radius                # (C3) written out: each wrap's law starts at h₀
+    scale = np.maximum(1.0, (2 * shell.radius - core) / (sh.h0 - core))
     for c in range(4):                      # wraps of loops (2, j) over (1, j), 2 each
         j = c // 2
         ends = []
@@ -71,14 +72,15 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
             ends.append((pos, np.array([np.cos(el) * np.cos(th), np.cos(el) * np.sin(th), np.sin(el)])))
         h, sin_a = separation(ends[0][0][None], ends[0][1][None], ends[1][0][None],
                               ends[1][1][None], nlp.signs[c:c + 1])
-        contact += float(shell.crossing_energy(h + shift[c % 2], sin_a)[0])
+        contact += float(shell.crossing_energy(core + scale[c % 2] * (h - core), sin_a)[0])
     assert contact > 0
-    # the other contacts (R1): w² v(|x_a − x_b| + c) over the neighbour list, numpy samples
+    # the other contacts (R1): w² v(d′), d′ of (C3), over the neighbour list, numpy samples
     nb = nlp.neighbours
     s = sample_s(pr.L, nb.samples)
     pts = np.array([X[i, j] + positions3d(A[i, j], B[i, j], s, pr.L, pr.t, sh.modes)
                     for i in range(2) for j in range(2)])
-    d = np.linalg.norm(pts[nb.ka, nb.qa] - pts[nb.kb, nb.qb], axis=1) + nb.shift
+    d = np.linalg.norm(pts[nb.ka, nb.qa] - pts[nb.kb, nb.qb], axis=1)
+    d = core + nb.scale * (d + nb.shift - core)
     contact += float(np.sum((pr.L / nb.samples) ** 2 * shell.energy(d)))
     spring_contact, bending, work = nlp.energy(x, nlp.p0)
     assert bending == pytest.approx(bend, rel=1e-8)          # 8 against 16 Gauss nodes

@@ -43,7 +43,7 @@ from ..model.energy import spring_pair_energy
 from ..model.parametrisation import Full
 from ..model.params import WeftParams, param_layout
 from ..model.problem import WeftProblem
-from ..model.spatial.crossing_contact import crossing_terms, natural_shift, separation
+from ..model.spatial.crossing_contact import crossing_terms, natural_scale, separation
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
 from ..model.spatial.natural3d import Natural3D, flat
 from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
@@ -196,17 +196,19 @@ class SpatialNLP(Assembled):
         return d.reshape(pr.courses, pr.wales, samples, 3) + X[:, :, None, :]
 
     def crossing_state(self, x: np.ndarray) -> dict[str, np.ndarray]:
-        """Per crossing (K): σ_u, σ_l, h, sin α, the compression h − 2r and the contact force
-        F(h, α) of eq. (C2) (``SoftShell.crossing_force``)."""
+        """Per crossing (K): σ_u, σ_l, h, sin α, the compression h − d₀ (d₀ where its law starts:
+        touch 2r, or its natural separation h₀ if that is closer; eq. C3) and the contact force
+        a·F(h′, α) of eqs. (C2, C3) (``SoftShell.crossing_force``)."""
         if "cp" not in self.x.blocks:
             return {}
         cp, sig = self.x.get(x, "cp"), self.x.get(x, "sigma")
         h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T, self.signs)
         shell = self.problem.yarn.shell()
-        hc = h + np.tile(natural_shift(shell, self.shape.h0), h.size // max(self.shape.h0.size, 1))
+        a = np.tile(natural_scale(shell, self.shape.h0), h.size // max(self.shape.h0.size, 1))
+        hc = shell.seen(h, a)
         return {"sigma_upper": sig[0], "sigma_lower": sig[1], "h": h, "sin_angle": sin_a,
-                "compression": hc - 2 * shell.radius,
-                "force": np.where(hc < 2 * shell.radius, shell.crossing_force(hc, sin_a), 0.0)}
+                "compression": (hc - 2 * shell.radius) / a,
+                "force": np.where(hc < 2 * shell.radius, a * shell.crossing_force(hc, sin_a), 0.0)}
 
     def contact_points(self, x: np.ndarray) -> np.ndarray:
         """Per crossing, the midpoint of its two closest points (K, 3): where the yarns touch."""
@@ -277,7 +279,7 @@ def build_spatial(pr: WeftProblem, options: Spatial = Spatial(),
         raise ValueError(f"derivatives must be 'elements' or 'casadi'; got {options.derivatives!r}")
     pairs = None
     if contacts and options.repulsion:
-        pairs = natural_neighbours(shape, pr.courses, pr.wales)
+        pairs = natural_neighbours(shape, pr.yarn.shell(), pr.courses, pr.wales)
         pairs = pairs if extra is None else pairs.plus(extra)
     out = _Builder(pr, Spatial(options.elevation, contacts, springs, pairs is not None,
                                options.derivatives), shape, pairs).build()
@@ -410,7 +412,7 @@ class _Builder:
             self.crossing = self.elements.call(
                 "crossings", crossing_terms(shell), self.K, cp[0:3, :],
                 cp[3:6, :], cp[6:9, :], cp[9:12, :], ca.DM(self.signs).T,
-                ca.DM(np.tile(natural_shift(shell, self.shape.h0), self.K // self.shape.h0.size)).T)
+                ca.DM(np.tile(natural_scale(shell, self.shape.h0), self.K // self.shape.h0.size)).T)
             rows.add("closest", self.crossing[1])
         else:
             self.signs = np.zeros(0)

@@ -340,7 +340,9 @@ class ProximityReport:
     n_designed: int = 0
     flipped: list[dict[str, Any]] = field(default_factory=list)
     lost: int = 0
-    close: Near | None = None                     # every other pair closer than 2r (rounds)
+    touching: Near | None = None                  # every pair closer than 2r, designed or not:
+    #                                               the rounds' candidates (the model decides
+    #                                               which are its designed contacts' own)
     order_unknown: str | None = None              # why the crossings' order was not read
 
     @property
@@ -417,7 +419,7 @@ def check_3d(centrelines: np.ndarray, natural: np.ndarray, L: float, radius: flo
     rep.n_inside_core, rep.inside_core = _by_loops(courses, near.select(near.d < 2 * core_radius))
     other = near.select(~near.designed)
     rep.n_other_touching, rep.other_touching = _by_loops(courses, other)
-    rep.close = other
+    rep.touching = near
     rep.designed_touching = _by_loops(courses, near.select(near.designed))[0]
     return rep
 
