@@ -203,6 +203,7 @@ def _side_views(fig, grid, c: np.ndarray, x: np.ndarray, radius: float, colours:
         ax.set_ylabel(f"z [{unit}]")
         ax.set_title(name + " (true aspect)", fontsize=9)
         ax.tick_params(labelsize=7)
+        ax.set_anchor("C")         # a narrow true-aspect view centred: its z label inside the figure
 
 
 def _course_key(fig, axes, m: int) -> None:
