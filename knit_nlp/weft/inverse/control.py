@@ -348,7 +348,7 @@ class Controller:
             if status != CONVERGED:
                 break
             fwd = self.forward(s.u)
-            if not fwd.success or self.distance(s.x, fwd.x) <= self.restart_tolerance():
+            if not fwd.success or self.distance(s.x, fwd.x) <= self.forward_tolerance():
                 break
             # the path the iteration took ended on another equilibrium than the forward solve
             # from the natural state reaches at these targets: go on from that one
@@ -419,17 +419,6 @@ class Controller:
         differs by the yarn's thickness."""
         yarn = self.cp.problem.yarn
         return max(self.opts.forward_tol, 0.0 if yarn is None else CONTACT_FORWARD * yarn.radius)
-
-    def restart_tolerance(self) -> float:
-        """Past this distance from the forward solve's state the iteration goes on from that
-        state (``branch_restarts``): ``forward_tolerance``, but ``forward_tol`` in 3-D, whose
-        crossings are no rounds' contacts: a 3-D state that far from the forward solve's is on
-        another equilibrium branch (a 2 x 2 acrylic with wraps: 0.0017 mm away, the gripper
-        0.001 mm from the target that reaches the goal on the forward solve's branch)."""
-        yarn = self.cp.problem.yarn
-        if yarn is not None and yarn.spatial:
-            return self.opts.forward_tol
-        return self.forward_tolerance()
 
     def _finish(self, start: State, s: State, ok: bool, status: str, it: int, t0: float) -> ControlResult:
         t1 = time.perf_counter()

@@ -47,8 +47,6 @@ class FitOptions:
     step_tol: float = 1e-10            # on the step in log θ
     condition_limit: float = 1e10      # relative condition of JᵀJ above which a direction is weak
     weak_share: float = 0.1            # a value with |component| above this in a weak direction
-    fresh: bool | None = None          # trial solves from the natural state, not warm-started
-    #                                    from the prediction; None: in 3-D only (``fresh_trials``)
 
 
 @dataclass
@@ -170,30 +168,15 @@ class Fitter:
             E[pl.slice(name).start, k] = 1.0
         return E
 
-    def solve_cases(self, values: np.ndarray, steps: dict[str, np.ndarray] | None = None,
-                    fresh: bool = False) -> bool:
-        """Every case in equilibrium at ``values`` (warm starts from ``steps``: predicted x;
-        from the natural state when ``fresh``)."""
+    def solve_cases(self, values: np.ndarray, steps: dict[str, np.ndarray] | None = None) -> bool:
+        """Every case in equilibrium at ``values`` (warm starts from ``steps``: predicted x)."""
         for c in self.cases:
-            x0 = None if c.x is None or fresh else (steps or {}).get(c.name, c.x)
+            x0 = None if c.x is None else (steps or {}).get(c.name, c.x)
             rep = c.eq.solve(self._params(c, values), x0=x0)
             if not rep.success:
                 return False
             c.x, c.lam = rep.x, rep.lam_g
         return True
-
-    @cached_property
-    def fresh_trials(self) -> bool:
-        """Whether trial values are solved from the natural state (``FitOptions.fresh``). In 3-D
-        by default: its frictionless crossings and other contacts leave equilibrium branches a
-        few micrometres apart, and a solve warm-started from the prediction can land on another
-        branch than a forward solve of the same values (a 2 x 2 acrylic: R_f 0.0463 where the
-        observations were made at 0.045, the steps then damped to nothing); the fit's answer
-        is the one a forward solve of its values reproduces."""
-        if self.opts.fresh is not None:
-            return self.opts.fresh
-        return any(c.eq.wnlp.problem.yarn is not None and c.eq.wnlp.problem.yarn.spatial
-                   for c in self.cases)
 
     def residual(self) -> np.ndarray:
         return np.concatenate([(self.positions(c) - c.observed).ravel() for c in self.cases])
@@ -230,7 +213,7 @@ class Fitter:
             trial = v * np.exp(d)
             saved = [(c.x, c.lam) for c in self.cases]
             pred = {c.name: c.x + dxs[c.name] @ (trial - v) for c in self.cases}
-            if self.solve_cases(trial, pred, self.fresh_trials) and (rt := self.residual()) @ rt < r @ r:
+            if self.solve_cases(trial, pred) and (rt := self.residual()) @ rt < r @ r:
                 v, r, mu = trial, rt, max(mu / 10, 1e-12)
                 continue
             for c, (x, lam) in zip(self.cases, saved):
