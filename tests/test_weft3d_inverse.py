@@ -71,7 +71,7 @@ def test_sensitivities_equal_central_differences_of_3d_solves(pulled) -> None:
         minus = eq.solve(p - h * E[:, k], x0=sol.x)
         assert plus.success and minus.success
         fd = (plus.x - minus.x) / (2 * h)
-        assert np.abs(fd).max() > 0.01                 # R_f: 0.038 (wraps pressed at rest)
+        assert np.abs(fd).max() > 0.05
         np.testing.assert_allclose(dx[:, k], fd, atol=1e-5 * np.abs(fd).max())
 
 
