@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 
 from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.model.spatial.proximity import check_3d, segment_distance
-from knit_nlp.weft.model.spatial.proximity import spatial_natural
+from knit_nlp.weft.model.spatial.state import spatial_natural
 
 # a thin yarn (docs/weft3d.md: r = 0.15, L = 10) whose natural 3-D fabric keeps every pair of
 # pieces that are not one piece at least 2r apart

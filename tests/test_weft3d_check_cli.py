@@ -37,7 +37,10 @@ def test_check_of_a_3d_result_is_clean_and_agrees_with_its_own(solved, tmp_path,
     told = json.loads(next(tmp_path.rglob("thin3d.full3d.check.json")).read_text())
     own = result.to_json()["check"]
     assert own["ok"] is True and told["ok"] is True
-    assert told["smallest_distance"] == pytest.approx(own["smallest_distance"], rel=1e-9)
+    # the JSON chains loops by their computed ends, the solve's own check reads its loop starts,
+    # which meet those ends to the solve's constraint tolerance
+    slack = 10 * result.to_json()["max_constraint_violation"] + 1e-12
+    assert told["smallest_distance"] == pytest.approx(own["smallest_distance"], abs=slack)
     assert told["flipped"] == own["flipped"] == 0
 
 

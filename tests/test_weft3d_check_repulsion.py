@@ -15,21 +15,27 @@ from knit_nlp.weft.model.spatial.repulsion import (Neighbours, natural_neighbour
 W = 0.7                         # the length each sample carries (mm)
 
 
-def _stop(push: float, shift: float) -> float:
+def _stop(push: float, shift: float, scale: float = 1.0) -> float:
     """Two listed sample points, one held at the origin, the other pushed towards it along z
-    by ``push``: the distance where it stops."""
+    by ``push``: the distance where it stops (the law starting at ``rest``)."""
     z = ca.SX.sym("z")
     pts = ca.horzcat(ca.DM.zeros(3), ca.vertcat(0.0, 0.0, z))
     pair = Neighbours(np.array([0]), np.array([0]), np.array([0]), np.array([1]),
-                      np.array([shift]), 2)
+                      np.array([shift]), np.array([scale]), 2)
     e = ca.Function("e", [z], [repulsion_energy(ACRYLIC, W, pts, pair)])
-    assert float(e(2 * ACRYLIC.radius - shift)) == 0.0            # touching: no energy
+    rest = _rest(shift, scale)
+    assert float(e(rest)) == 0.0                                  # touching: no energy
     solver = ca.nlpsol("s", "ipopt", {"x": z, "f": e(z) + push * z},
                        {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes",
                                                         "tol": 1e-14}})
-    sol = solver(x0=2 * ACRYLIC.radius - shift)
+    sol = solver(x0=rest, lbx=0.0)        # from above: no step over the core to the far side
     assert solver.stats()["success"]
     return float(sol["x"])
+
+
+def _rest(shift: float, scale: float) -> float:
+    """Where the pair's law starts: d′ = 2R_c + a (d + c − 2R_c) = 2R (C3), solved by hand."""
+    return 2 * ACRYLIC.core_radius + ACRYLIC.shell / scale - shift
 
 
 @pytest.mark.parametrize("shift", [0.0, 0.3])
@@ -40,6 +46,21 @@ def test_a_pushed_pair_stops_where_the_law_says(shift: float) -> None:
     d = _stop(push, shift)
     assert d == pytest.approx(float(ACRYLIC.distance_at(push / W ** 2)) - shift, rel=1e-9)
     assert 2 * ACRYLIC.core_radius - shift < d < 2 * ACRYLIC.radius - shift
+
+
+@pytest.mark.parametrize("rest", [0.70, 0.90])
+def test_a_pair_pressed_at_rest_keeps_the_hard_core(rest: float) -> None:
+    """A pair at rest at d₀ < 2r (a tight fabric's natural pair) thinned by a = Δ/(d₀ − 2R_c)
+    (C3): no force at d₀; pushed by F it stops where a w² f(d′) = F, d′ = 2R_c + a (d − 2R_c),
+    solved by hand: d = 2R_c + (f⁻¹(F/(a w²)) − 2R_c)/a, between the core and d₀; and a push
+    100 times harder still leaves it outside the core 2R_c."""
+    core = 2 * ACRYLIC.core_radius
+    a = ACRYLIC.shell / (rest - core)
+    for push in (2e-4, 2e-2):
+        d = _stop(push, 0.0, a)
+        law = float(ACRYLIC.distance_at(push / (a * W ** 2)))
+        assert d == pytest.approx(core + (law - core) / a, rel=1e-9)
+        assert core < d < rest
 
 
 DOC = {"name": "acrylic3d", "fabric": {"courses": 4, "wales": 4},
@@ -54,14 +75,18 @@ def test_the_natural_list_is_force_free_and_holds_the_other_contacts() -> None:
     neighbouring wales, the loop below and courses two apart."""
     pr = parse_problem(DOC, "acrylic3d.toml")
     sh, n, r = pr.yarn.natural3d, pr.wales, pr.yarn.radius
-    nb = natural_neighbours(sh, pr.courses, n)
+    nb = natural_neighbours(sh, pr.yarn.shell(), pr.courses, n)
     s = sample_s(pr.L, nb.samples)
     starts = sh.starts(pr.courses, n).reshape(-1, 3)
     x = sh.xyz(s)
     xa, xb = starts[nb.ka] + x[nb.qa], starts[nb.kb] + x[nb.qb]
     d0 = np.linalg.norm(xa - xb, axis=1)
-    assert np.all(d0 + nb.shift >= 2 * r - 1e-12)
-    assert np.any(d0 < 2 * r)                                 # some naturally closer: shifted
+    core = 2 * pr.yarn.core_radius
+    seen = core + nb.scale * (d0 + nb.shift - core)           # (C3), written out
+    assert np.all(seen >= 2 * r - 1e-12)
+    assert np.any(d0 < 2 * r)                                 # some naturally closer: thinned
+    assert np.all(nb.shift == 0.0)                            # ... with the core kept at 2R_c
+    np.testing.assert_allclose(nb.scale[d0 < 2 * r], (2 * r - core) / (d0[d0 < 2 * r] - core))
     ua, ub = (nb.ka % n) * pr.L + s[nb.qa], (nb.kb % n) * pr.L + s[nb.qb]
     same = nb.ka // n == nb.kb // n
     assert np.all(np.abs(ua - ub)[same] >= np.pi * r)
@@ -90,8 +115,8 @@ def test_a_solve_adds_the_pairs_its_check_finds_and_says_so(tmp_path) -> None:
     assert sol.success
     rounds = eq.nlp.rounds
     assert rounds and rounds[0]["added"] > 0 and rounds[-1]["status"] == "Solve_Succeeded"
-    assert len(eq.missing(sol.x)) == 0
-    natural = natural_neighbours(pr.yarn.natural3d, 2, 2)
+    assert len(eq.missing(sol.x)[0]) == 0
+    natural = natural_neighbours(pr.yarn.natural3d, pr.yarn.shell(), 2, 2)
     assert len(eq.nlp.neighbours) == len(natural) + sum(r["added"] for r in rounds)
     result = WeftResult.of(sol)
     block = result.to_json()["spatial"]["other_contacts"]

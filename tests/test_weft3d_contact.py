@@ -40,7 +40,7 @@ def _crossing(push: float | None, z_held: float | None, slide: float = 0.0) -> d
     start_l = ca.DM([-L / 2 * np.cos(ALPHA), -L / 2 * np.sin(ALPHA), 0.0])
     du, tu = seg(au, bu, 0.0, su)
     dl, tl = seg(al, bl, 0.0, sl)
-    energy, rows, h, _ = terms(start_u + du, tu, start_l + dl, tl, 1.0)
+    energy, rows, h, _ = terms(start_u + du, tu, start_l + dl, tl, 1.0, 1.0)
     g, f = rows, energy
     if push is not None:
         f = energy + push * z

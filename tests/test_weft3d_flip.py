@@ -27,7 +27,6 @@ from knit_nlp.weft.output.check import check
 PUSH = [-3.0, -3.0]          # mm, H of loop (1, 2) towards loop (1, 1)'s held start
 # plain knit (docs/weft3d.md, "The order"): the upper course's legs over the head below (C/F,
 # Q/G), its sinker loop under the legs below (A/D, S/P); +1: the upper loop's yarn over
-PLAIN_KNIT = {"A/D": -1, "C/F": +1, "Q/G": +1, "S/P": -1}
 
 
 def _doc(spatial: bool) -> dict:
@@ -54,16 +53,19 @@ def test_the_3d_model_keeps_every_designed_crossings_order() -> None:
     pr = parse_problem(_doc(True), "flip2.toml")
     result = knit_nlp.solve(pr)
     assert result.success, result.status
-    sp = result.to_json()["spatial"]
-    assert len(sp["crossings"]) == 8
+    out = result.to_json()
+    sp = out["spatial"]
+    assert len(sp["crossings"]) == 4                   # two wraps per loop of course 2
     assert sp["flipped"] == 0
-    assert sp["smallest_separation"] > 2 * pr.yarn.core_radius
     assert sp["slid_off_loop"] == 0
-    # independent of ς: the upper loop's closest point is above (z) the lower's exactly where
-    # the plain-knit order puts the upper course's yarn over (C/F, Q/G), below elsewhere
-    cp = result.nlp.x.get(result.x, "cp")             # rows: x_u, t_u, x_l, t_l
-    order = [PLAIN_KNIT[c["pair"]] for c in sp["crossings"]]
-    np.testing.assert_array_equal(np.sign(cp[2] - cp[8]), order)
-    # pressed, not merely left apart: the push reaches the crossings
-    assert sp["smallest_separation"] < 2 * pr.yarn.radius
+    # independent of the model's ς: the all-pairs check reads the designed crossings of the
+    # projections (a wrap's two may merge in projection as the yarn slides round: counted as
+    # lost, not judged) and finds none with the upper course's yarn on the wrong side, and no
+    # two pieces inside the core
+    rep = out["check"]
+    assert rep["designed_crossings"] == 4 * 2 and rep["flipped"] == 0
+    assert rep["inside_core_count"] == 0 and rep["ok"]
+    # pressed, not merely left apart: the push reaches the wraps
+    assert min(c["separation"] for c in sp["crossings"]) < min(c["natural_separation"]
+                                                                for c in sp["crossings"])
     assert sp["contact_energy"] > 0

@@ -13,7 +13,8 @@ from knit_nlp.weft.model.problem import parse_problem
 from knit_nlp.weft.model.quadrature import positions
 from knit_nlp.weft.model.spatial.curve3d import (bending3d, bending3d_numpy, loop_displacements3d,
                                                   positions3d, segment, symbolic_phi)
-from knit_nlp.weft.model.spatial.natural3d import PAIRS
+from knit_nlp.weft.model.spatial.natural3d import PAIRS, WRAPS
+from knit_nlp.weft.model.spatial.natural_fit import gap, natural_check, touching
 
 L, T, Q = 10.0, 3, 3
 
@@ -112,3 +113,37 @@ def test_yarn_keys_are_checked() -> None:
                        "reduction": {}}, "bad.toml")
     planar = parse_problem({**base, "yarn": {"radius": 0.15}}, "ok.toml")
     assert planar.yarn.geometry == "planar" and planar.yarn.natural3d is None
+
+
+def test_a_thick_yarn_wraps_where_touching_crossings_pass_through_each_other() -> None:
+    """The acrylic (L = 11.28 mm, r = 0.74 mm, core 0.325 mm): four closest-point pairs touching
+    at the crossings of the projections (``natural_fit.touching``) sit on saddle points of the
+    distance, and the independent all-pairs check finds the yarns inside the core between them
+    (0.028 mm apart); the natural loop the problem gets instead has two wraps per loop, each a
+    pair of closest points (N4) at least g apart, the projections crossing in the plain-knit
+    order (N3), and the check calls four courses of four loops clean (N5)."""
+    doc = {"fabric": {"courses": 2, "wales": 2}, "loop": {"length": 11.28},
+           "yarn": {"radius": 0.74, "geometry": "3d", "elevation_modes": 4}}
+    pr = parse_problem(doc, "acrylic3d.toml")
+    core = pr.yarn.core_radius
+    cr = pr.crossings
+    four = touching(pr.natural.coeffs.tobytes(), pr.L, pr.t, 4, 0.74, pr.natural.wale_spacing,
+                    pr.natural.course_spacing, tuple(float(cr.s[u]) for u, _, _ in PAIRS),
+                    tuple(float(cr.s[lo]) for _, lo, _ in PAIRS))
+    bad = natural_check(four, core)
+    assert not bad.ok and bad.smallest < 0.1 < 2 * core
+    sh = pr.yarn.natural3d
+    assert sh.labels == WRAPS and sh.s_upper.size == 2
+    rep = natural_check(sh, core)
+    assert rep.ok and rep.n_designed == 4 * 3 * 4 and rep.smallest >= 2 * core
+    assert np.all(sh.h0 >= gap(0.74, core) - 1e-7)
+    shift = [0.0, sh.course_spacing, 0.0]
+    up, low = sh.xyz(sh.cross_upper) + shift, sh.xyz(sh.cross_lower)
+    np.testing.assert_allclose(up[:, :2], low[:, :2], atol=1e-7)
+    assert [int(np.sign(v)) for v in up[:, 2] - low[:, 2]] == [-1, 1, 1, -1]   # A/D C/F Q/G S/P
+    h = 1e-6
+    d = sh.xyz(sh.s_upper) + shift - sh.xyz(sh.s_lower)
+    for s in (sh.s_upper, sh.s_lower):
+        t = (sh.xyz(s + h) - sh.xyz(s - h)) / (2 * h)
+        np.testing.assert_allclose(np.einsum("ki,ki->k", d, t), 0.0, atol=1e-6)
+    np.testing.assert_allclose(sh.xyz([sh.length])[0], [sh.wale_spacing, 0.0, 0.0], atol=1e-8)

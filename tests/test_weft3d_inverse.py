@@ -60,7 +60,7 @@ def test_sensitivities_equal_central_differences_of_3d_solves(pulled) -> None:
     p = eq.params.vector()
     block = eq.wnlp.spatial_block(sol.x, p)
     assert block["contact_energy"] > 0
-    assert sum(c["force"] > 0 for c in block["crossings"]) >= 4          # pressed crossings
+    assert sum(c["force"] > 0 for c in block["crossings"]) >= 1          # a pressed wrap
     pl = eq.wnlp.p
     cols = [pl.slice("targets").start + 2, pl.slice("targets").start + 3, pl.slice("R_f").start]
     E = np.zeros((pl.size, len(cols)))
@@ -169,7 +169,7 @@ def test_a_3d_sweep_writes_the_spatial_block_and_its_check_at_every_point(tmp_pa
     for f, y in zip(points, (0.4, 0.8)):
         r = json.loads(f.read_text())
         assert r["success"] and r["model"] == "full3d"
-        assert r["spatial"]["flipped"] == 0 and len(r["spatial"]["crossings"]) == 8
+        assert r["spatial"]["flipped"] == 0 and len(r["spatial"]["crossings"]) == 4
         assert r["check"]["model"] == "3d" and r["check"]["flipped"] == 0
         one = copy.deepcopy(DOC)
         one["clamp"][1]["displacement"][1] = y

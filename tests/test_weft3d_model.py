@@ -2,10 +2,13 @@
 and the envelope theorem."""
 from __future__ import annotations
 
+import copy
+
 import casadi as ca
 import numpy as np
 import pytest
 
+import knit_nlp
 from knit_nlp.weft.model.problem import load_problem, parse_problem
 from knit_nlp.weft.model.params import WeftParams
 from knit_nlp.weft.solving.solve import WeftSolver
@@ -51,17 +54,19 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
     other contacts' repulsion (R1) of numpy samples."""
     pr, nlp = small
     rng = np.random.default_rng(5)
-    A = nlp.coefficients(nlp.x0) + 0.02 * rng.normal(size=nlp.coefficients(nlp.x0).shape)
-    B = nlp.elevations(nlp.x0) + 0.02 * rng.normal(size=nlp.elevations(nlp.x0).shape)
+    A = nlp.coefficients(nlp.x0) + 0.005 * rng.normal(size=nlp.coefficients(nlp.x0).shape)
+    B = nlp.elevations(nlp.x0) + 0.005 * rng.normal(size=nlp.elevations(nlp.x0).shape)
     X = nlp.starts3d(nlp.x0) + 0.02 * rng.normal(size=(2, 2, 3))
-    sig = nlp.x.get(nlp.x0, "sigma") + 0.05 * rng.normal(size=(2, 8))
+    sig = nlp.x.get(nlp.x0, "sigma") + 0.05 * rng.normal(size=(2, 4))
     x = nlp.lift3d(A, B, X, sig)
     sh, shell = nlp.shape, pr.yarn.shell()
     bend = sum(bending3d_numpy(A[i, j], B[i, j], sh.coeffs, sh.elevation, pr.L, pr.t, sh.modes,
                                pr.R_f) for i in range(2) for j in range(2))
     contact = 0.0
-    for c in range(8):                      # crossings of loops (2, j) over (1, j), 4 each
-        j = c // 4
+    core = 2 * shell.core_radius                # (C3) written out: each wrap's law starts at h₀
+    scale = np.maximum(1.0, (2 * shell.radius - core) / (sh.h0 - core))
+    for c in range(4):                      # wraps of loops (2, j) over (1, j), 2 each
+        j = c // 2
         ends = []
         for (i, s) in ((1, sig[0, c]), (0, sig[1, c])):
             pos = X[i, j] + positions3d(A[i, j], B[i, j], [s], pr.L, pr.t, sh.modes)[0]
@@ -70,14 +75,15 @@ def test_objective_equals_an_independent_evaluation(small) -> None:
             ends.append((pos, np.array([np.cos(el) * np.cos(th), np.cos(el) * np.sin(th), np.sin(el)])))
         h, sin_a = separation(ends[0][0][None], ends[0][1][None], ends[1][0][None],
                               ends[1][1][None], nlp.signs[c:c + 1])
-        contact += float(shell.crossing_energy(h, sin_a)[0])
+        contact += float(shell.crossing_energy(core + scale[c % 2] * (h - core), sin_a)[0])
     assert contact > 0
-    # the other contacts (R1): w² v(|x_a − x_b| + c) over the neighbour list, numpy samples
+    # the other contacts (R1): w² v(d′), d′ of (C3), over the neighbour list, numpy samples
     nb = nlp.neighbours
     s = sample_s(pr.L, nb.samples)
     pts = np.array([X[i, j] + positions3d(A[i, j], B[i, j], s, pr.L, pr.t, sh.modes)
                     for i in range(2) for j in range(2)])
-    d = np.linalg.norm(pts[nb.ka, nb.qa] - pts[nb.kb, nb.qb], axis=1) + nb.shift
+    d = np.linalg.norm(pts[nb.ka, nb.qa] - pts[nb.kb, nb.qb], axis=1)
+    d = core + nb.scale * (d + nb.shift - core)
     contact += float(np.sum((pr.L / nb.samples) ** 2 * shell.energy(d)))
     spring_contact, bending, work = nlp.energy(x, nlp.p0)
     assert bending == pytest.approx(bend, rel=1e-8)          # 8 against 16 Gauss nodes
@@ -114,7 +120,7 @@ def test_envelope_theorem_with_crossing_contacts(small) -> None:
     base = solver.continuation(params.vector(), nlp.x0, 4)
     assert base.success
     state = nlp.crossing_state(base.x)
-    assert np.any(state["h"] < 2 * 0.74)                     # some crossing is pressed
+    assert np.any(state["compression"] < 0)                  # some wrap is pressed
     row = nlp.clamp_table.clamp_rows[1].position
     reaction = -base.lam_g[row]
     target = params.targets[1]
@@ -128,3 +134,20 @@ def test_envelope_theorem_with_crossing_contacts(small) -> None:
             assert rep.success
             values.append(rep.objective)
         assert (values[0] - values[1]) / (2 * step) == pytest.approx(reaction[d], rel=1e-5, abs=1e-9)
+
+
+def test_a_fabric_clamped_where_it_lies_carries_no_force() -> None:
+    """Clamps given as zero displacements hold the natural 3-D fabric where it lies, on the
+    wraps' own lattice (2.97 x 2.00 mm for the acrylic, not the paper's 2.53 x 2.23): the
+    answer is the natural state, with no energy and no reaction (on the paper's lattice the
+    clamps pressed it 0.44 mm together)."""
+    doc = copy.deepcopy(ACRYLIC_2x2)
+    doc["clamp"][1]["displacement"] = [0.0, 0.0]
+    pr = parse_problem(doc, "rest3d.toml")
+    w, c = pr.lattice
+    assert (w, c) == (pr.yarn.natural3d.wale_spacing, pr.yarn.natural3d.course_spacing)
+    assert w - pr.natural.wale_spacing > 0.3                      # the wraps' wider lattice
+    out = knit_nlp.solve(pr).to_json()
+    assert out["success"]
+    assert abs(out["energy"]["total"]) < 1e-9
+    assert max(abs(v) for cl in out["clamps"] for v in cl["reaction"]) < 1e-7

@@ -34,7 +34,7 @@ def test_solve_reports_crossings_and_writes_3d_arrays(solved) -> None:
     assert result.success and result.model == "full3d"
     doc = json.loads((out / "small3d.full3d.json").read_text())
     sp = doc["spatial"]
-    assert len(sp["crossings"]) == 8 and sp["flipped"] == 0
+    assert len(sp["crossings"]) == 4 and sp["flipped"] == 0
     h = np.array([c["separation"] for c in sp["crossings"]])
     assert sp["smallest_separation"] == pytest.approx(h.min())
     assert 2 * pr.yarn.core_radius < h.min() < 2 * pr.yarn.radius        # pressed, not through

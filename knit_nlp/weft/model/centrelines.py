@@ -1,11 +1,15 @@
 """Sampled centrelines: each loop's points at evenly spaced s, from coefficients and starts (eq. 1)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .basis import n_coeffs
-from .problem import WeftProblem
 from .quadrature import positions
+
+if TYPE_CHECKING:
+    from .problem import WeftProblem
 
 SAMPLES = 61
 

@@ -27,6 +27,16 @@ in closed form (:meth:`SoftShell.crossing_energy`), and press on each other with
 
     F(h, α) = −∂E/∂h = 2π h v(h) / sin α.                                         (C2)
 
+**A contact pressed at rest** (a tight fabric's natural pairs and wraps, closer than touch at
+d₀ < 2R): its law starts at d₀ and keeps the core, the shell thinned to d₀ − 2R_c. The law
+sees the distance
+
+    d′ = 2R_c + a (d + c − 2R_c),   a = Δ / (d₀ − 2R_c) ≥ 1                        (C3)
+
+(:meth:`SoftShell.seen`, :meth:`SoftShell.thinning`): d₀ ↦ 2R (touch, no force at rest) and
+2R_c ↦ 2R_c (the hard core where the check puts it). c ≥ 0 is a shift for a pair that must start
+inside the shell (a pair first found at a distance the law would call the core), a = 1 then.
+
 This module is the one definition of the law: the numpy functions serve results and the
 compression fit, the CasADi ones the NLPs.
 """
@@ -64,6 +74,19 @@ class SoftShell:
     def shell(self) -> float:
         """Δ = 2R − 2R_c, the range of centreline distance over which the shell loads."""
         return 2.0 * (self.radius - self.core_radius)
+
+    def thinning(self, start: np.ndarray | float) -> np.ndarray:
+        """a of (C3): Δ/(d₀ − 2R_c) for a contact at rest at d₀ = ``start`` closer than touch,
+        1 from touch on; d₀ at or inside the core is refused."""
+        d0 = np.asarray(start, dtype=float)
+        if np.any(d0 <= 2.0 * self.core_radius):
+            raise ValueError(f"a contact at rest inside the core 2R_c = {2 * self.core_radius:g}: "
+                             f"smallest {float(np.min(d0)):g}")
+        return np.maximum(1.0, self.shell / (d0 - 2.0 * self.core_radius))
+
+    def seen(self, d, scale, shift=0.0):
+        """d′ of (C3), the distance the law sees (numbers or CasADi expressions)."""
+        return 2.0 * self.core_radius + scale * (d + shift - 2.0 * self.core_radius)
 
     def reduced(self, d: np.ndarray | float) -> np.ndarray:
         """z = (d − 2R_c)/Δ (1 at touch, 0 at the core)."""

@@ -23,7 +23,7 @@ from .reach import unreachable
 from .crossing_points import LABELS, CrossingError, Crossings, find_crossings
 from .parametrisation import Adaptive, Full, Parametrisation, Reduced
 from .natural_loop import PRESETS, NaturalLoop, natural_loop, natural_starts, preset_coeffs
-from .spatial.natural3d import NaturalShapeError, flat, natural_3d
+from .spatial.natural3d import NaturalShapeError, flat
 
 GEOMETRIES = ("planar", "3d")
 SPATIAL_KEYS = ("core_radius", "contact_rigidity", "contact_exponent", "elevation_modes",
@@ -173,8 +173,26 @@ class WeftProblem:
         return self.reduction or Full()
 
     def natural_starts(self) -> np.ndarray:
-        """Natural start point of every loop, (m, n, 2)."""
+        """Natural start point of every loop, (m, n, 2): in the 3-D model on the natural 3-D
+        fabric's lattice (docs/weft3d.md, N1: free for a thick yarn's wraps)."""
+        if self.yarn is not None and self.yarn.spatial:
+            return self.yarn.natural3d.starts(self.courses, self.wales)[..., :2]
         return natural_starts(self.natural, self.courses, self.wales)
+
+    @property
+    def lattice(self) -> tuple[float, float]:
+        """(wale spacing, course spacing) of the natural fabric (3-D: its own lattice)."""
+        if self.yarn is not None and self.yarn.spatial:
+            sh = self.yarn.natural3d
+            return sh.wale_spacing, sh.course_spacing
+        return self.natural.wale_spacing, self.natural.course_spacing
+
+    def natural_xy(self, s: np.ndarray | list[float]) -> np.ndarray:
+        """Plan positions (len(s), 2) along a natural loop from its start (in the 3-D model the
+        projection of the natural 3-D loop, docs/weft3d.md)."""
+        if self.yarn is not None and self.yarn.spatial:
+            return self.yarn.natural3d.xyz(s)[:, :2]
+        return self.natural.xy(s)
 
     def tables(self, kind: str) -> list[list[int]]:
         """The 0-based indices of the points each of the file's ``[[kind]]`` tables made
@@ -190,9 +208,7 @@ class WeftProblem:
         """Natural position of the material point s of a 1-based loop (in the 3-D model the
         projection of the natural 3-D loop, docs/weft3d.md)."""
         i, j = loop
-        if self.yarn is not None and self.yarn.spatial:
-            return self.natural_starts()[i - 1, j - 1] + self.yarn.natural3d.xyz([s])[0, :2]
-        return self.natural_starts()[i - 1, j - 1] + self.natural.xy([s])[0]
+        return self.natural_starts()[i - 1, j - 1] + self.natural_xy([s])[0]
 
 
 def load_problem(path: Path | str) -> WeftProblem:
@@ -235,7 +251,7 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
         if reduction is not None:
             raise ProblemError(source, "yarn", "geometry", 'the reduced model is planar: remove '
                                '[reduction] to solve the 3-D model, or remove geometry = "3d"')
-        clamps = tuple(_rebased(c, natural, yarn.natural3d) for c in clamps)
+        clamps = tuple(_rebased(c, natural, yarn.natural3d, m, n) for c in clamps)
     top.finish()
     pr = WeftProblem(name, description, m, n, natural, crossings, nodes, k_a, k_b, R_f,
                      clamps, loads, rigid, reduction, solver, str(source), units, yarn)
@@ -243,12 +259,15 @@ def parse_problem(doc: dict[str, Any], source: Path | str) -> WeftProblem:
     return pr
 
 
-def _rebased(c: Clamp, planar: NaturalLoop, shape: Any) -> Clamp:
-    """A clamp given by a displacement (not a position) moves from the natural 3-D loop's
-    projection instead of the paper's loop (the 3-D model's natural state)."""
+def _rebased(c: Clamp, planar: NaturalLoop, shape: Any, m: int, n: int) -> Clamp:
+    """A clamp given by a displacement (not a position) moves from the natural 3-D fabric's
+    projection, on its own lattice, instead of the paper's (the 3-D model's natural state)."""
     if c.key == "position":
         return c
-    return replace(c, target=c.target + shape.xyz([c.s])[0, :2] - planar.xy([c.s])[0])
+    i, j = c.loop[0] - 1, c.loop[1] - 1
+    there = shape.starts(m, n)[i, j, :2] + shape.xyz([c.s])[0, :2]
+    return replace(c, target=c.target + there - natural_starts(planar, m, n)[i, j]
+                   - planar.xy([c.s])[0])
 
 
 def _check_reach(pr: WeftProblem) -> None:
@@ -291,8 +310,9 @@ def _read_yarn(tab: Table, natural: NaturalLoop, crossings: Crossings | None) ->
     modes = tab.integer("elevation_modes", 4, minimum=2, maximum=MAX_ELEVATION_MODES)
     springs = tab.boolean("crossing_springs", False)
     tab.finish()
+    from .spatial.natural_fit import natural_3d  # it checks with proximity, which reads problems
     try:
-        shape = (natural_3d(natural, crossings, modes, radius) if crossings is not None
+        shape = (natural_3d(natural, crossings, modes, radius, core) if crossings is not None
                  else flat(natural, modes, radius))
     except NaturalShapeError as err:
         raise tab.error("radius", f"{err}; try a smaller radius or more elevation_modes") from None

@@ -42,7 +42,8 @@ from ..model.contact.pairs import (CHECK_REACH, GAP_TOL, SAMPLES, Grid, Pairs, c
 from ..model.problem import WeftProblem
 from ..model.quadrature import positions
 from ..model.spatial.curve3d import positions3d
-from ..model.spatial.proximity import ProximityReport, spatial_samples, spatial_state
+from ..model.spatial.proximity import ProximityReport
+from ..model.spatial.state import spatial_samples, spatial_state
 
 REACH = CHECK_REACH        # pairs within this many r of their required gap are looked at
 #                            (GAP_TOL: no gap below its requirement·(1 − 1e-3); both shared

@@ -161,7 +161,7 @@ def plot_tubes(path: Path, centrelines: np.ndarray, radius: float,
     # the side views first: the legend takes its swatch of the yarn from the first axes
     yarn = f"yarn: a tube of radius {_fmt(radius)} {unit}, coloured by course (side views: " \
         "its exact outline, far parts drawn first)"
-    mark = f"designed crossing: one yarn passes over the other ({len(x)} in all)"
+    mark = f"interlock contact: where two courses' yarns press ({len(x)} in all)"
     _side_views(fig, grid, c, x, radius, colours, unit, yarn, mark)
     ax3 = fig.add_subplot(grid[0], projection="3d")
     _oblique(ax3, shown, rows, radius, colours, unit, yarn)
@@ -203,6 +203,7 @@ def _side_views(fig, grid, c: np.ndarray, x: np.ndarray, radius: float, colours:
         ax.set_ylabel(f"z [{unit}]")
         ax.set_title(name + " (true aspect)", fontsize=9)
         ax.tick_params(labelsize=7)
+        ax.set_anchor("C")         # a narrow true-aspect view centred: its z label inside the figure
 
 
 def _course_key(fig, axes, m: int) -> None:

@@ -174,7 +174,7 @@ class WeftResult(Outcome):
         """The answer's own check (``output.check``: new crossings against the natural fabric,
         with a radius gaps below their requirement), made once: the result JSON's ``check``
         block, which the summary and the picture's title also state."""
-        from ..model.spatial.proximity import spatial_samples     # only when told
+        from ..model.spatial.state import spatial_samples     # only when told
         from .check import own_check, spatial_own_check
         yarn = self.problem.yarn
         if yarn is not None and yarn.spatial:    # all pairs of pieces in 3-D (docs/weft3d.md)

@@ -3,8 +3,12 @@ the independent check over all pairs of yarn pieces (``model.spatial.proximity``
 pieces closer than touch (2r) that are neither one piece of yarn nor a designed crossing's own
 contact, and whose sample points the neighbour list (``model.spatial.repulsion``) does not
 hold, are added to the list, and the NLP is built again and solved from the answer (one
-direct solve: load steps from the natural state would start over). Where that solve fails, the
-answer before it stands and the round says so. At most ``ROUNDS`` rounds; each round's pairs
+direct solve: load steps from the natural state would start over), each new pair's law shifted
+to start at most half way into the shell. When a pair is found already inside the hard core
+(the yarns passed each other between the list's sample points), a shift would keep it there,
+so the round starts over instead: load steps from the natural state, the new pairs' law
+unshifted, so that they hold from the start. Where that solve fails, the answer before it
+stands and the round says so. At most ``ROUNDS`` rounds; each round's pairs
 and status are recorded on the NLP (``SpatialNLP.rounds``) for the result JSON and the
 summary, and what is left after the last is the result's check's to say.
 """
@@ -14,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model.spatial.proximity import spatial_samples, spatial_state
+from ..model.spatial.state import spatial_samples, spatial_state
 from ..model.spatial.repulsion import Neighbours, missing
 from ..transcription.spatial import SpatialNLP, build_spatial
 from .solve import Solution, SpatialSteps
@@ -37,38 +41,51 @@ class SpatialEquilibrium(SpatialSteps):
         for _ in range(self.rounds_max):
             if not sol.success or self.nlp.neighbours is None:
                 break
-            new = self.missing(sol.x)
+            new, through = self.missing(sol.x)
             if not len(new):
                 break
-            sol, status = self._again(sol, new)
-            rounds.append({"added": len(new), "status": status})
+            sol, status = self._again(sol, new, through)
+            rounds.append({"added": len(new), "status": status, "started_over": through})
             if status != "Solve_Succeeded":
                 break
         self.nlp.rounds = rounds
         return sol
 
-    def missing(self, x: np.ndarray) -> Neighbours:
+    def missing(self, x: np.ndarray) -> tuple[Neighbours, bool]:
         """The pairs the check finds closer than touch that the list lacks (module docstring),
         each shifted so that it starts no deeper than half way into the shell (R1: a pair
-        found inside the core would make the energy infinite at the answer)."""
+        found inside the core would make the energy infinite at the answer), and whether one
+        is inside the core (then unshifted: the round starts over)."""
         nlp: SpatialNLP = self.nlp
         pr, shape = self.problem, nlp.shape
         rep = spatial_state(pr, nlp.centrelines3d(x, spatial_samples(pr)))
-        new = missing(rep.close, nlp.neighbours, pr.L, pr.wales, shape)
+        new = missing(rep.touching, nlp.neighbours, pr.L, pr.wales, shape)
         if not len(new):
-            return new
+            return new, False
+        inside = rep.touching.select(rep.touching.d < 2 * pr.yarn.core_radius)
+        through = bool(len(missing(inside, nlp.neighbours, pr.L, pr.wales, shape)))
+        if through:
+            return new, True
         pts = nlp.sample_points(x, new.samples)
         d = np.linalg.norm(pts[new.ka, new.qa] - pts[new.kb, new.qb], axis=1)
         half = pr.yarn.radius + pr.yarn.core_radius
         return Neighbours(new.ka, new.qa, new.kb, new.qb, np.maximum(0.0, half - d),
-                          new.samples)
+                          new.scale, new.samples), False
 
-    def _again(self, sol: Solution, new: Neighbours) -> tuple[Solution, str]:
-        """The NLP with ``new`` pairs added, solved from ``sol``'s answer; where that fails,
-        the answer before it (and the failure's status)."""
+    def _again(self, sol: Solution, new: Neighbours, over: bool = False) -> tuple[Solution, str]:
+        """The NLP with ``new`` pairs added, solved from ``sol``'s answer (or, ``over``, by
+        load steps from the natural state); where that fails, the answer before it (and the
+        failure's status)."""
         old, old_solver, old_kkt, x = self.nlp, self.solver, self._kkt, sol.x
         extra = new if self.extra is None else self.extra.plus(new)
         self.rebuild(build_spatial(self.problem, extra=extra))
+        if over:
+            again = SpatialSteps.solve(self, sol.params)
+            if not again.success:
+                self.nlp, self.solver, self._kkt = old, old_solver, old_kkt
+                return sol, again.status
+            self.extra = extra
+            return again, again.status
         sigma = old.x.get(x, "sigma") if "sigma" in old.x.blocks else None
         x0 = self.nlp.lift3d(old.coefficients(x), old.elevations(x), old.starts3d(x), sigma)
         rep = self.solver.once(sol.params.vector(), x0)

@@ -1,6 +1,6 @@
 """The 3-D weft NLP (docs/weft3d.md): minimise U_bend (S4) + U_crossings (S7) [+ U_spring,
 eqs. 6-10, when asked] − W_loads subject to the chaining of eq. (1) in space (S2), continuity
-(18)-(19) of θ and of the elevation φ, the closest-point rows of every designed crossing (S5)
+(18)-(19) of θ and of the elevation φ, the closest-point rows of every interlock contact (S5)
 and the clamps (x, y as the planar model; z held at its natural value at every held point).
 
 Decision variables, by block (``Layout``):
@@ -8,7 +8,7 @@ Decision variables, by block (``Layout``):
 - ``starts`` (3 × N): every loop's start point;
 - ``SL``, ``SR`` (2 × loops of courses 2..m): the paper's spring vectors, only with springs;
 - ``sigma`` (2 × K): each crossing's material coordinate on its upper and lower loop
-  (K = 4 crossings per loop of courses 2..m) and ``cp`` (12 × K): the lifted closest points
+  (K = 4 crossings or 2 wraps, ``Natural3D.labels``, per loop of courses 2..m) and ``cp`` (12 × K): the lifted closest points
   and tangents (p_u, t_u, p_l, t_l) there, each tied to one loop's coefficients by (S3);
 - ``PC`` (3 × specials): the clamped and loaded points.
 Every nonlinear function of the coefficients belongs to one loop (its integrals to the panel
@@ -43,9 +43,9 @@ from ..model.energy import spring_pair_energy
 from ..model.parametrisation import Full
 from ..model.params import WeftParams, param_layout
 from ..model.problem import WeftProblem
-from ..model.spatial.crossing_contact import crossing_terms, separation
+from ..model.spatial.crossing_contact import crossing_terms, natural_scale, separation
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
-from ..model.spatial.natural3d import PAIRS, Natural3D, flat
+from ..model.spatial.natural3d import Natural3D, flat
 from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
 from ..model.centrelines import SAMPLES
 from .elements import Elements, element_derivatives
@@ -158,9 +158,10 @@ class SpatialNLP(Assembled):
         self.x.put(xv, "starts", starts.reshape(N, 3).T)
         if "sigma" in self.x.blocks:
             if sigma is None:
+                per = self.shape.s_upper.size
                 K = self.x.blocks["sigma"][2][1]
-                sigma = np.vstack([np.tile(self.shape.s_upper, K // 4),
-                                   np.tile(self.shape.s_lower, K // 4)])
+                sigma = np.vstack([np.tile(self.shape.s_upper, K // per),
+                                   np.tile(self.shape.s_lower, K // per)])
             self.x.put(xv, "sigma", sigma)
         for name, value in zip(self._lifted_names(), self.lifted.call([xv])):
             self.x.put(xv, name, np.asarray(value))
@@ -195,16 +196,19 @@ class SpatialNLP(Assembled):
         return d.reshape(pr.courses, pr.wales, samples, 3) + X[:, :, None, :]
 
     def crossing_state(self, x: np.ndarray) -> dict[str, np.ndarray]:
-        """Per crossing (K): σ_u, σ_l, h, sin α, the compression h − 2r and the contact force
-        F(h, α) of eq. (C2) (``SoftShell.crossing_force``)."""
+        """Per crossing (K): σ_u, σ_l, h, sin α, the compression h − d₀ (d₀ where its law starts:
+        touch 2r, or its natural separation h₀ if that is closer; eq. C3) and the contact force
+        a·F(h′, α) of eqs. (C2, C3) (``SoftShell.crossing_force``)."""
         if "cp" not in self.x.blocks:
             return {}
         cp, sig = self.x.get(x, "cp"), self.x.get(x, "sigma")
         h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T, self.signs)
         shell = self.problem.yarn.shell()
+        a = np.tile(natural_scale(shell, self.shape.h0), h.size // max(self.shape.h0.size, 1))
+        hc = shell.seen(h, a)
         return {"sigma_upper": sig[0], "sigma_lower": sig[1], "h": h, "sin_angle": sin_a,
-                "compression": h - 2 * shell.radius,
-                "force": np.where(h < 2 * shell.radius, shell.crossing_force(h, sin_a), 0.0)}
+                "compression": (hc - 2 * shell.radius) / a,
+                "force": np.where(hc < 2 * shell.radius, a * shell.crossing_force(hc, sin_a), 0.0)}
 
     def contact_points(self, x: np.ndarray) -> np.ndarray:
         """Per crossing, the midpoint of its two closest points (K, 3): where the yarns touch."""
@@ -225,11 +229,11 @@ class SpatialNLP(Assembled):
         n = self.problem.wales
         rows = []
         for c, h in enumerate(state["h"]):
-            k, pair = divmod(c, 4)
+            k, kind = divmod(c, self.shape.s_upper.size)
             i, j = divmod(k + n, n)
             rows.append({"upper": [i + 1, j + 1], "lower": [i, j + 1],
-                         "pair": f"{PAIRS[pair][0]}/{PAIRS[pair][1]}",
-                         "upper_over": bool(PAIRS[pair][2] > 0),
+                         "pair": self.shape.labels[kind],
+                         "natural_separation": float(self.shape.h0[kind]),
                          "s_upper": float(state["sigma_upper"][c]),
                          "s_lower": float(state["sigma_lower"][c]),
                          "separation": float(h), "compression": float(state["compression"][c]),
@@ -267,7 +271,7 @@ def build_spatial(pr: WeftProblem, options: Spatial = Spatial(),
         shape = yarn.natural3d
     else:
         shape = flat(pr.natural, modes, yarn.radius if yarn is not None else 0.0)
-    contacts = options.contacts and pr.courses > 1 and shape.s_upper.size == 4
+    contacts = options.contacts and pr.courses > 1 and shape.s_upper.size > 0
     if options.contacts and contacts and not options.elevation:
         raise ValueError("crossing contacts need the elevation (a planar fabric's crossings "
                          "have h = 0)")
@@ -275,7 +279,7 @@ def build_spatial(pr: WeftProblem, options: Spatial = Spatial(),
         raise ValueError(f"derivatives must be 'elements' or 'casadi'; got {options.derivatives!r}")
     pairs = None
     if contacts and options.repulsion:
-        pairs = natural_neighbours(shape, pr.courses, pr.wales)
+        pairs = natural_neighbours(shape, pr.yarn.shell(), pr.courses, pr.wales)
         pairs = pairs if extra is None else pairs.plus(extra)
     out = _Builder(pr, Spatial(options.elevation, contacts, springs, pairs is not None,
                                options.derivatives), shape, pairs).build()
@@ -291,7 +295,7 @@ class _Builder:
         self.pr, self.opt, self.shape, self.pairs = pr, options, shape, pairs
         self.N, self.n = pr.n_loops, pr.wales
         self.nc, self.nq = n_coeffs(pr.t), n_coeffs(shape.modes)
-        self.K = 4 * (self.N - self.n) if options.contacts else 0
+        self.K = shape.s_upper.size * (self.N - self.n) if options.contacts else 0
         self.specials, self.clamp_pts, self.load_pts, self.rigid_pts = special_points(pr)
         pts = [pr.L]
         if options.contacts:
@@ -404,9 +408,11 @@ class _Builder:
         if self.opt.contacts:
             cp = xb["cp"]
             self.signs = self._signs()
+            shell = self.pr.yarn.shell()
             self.crossing = self.elements.call(
-                "crossings", crossing_terms(self.pr.yarn.shell()), self.K, cp[0:3, :],
-                cp[3:6, :], cp[6:9, :], cp[9:12, :], ca.DM(self.signs).T)
+                "crossings", crossing_terms(shell), self.K, cp[0:3, :],
+                cp[3:6, :], cp[6:9, :], cp[9:12, :], ca.DM(self.signs).T,
+                ca.DM(np.tile(natural_scale(shell, self.shape.h0), self.K // self.shape.h0.size)).T)
             rows.add("closest", self.crossing[1])
         else:
             self.signs = np.zeros(0)
@@ -417,8 +423,9 @@ class _Builder:
         """(p_u, t_u, p_l, t_l) of every crossing (12 × K): the panel position at the natural
         crossing coordinate s0 plus the Gauss segment to σ (S3)."""
         sh, pr = self.shape, self.pr
-        ku = np.repeat(up, 4)
-        kl = np.repeat(low, 4)
+        per = sh.s_upper.size
+        ku = np.repeat(up, per)
+        kl = np.repeat(low, per)
         s0u, s0l = np.tile(sh.s_upper, len(up)), np.tile(sh.s_lower, len(up))
         seg = segment(pr.L, pr.t, sh.modes, SEGMENT_NODES)
         parts = []
@@ -438,8 +445,8 @@ class _Builder:
         for s in (sh.s_upper, sh.s_lower):
             th, el = phi(s, L, t) @ sh.coeffs, phi(s, L, q) @ sh.elevation
             tang.append(np.stack([np.cos(el) * np.cos(th), np.cos(el) * np.sin(th), np.sin(el)], 1))
-        h, _ = separation(up, tang[0], low, tang[1], np.ones(4))
-        return np.tile(np.sign(h), self.K // 4)
+        h, _ = separation(up, tang[0], low, tang[1], np.ones(sh.s_upper.size))
+        return np.tile(np.sign(h), self.K // sh.s_upper.size)
 
     def _clamps(self, xb: dict[str, ca.MX], pb: dict[str, ca.MX], rows: Constraints
                 ) -> tuple[list[ClampRows], list[slice], dict[int, int]]:

@@ -18,7 +18,7 @@ from typing import Callable
 import numpy as np
 
 from ...model.params import MATERIAL
-from ...model.spatial.proximity import spatial_samples
+from ...model.spatial.state import spatial_samples
 from ...output.check import own_check, spatial_own_check
 from .breaks import where_it_breaks
 from .checks import HALF, STIFFENING, outcome_checks

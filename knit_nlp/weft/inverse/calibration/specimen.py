@@ -72,17 +72,17 @@ def loop_counts(base: WeftProblem, direction: str, aspect: float,
                 min_loops: int) -> tuple[int, int]:
     """(courses, wales) of the specimen for a measured gauge/width ``aspect``: ``min_loops``
     on the shorter side, the longer side's count the one nearest the aspect (module doc)."""
-    nat = base.natural
-    head = float(nat.xy([0.5 * nat.length])[0, 1] - nat.xy([0.0])[0, 1])
+    head = float(np.diff(base.natural_xy([0.0, 0.5 * base.L])[:, 1])[0])
+    w, c = base.lattice
     sides = [(min_loops, k) for k in range(min_loops, MAX_LOOPS + 1)]       # (along, across)
     sides += [(k, min_loops) for k in range(min_loops + 1, MAX_LOOPS + 1)]
 
     def miss(side: tuple[int, int]) -> float:
         m, n = _courses_wales(direction, *side)
         if direction == "courses":          # clamps on the yarn ends: n wale spacings apart
-            gauge, width = n * nat.wale_spacing, m * nat.course_spacing
+            gauge, width = n * w, m * c
         else:                               # sinkers of course 1 to heads of course m
-            gauge, width = (m - 1) * nat.course_spacing + head, n * nat.wale_spacing
+            gauge, width = (m - 1) * c + head, n * w
         return abs(np.log(gauge / width / aspect))
     return _courses_wales(direction, *min(sides, key=miss))
 
@@ -92,7 +92,8 @@ def _courses_wales(direction: str, along: int, across: int) -> tuple[int, int]:
 
 
 def _pitch_width(base: WeftProblem, direction: str, m: int, n: int) -> float:
-    return m * base.natural.course_spacing if direction == "courses" else n * base.natural.wale_spacing
+    w, c = base.lattice
+    return m * c if direction == "courses" else n * w
 
 
 def specimen_doc(doc: dict[str, Any], direction: str, courses: int, wales: int,

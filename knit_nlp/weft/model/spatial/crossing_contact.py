@@ -12,11 +12,18 @@ Their signed separation along the common normal n = t_u × t_l is (S6)
 
     h = ς (p_u − p_l)·n / |n|,    sin α = |n|,
 
-with ς = ±1 fixed once, from the natural state, so that h = +2r there: the topology (which yarn
-is over) fixes the sign, and h cannot pass through 0 while the energy (S7), the soft-shell
+with ς = ±1 fixed once, from the natural state, so that h = +h₀ > 0 there: the topology (which
+side of the lower yarn the upper one wraps) fixes the sign, and h cannot pass through 0 while the energy (S7), the soft-shell
 crossing energy ``SoftShell.crossing_energy(h, sin α)`` (eq. C1 of ``compression``), is finite
 (it is +∞, NaN in CasADi, at h ≤ 2R_c). No inequality rows and no active set: every crossing is
 two equality rows and one energy term, whether its yarns touch (h < 2r) or not (energy 0).
+
+**The natural compression.** A tight fabric's natural wraps are closer than touch (h₀ < 2r:
+the knitting pressed the yarn). The law then starts where the natural fabric puts it and keeps
+its core: E is evaluated at h′ = 2R_c + a (h − 2R_c), a = Δ/(h₀ − 2R_c) per contact (eq. C3 of
+``compression``; ``natural_scale``), as the other contacts' law is (``repulsion``, R1), so that
+every natural wrap just touches and carries no force, and no wrap passes the hard core 2R_c at
+which the independent check (``proximity``) judges.
 """
 from __future__ import annotations
 
@@ -26,18 +33,25 @@ import numpy as np
 from ..compression import SoftShell
 
 
+def natural_scale(shell: SoftShell, h0: np.ndarray) -> np.ndarray:
+    """a of the module docstring (C3), per contact: 1 where it is at rest beyond touch."""
+    return shell.thinning(h0)
+
+
 def crossing_terms(shell: SoftShell) -> ca.Function:
-    """Function (p_u, t_u, p_l, t_l, ς) -> (E (S7), closest-point rows (S5, 2), h, sin α)."""
+    """Function (p_u, t_u, p_l, t_l, ς, a) -> (E (S7) at h′ (C3), closest-point rows (S5, 2),
+    h, sin α)."""
     pu, tu, pl, tl = (ca.SX.sym(n, 3) for n in ("p_u", "t_u", "p_l", "t_l"))
-    sign = ca.SX.sym("sign")
+    sign, scale = ca.SX.sym("sign"), ca.SX.sym("scale")
     d = pu - pl
     n = ca.cross(tu, tl)
     sin_a = ca.norm_2(n)
     h = sign * ca.dot(d, n) / sin_a
-    energy = shell.casadi_crossing_energy(h, sin_a)
+    energy = shell.casadi_crossing_energy(shell.seen(h, scale), sin_a)
     rows = ca.vertcat(ca.dot(d, tu), ca.dot(d, tl))
-    return ca.Function("crossing_terms", [pu, tu, pl, tl, sign], [energy, rows, h, sin_a],
-                       ["p_u", "t_u", "p_l", "t_l", "sign"], ["E", "rows", "h", "sin_angle"])
+    return ca.Function("crossing_terms", [pu, tu, pl, tl, sign, scale],
+                       [energy, rows, h, sin_a],
+                       ["p_u", "t_u", "p_l", "t_l", "sign", "scale"], ["E", "rows", "h", "sin_angle"])
 
 
 def separation(pu: np.ndarray, tu: np.ndarray, pl: np.ndarray, tl: np.ndarray,

@@ -32,19 +32,14 @@ crossing flipped.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Iterator
+from typing import Any, Iterator
 
 import numpy as np
 
 from ..contact.crossings import segments_crossing
 from ..contact.natural import EXCLUSION
 from ..contact.near import close_pairs
-from ..contact.pairs import SAMPLES, check_samples
-from ..centrelines import SAMPLES as CENTRELINE_SAMPLES
 from .natural3d import PAIRS, Natural3D
-
-if TYPE_CHECKING:
-    from ..problem import WeftProblem
 
 ROWS = 1 << 20              # candidate segment pairs judged at once (about 0.3 GB of temporaries)
 MATCH = 0.25                # a designed crossing matches a projected crossing within MATCH·L
@@ -345,7 +340,9 @@ class ProximityReport:
     n_designed: int = 0
     flipped: list[dict[str, Any]] = field(default_factory=list)
     lost: int = 0
-    close: Near | None = None                     # every other pair closer than 2r (rounds)
+    touching: Near | None = None                  # every pair closer than 2r, designed or not:
+    #                                               the rounds' candidates (the model decides
+    #                                               which are its designed contacts' own)
     order_unknown: str | None = None              # why the crossings' order was not read
 
     @property
@@ -422,7 +419,7 @@ def check_3d(centrelines: np.ndarray, natural: np.ndarray, L: float, radius: flo
     rep.n_inside_core, rep.inside_core = _by_loops(courses, near.select(near.d < 2 * core_radius))
     other = near.select(~near.designed)
     rep.n_other_touching, rep.other_touching = _by_loops(courses, other)
-    rep.close = other
+    rep.touching = near
     rep.designed_touching = _by_loops(courses, near.select(near.designed))[0]
     return rep
 
@@ -461,22 +458,3 @@ def _crossing_row(found: Designed, k: int, n: int) -> dict[str, Any]:
 
 def _loop(k: int, n: int) -> list[int]:
     return [k // n + 1, k % n + 1]
-
-
-def spatial_samples(problem: WeftProblem, samples: int = SAMPLES) -> int:
-    """Samples per loop of the 3-D check: ``check_samples`` (4 per radius, at least 16, at
-    most ``samples``), and never fewer than the result pictures' 61."""
-    return max(CENTRELINE_SAMPLES, check_samples(problem.L, problem.yarn.radius, samples))
-
-
-def spatial_natural(problem: WeftProblem, samples: int) -> np.ndarray:
-    """The natural 3-D centrelines the check reads the designed crossings on
-    (``proximity.natural_lines``)."""
-    return natural_lines(problem.yarn.natural3d, problem.wales, samples)
-
-
-def spatial_state(problem: WeftProblem, centrelines: np.ndarray) -> ProximityReport:
-    """The independent 3-D check of deformed centrelines (m, n, S, 3) of a problem."""
-    yarn = problem.yarn
-    return check_3d(centrelines, spatial_natural(problem, centrelines.shape[2]), problem.L,
-                    yarn.radius, yarn.core_radius)

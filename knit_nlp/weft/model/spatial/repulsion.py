@@ -5,23 +5,28 @@ below, courses two apart) repel each other by the soft-shell law.
 **Law.** The contact energy of two yarn pieces is the double integral ∫∫ v(|x₁ − x₂|) ds₁ ds₂
 of the soft-shell energy density v (``compression.SoftShell``; stitch-by-stitch's
 ``contact_energy``): zero beyond touch (2r) with zero slope there, growing to +∞ at the hard
-core 2R_c. Each loop is sampled at ``SAMPLES`` midpoints s_q = (q + ½)·L/S, each carrying the
-length w = L/S, and the integral is its midpoint rule over the pairs in the neighbour list
+core 2R_c. Each loop is sampled at S midpoints s_q = (q + ½)·L/S (``samples_for``: spaced
+closer than ``SPACING``·2R_c, so that two yarns cannot pass each other between samples; at
+least ``SAMPLES``, at most ``MOST``), each carrying the length w = L/S, and the integral is its midpoint rule over the pairs in the neighbour list
 (R1):
 
-    U_other = Σ_(a, b) w² v(|x_a − x_b| + c_ab),
+    U_other = Σ_(a, b) w² v(d′_ab),   d′_ab = 2R_c + a_ab (|x_a − x_b| + c_ab − 2R_c)   (C3),
 
-c_ab = max(0, 2r − d⁰_ab) for a pair naturally closer than touch (d⁰ its natural distance):
-the law starts where the natural fabric puts it, so the natural state carries no force (the
-planar contact's "naturally closer pairs keep their natural gap"); 0 otherwise.
+a_ab = Δ/(d⁰_ab − 2R_c) for a pair naturally closer than touch (d⁰ its natural distance): the
+law starts where the natural fabric puts it, so the natural state carries no force (the planar
+contact's "naturally closer pairs keep their natural gap"), and keeps its hard core at 2R_c,
+where the independent check judges; a_ab = 1 otherwise. c_ab = 0 but for pairs the rounds
+add (``rounds3d``), which start at most half way into the shell.
 
 **Neighbour list.** From the topology: every pair of loops within two courses and two wales of
 each other (a loop with itself included), and of their sample points those naturally closer
 than ``REACH``·2r, except (1) points of one course closer than EXCLUSION·π·r along the yarn (one
-piece: the planar rule, ``contact/natural.py``) and (2) a designed crossing's own contact: both
-points within ``proximity.DESIGNED``·2r along their yarns of one of its crossings in the
-natural fabric's projection (``proximity.reference_crossings``: the crossing's own energy, S7,
-acts there). Pairs that come close only after deformation are added by the solve's rounds
+piece: the planar rule, ``contact/natural.py``) and (2) a designed contact's own pair, where its
+energy (S7) acts (``Windows``): for touching crossings (thin yarns) both points within
+``proximity.DESIGNED``·2r along their yarns of one of the crossings of the natural projections
+(``proximity.reference_crossings``); for wraps both within ``WRAP_WINDOW``·2r of the wrap's
+closest points, so that the legs pressing on the head below away from the wraps are other
+contacts. Pairs that come close only after deformation are added by the solve's rounds
 (``missing``), from the independent check (``proximity``).
 """
 from __future__ import annotations
@@ -35,17 +40,32 @@ import numpy as np
 
 from ..compression import SoftShell
 from ..contact.natural import EXCLUSION
-from .natural3d import Natural3D
+from .natural3d import WRAPS, Natural3D
 from .proximity import DESIGNED, Courses, Near, reference_crossings
 
-SAMPLES = 12               # sample points per loop (w = L/12: 0.94 mm = 1.27 r for the acrylic)
+SAMPLES = 12               # fewest sample points per loop
+MOST = 48                  # most sample points per loop (the pairs grow as its square)
+SPACING = 0.75             # samples closer than SPACING·2R_c along the yarn: the acrylic's 12
+#                            (0.94 mm against a core of 0.65 mm) let a leg pass between two samples
+#                            of the head below in a 3 mm diagonal push of a 2 x 2 fabric; 24: clean
 REACH = 1.25               # natural pairs closer than REACH·2r are listed (measured: 1.5 and
 #                            16 samples listed 3,810 pairs on the 6 x 6 acrylic, the Hessian 3.2x
 #                            the NLP's without them; 1.25 and 12: 1,250 pairs, 1.3x)
+WRAP_WINDOW = 0.25          # a wrap's own contact: within WRAP_WINDOW·2r along both yarns
 OFFSETS = ((0, 0), (0, 1), (0, 2)) + tuple((di, dj) for di in (1, 2) for dj in range(-2, 3))
 
 
-def sample_s(L: float, samples: int = SAMPLES) -> np.ndarray:
+def none(samples: int) -> "Neighbours":
+    """An empty neighbour list."""
+    return Neighbours(*(np.zeros(0, int) for _ in range(4)), np.zeros(0), np.zeros(0), samples)
+
+
+def samples_for(L: float, core_radius: float) -> int:
+    """S of the module docstring: sample points per loop of length L."""
+    return int(np.clip(np.ceil(L / (SPACING * 2 * core_radius)), SAMPLES, MOST))
+
+
+def sample_s(L: float, samples: int) -> np.ndarray:
     """The material points of a loop's samples (midpoints of S equal pieces)."""
     return (np.arange(samples) + 0.5) * L / samples
 
@@ -53,13 +73,15 @@ def sample_s(L: float, samples: int = SAMPLES) -> np.ndarray:
 @dataclass(frozen=True)
 class Neighbours:
     """The neighbour list: sample points (loop ``ka``, sample ``qa``) and (``kb``, ``qb``), loop
-    index k = i·n + j (0-based), and each pair's shift c (R1); S samples per loop."""
+    index k = i·n + j (0-based), and each pair's shift c and thinning a (R1, C3); S samples per
+    loop."""
 
     ka: np.ndarray
     qa: np.ndarray
     kb: np.ndarray
     qb: np.ndarray
     shift: np.ndarray
+    scale: np.ndarray
     samples: int
 
     def __len__(self) -> int:
@@ -74,13 +96,14 @@ class Neighbours:
 
     def plus(self, other: "Neighbours") -> "Neighbours":
         return Neighbours(*(np.concatenate([getattr(self, f), getattr(other, f)])
-                            for f in ("ka", "qa", "kb", "qb", "shift")), self.samples)
+                            for f in ("ka", "qa", "kb", "qb", "shift", "scale")), self.samples)
 
 
-def natural_neighbours(shape: Natural3D, courses: int, wales: int,
-                       samples: int = SAMPLES) -> Neighbours:
+def natural_neighbours(shape: Natural3D, shell: SoftShell, courses: int, wales: int,
+                       samples: int | None = None) -> Neighbours:
     """The neighbour list of a fabric of natural 3-D loops (module docstring)."""
     L, r = shape.length, shape.radius
+    samples = samples or samples_for(L, shell.core_radius)
     s = sample_s(L, samples)
     x = shape.xyz(s)
     lattice = np.array([shape.wale_spacing, shape.course_spacing])
@@ -97,48 +120,64 @@ def natural_neighbours(shape: Natural3D, courses: int, wales: int,
             if dj == 0:
                 keep &= np.triu(np.ones_like(keep), 1)
         if di == 1 and windows is not None:
-            keep &= ~_in_window(windows, s, dj, L, DESIGNED * 2 * r)
+            keep &= ~_in_window(windows, s, dj, L)
         qa, qb = np.nonzero(keep)
         i, j = np.meshgrid(np.arange(max(0, -di), courses - di),
                            np.arange(max(0, -dj), wales - max(dj, 0)), indexing="ij")
         ka = (i * wales + j).ravel()
         kb = ka + di * wales + dj
-        c = np.maximum(0.0, 2 * r - d0[qa, qb])
+        a = shell.thinning(d0[qa, qb])
         parts.append((np.repeat(ka, len(qa)), np.tile(qa, len(ka)), np.repeat(kb, len(qa)),
-                      np.tile(qb, len(ka)), np.tile(c, len(ka))))
+                      np.tile(qb, len(ka)), np.zeros(len(ka) * len(qa)), np.tile(a, len(ka))))
     if not parts:
-        return Neighbours(*(np.zeros(0, int) for _ in range(4)), np.zeros(0), samples)
+        return none(samples)
     return Neighbours(*(np.concatenate(p) for p in zip(*parts)), samples)
 
 
-def _designed(shape: Natural3D) -> tuple[np.ndarray, np.ndarray]:
-    """The designed crossings' material points in the natural projection (upper loop's s,
-    lower offset), from two courses of three natural loops."""
+@dataclass(frozen=True)
+class Windows:
+    """Where a designed contact's own law acts (module docstring, (2)): per contact, its
+    material point on the upper loop ``su`` and its offset on the lower course ``sl`` from the
+    same wale's start, and the half-width ``w`` along both yarns."""
+
+    su: np.ndarray
+    sl: np.ndarray
+    w: float
+
+
+def _designed(shape: Natural3D) -> Windows:
+    """The designed contacts' windows. Touching crossings (thin yarns): the crossings of the
+    natural projections (from two courses of three natural loops), DESIGNED·2r wide. Wraps: the
+    wraps' closest points, WRAP_WINDOW·2r wide: the wrap's law (S7) is the energy of two
+    crossing lines near their closest points, and every other pair of the two loops (the legs
+    on the head below, away from the wraps) is an other contact, which holds a course that
+    would otherwise hang on two nearly collinear points."""
+    if shape.labels == WRAPS:
+        return Windows(shape.s_upper, shape.s_lower, WRAP_WINDOW * 2 * shape.radius)
     s = np.linspace(0.0, shape.length, 241)
     lines = shape.xyz(s)[None, None] + shape.starts(2, 3)[:, :, None, :]
-    return reference_crossings(Courses.of(lines, shape.length))
+    return Windows(*reference_crossings(Courses.of(lines, shape.length)),
+                   DESIGNED * 2 * shape.radius)
 
 
-def _in_window(windows: tuple[np.ndarray, np.ndarray], s: np.ndarray, dj: int, L: float,
-               w: float) -> np.ndarray:
-    """(qa, qb) of lower loop a and upper loop b = a + (1, dj) inside a designed crossing's
-    window: one of the upper wale's crossings (or its neighbours') within w along both."""
-    su, sl = windows
+def _in_window(windows: Windows, s: np.ndarray, dj: int, L: float) -> np.ndarray:
+    """(qa, qb) of lower loop a and upper loop b = a + (1, dj) inside a designed contact's
+    window: one of the upper wale's contacts (or its neighbours') within w along both."""
     out = np.zeros((len(s), len(s)), dtype=bool)
     for k in (-1, 0, 1):
-        for c_u, c_l in zip(su, sl):
-            up = np.abs(s - (k * L + c_u)) < w
-            low = np.abs(s - ((dj + k) * L + c_l)) < w
+        for c_u, c_l in zip(windows.su, windows.sl):
+            up = np.abs(s - (k * L + c_u)) < windows.w
+            low = np.abs(s - ((dj + k) * L + c_l)) < windows.w
             out |= low[:, None] & up[None, :]
     return out
 
 
 def pair_energy(shell: SoftShell, weight: float) -> ca.Function:
-    """Function (x_a (3), x_b (3), c) -> w² v(|x_a − x_b| + c), one term of (R1)."""
-    xa, xb, c = ca.SX.sym("x_a", 3), ca.SX.sym("x_b", 3), ca.SX.sym("c")
-    d = ca.norm_2(xa - xb) + c
-    return ca.Function("pair_energy", [xa, xb, c], [weight ** 2 * shell.casadi_energy(d)],
-                       ["x_a", "x_b", "c"], ["E"])
+    """Function (x_a (3), x_b (3), c, a) -> w² v(d′), one term of (R1), d′ of (C3)."""
+    xa, xb, c, a = ca.SX.sym("x_a", 3), ca.SX.sym("x_b", 3), ca.SX.sym("c"), ca.SX.sym("a")
+    d = shell.seen(ca.norm_2(xa - xb), a, c)
+    return ca.Function("pair_energy", [xa, xb, c, a], [weight ** 2 * shell.casadi_energy(d)],
+                       ["x_a", "x_b", "c", "a"], ["E"])
 
 
 def repulsion_energy(shell: SoftShell, weight: float, points: ca.MX, pairs: Neighbours,
@@ -154,7 +193,7 @@ def repulsion_energy(shell: SoftShell, weight: float, points: ca.MX, pairs: Neig
         def mapped(name: str, fn: ca.Function, count: int, *args: ca.MX) -> list[ca.MX]:
             return [fn.map(count, "serial")(*args)]
     return ca.sum2(mapped("repulsion", pair_energy(shell, weight), len(pairs), points[:, a],
-                          points[:, b], ca.DM(pairs.shift).T)[0])
+                          points[:, b], ca.DM(pairs.shift).T, ca.DM(pairs.scale).T)[0])
 
 
 def missing(close: Near | None, listed: Neighbours, L: float, wales: int,
@@ -164,7 +203,7 @@ def missing(close: Near | None, listed: Neighbours, L: float, wales: int,
     except pairs inside a designed crossing's window (module docstring, (2))."""
     S = listed.samples
     if close is None or not len(close.d):
-        return Neighbours(*(np.zeros(0, int) for _ in range(4)), np.zeros(0), S)
+        return none(S)
     ka, qa = _sample_of(close.ca, close.ua, L, wales, S)
     kb, qb = _sample_of(close.cb, close.ub, L, wales, S)
     n_loops = (int(max(close.ca.max(), close.cb.max())) + 1) * wales
@@ -175,13 +214,14 @@ def missing(close: Near | None, listed: Neighbours, L: float, wales: int,
     cand = np.unique(np.concatenate([np.stack(r, 1) for r in rows]), axis=0)
     cand = cand[(cand[:, 0] >= 0) & (cand[:, 2] >= 0) & ~((cand[:, 0] == cand[:, 2])
                                                          & (cand[:, 1] == cand[:, 3]))]
-    new = Neighbours(cand[:, 0], cand[:, 1], cand[:, 2], cand[:, 3], np.zeros(len(cand)), S)
+    new = Neighbours(cand[:, 0], cand[:, 1], cand[:, 2], cand[:, 3], np.zeros(len(cand)),
+                     np.ones(len(cand)), S)
     keep = ~np.isin(new.keys(), listed.keys()) & ~_designed_pair(new, shape, wales)
     keep &= ~_same_piece(new, L, wales, shape.radius)
     k = np.flatnonzero(keep)
     _, first = np.unique(new.keys()[k], return_index=True)
     k = k[first]
-    return Neighbours(new.ka[k], new.qa[k], new.kb[k], new.qb[k], new.shift[k], S)
+    return Neighbours(new.ka[k], new.qa[k], new.kb[k], new.qb[k], new.shift[k], new.scale[k], S)
 
 
 def _sample_of(course: np.ndarray, u: np.ndarray, L: float, wales: int, S: int
@@ -222,7 +262,7 @@ def _designed_pair(p: Neighbours, shape: Natural3D, wales: int) -> np.ndarray:
     dj = up_k % wales - low_k % wales
     windows = _designed(shape)
     for d in np.unique(dj[up_is_a | up_is_b]):
-        mask = _in_window(windows, s, int(d), L, DESIGNED * 2 * shape.radius)
+        mask = _in_window(windows, s, int(d), L)
         sel = (up_is_a | up_is_b) & (dj == d)
         out[sel] = mask[low_q[sel], up_q[sel]]
     return out
