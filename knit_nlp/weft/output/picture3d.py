@@ -78,7 +78,7 @@ def _side_view(ax, pieces: list[tuple[np.ndarray, int]], radius: float, axes_ij:
     ax.add_collection(PolyCollection(polys, facecolors=face, edgecolors=edge, linewidths=width,
                                      label=label))
     ax.autoscale()
-    ax.set_aspect("equal")
+    ax.set_aspect("equal", adjustable="datalim")   # the box fills its cell: labels stay inside
     ax.margins(0.04)
 
 
@@ -203,7 +203,6 @@ def _side_views(fig, grid, c: np.ndarray, x: np.ndarray, radius: float, colours:
         ax.set_ylabel(f"z [{unit}]")
         ax.set_title(name + " (true aspect)", fontsize=9)
         ax.tick_params(labelsize=7)
-        ax.set_anchor("C")         # a narrow true-aspect view centred: its z label inside the figure
 
 
 def _course_key(fig, axes, m: int) -> None:
