@@ -1,7 +1,8 @@
 """Cost of the 3-D weft model against the paper's model, same run (docs/weft3d.md, "Cost").
 
-    python scripts/bench_weft3d.py [--pull F] [--max-time S] [N ...]   (default: F = 0.5,
-                                                                        S = 900, N = 6 10)
+    python scripts/bench_weft3d.py [--pull F] [--max-time S] [--predictor] [--steps K]
+                                   [--ipopt NAME=VALUE ...] [N ...]
+                                   (default: F = 0.5, S = 900, K = 4, N = 6 10)
 
 For each N: an N x N acrylic stockinette (L = 11.28 mm, R_f = 0.045 N·mm², r = 0.74 mm) with
 loop (1, 1)'s start held and H of loop (1, N) pulled by (F·N, F·N) mm, solved by
@@ -11,7 +12,12 @@ core 2R_c and the number of crossings whose order flipped; the process's CPU sec
 resident memory (``resource.getrusage``, after each solve: the 3-D line's includes the planar
 solve before it), and where the 3-D solve's time went (IPOPT's wall seconds in the Hessian, the
 Jacobian, the other evaluations, and the rest: its own linear algebra). Timings are wall-clock
-on a shared machine: compare the ratio of one run, not seconds across runs.
+on a shared machine: compare the ratio of one run, not seconds across runs. ``--predictor``:
+the 3-D load steps start from the secant predictor (``solve.MODEL_PREDICTOR``, off by default);
+``--steps``: the 3-D model's load steps (``solve.MODEL_CONTINUATION``); ``--ipopt``: an IPOPT
+option for the 3-D solves (``solve.MODEL_IPOPT``; repeat it for more; e.g.
+``--ipopt mumps_pivot_order=5``; ``--ipopt output_file=log.txt --ipopt file_print_level=6
+--ipopt file_append=yes`` writes IPOPT's log of every 3-D solve).
 """
 from __future__ import annotations
 
@@ -20,6 +26,7 @@ import sys
 import time
 
 from knit_nlp.weft.api import solve
+from knit_nlp.weft.solving import solve as solving
 from knit_nlp.weft.model.problem import parse_problem
 
 MAX_TIME = 900.0          # s of wall clock per solve
@@ -69,12 +76,31 @@ def run(n: int, pull: float, max_time: float = MAX_TIME) -> None:
           flush=True)
 
 
+def option_value(text: str) -> int | float | str:
+    """An IPOPT option's value from the command line: an integer, a number, else a string."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
 if __name__ == "__main__":
     args = sys.argv[1:]
     fraction, budget = 0.5, MAX_TIME
-    while args[:1] in (["--pull"], ["--max-time"]):
+    while args[:1] in (["--pull"], ["--max-time"], ["--predictor"], ["--steps"], ["--ipopt"]):
+        if args[0] == "--predictor":
+            solving.MODEL_PREDICTOR.add("full3d")
+            args = args[1:]
+            continue
         if args[0] == "--pull":
             fraction = float(args[1])
+        elif args[0] == "--steps":
+            solving.MODEL_CONTINUATION["full3d"] = int(args[1])
+        elif args[0] == "--ipopt":
+            name, value = args[1].split("=", 1)
+            solving.MODEL_IPOPT.setdefault("full3d", {})[name] = option_value(value)
         else:
             budget = float(args[1])
         args = args[2:]

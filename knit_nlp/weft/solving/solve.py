@@ -60,6 +60,12 @@ MODEL_IPOPT: dict[str, dict] = {"full": {"first_hessian_perturbation": 1.0}, "re
 # the 3-D model (docs/weft3d.md) by default in load steps: a direct solve from the natural
 # state of a 6 x 6 acrylic diagonal pull took 2113 iterations to fail, 4 steps 109 to succeed
 MODEL_CONTINUATION: dict[str, int] = {"full3d": 4}
+# models whose load steps start from the secant predictor (``WeftSolver.continuation``,
+# ``predict``). None by default: on the 3-D diagonal pulls it saved 13-22 % of the iterations
+# (6 x 6: 105 -> 91, 10 x 10: 169 -> 131) but ended in a neighbouring minimum (energy 4e-7 and
+# 5e-8 relative apart, loops within 1e-3 mm, crossing coordinates up to 0.16 mm), which a
+# tighter tol does not close (docs/weft3d.md, "Cost"); ``scripts/bench_weft3d.py --predictor``
+MODEL_PREDICTOR: set[str] = set()
 WARM = {"warm_start_init_point": "yes"}     # start from given multipliers (``once(..., lam_g0=...)``)
 
 
@@ -125,10 +131,11 @@ class WeftSolver(OnClock):
         t0 = time.perf_counter()
         # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of IPOPT's own
         # time and the KKT systems here are well scaled without them
+        # (the model's and the caller's options may override these)
         options = {**ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
-                                   max_wall_time=opts.max_time, mumps_scaling=0,
-                                   mumps_permuting_scaling=0,
-                                   **{**MODEL_IPOPT.get(wnlp.model, {}), **(ipopt or {})}),
+                                   **{"max_wall_time": opts.max_time, "mumps_scaling": 0,
+                                      "mumps_permuting_scaling": 0,
+                                      **MODEL_IPOPT.get(wnlp.model, {}), **(ipopt or {})}),
                    **wnlp.nlpsol_options}
         # verbose: every iterate; False: a progress line once a solve outlasts QUIET_FOR;
         # None: never (a study's workers, whose runner keeps its own progress line). Always
@@ -186,23 +193,26 @@ class WeftSolver(OnClock):
         return self.wnlp.violation(np.asarray(self._g(x, p)).ravel())
 
     def continuation(self, p: np.ndarray, x0: np.ndarray, steps: int,
-                     max_halvings: int = 6, p_from: np.ndarray | None = None) -> SolveReport:
+                     max_halvings: int = 6, p_from: np.ndarray | None = None,
+                     predict: bool = False) -> SolveReport:
         """Step the parameters from their natural values (or ``p_from``, x0's) to ``p``,
-        warm-starting each solve."""
+        warm-starting each solve: from the last step's solution, or with ``predict`` from its
+        secant extrapolation (:func:`secant`) once two states of the path are known."""
         p_nat = WeftParams.natural(self.wnlp.problem).vector() if p_from is None else p_from
         x, tau, dtau = x0, 0.0, 1.0 / steps
         total = SolveReport(False, "", x0, np.zeros(self.wnlp.n_constraints), np.nan, 0, 0.0)
-        halvings = 0
+        halvings, before = 0, None                    # before: (τ, x) of the step before x
         while tau < 1.0 - 1e-12:
             if time.perf_counter() >= self.deadline:
                 total.status = OUT_OF_TIME
                 return total
             nxt = min(1.0, tau + dtau)
             self.progress.at(tau)                     # the progress line's share and estimate
-            rep = self.once(p_nat + nxt * (p - p_nat), x)
+            start = x if before is None or not predict else secant(before, (tau, x), nxt)
+            rep = self.once(p_nat + nxt * (p - p_nat), start)
             total.add_effort(rep)
             if rep.success:
-                x, tau = rep.x, nxt
+                before, x, tau = (tau, x), rep.x, nxt
                 total.continuation_steps += 1
                 total.path.append((tau, rep.x, rep.lam_g))
                 total.x, total.lam_g, total.objective, total.status = rep.x, rep.lam_g, rep.objective, rep.status
@@ -214,6 +224,14 @@ class WeftSolver(OnClock):
             dtau /= 2
         total.success = True
         return total
+
+
+def secant(before: tuple[float, np.ndarray], last: tuple[float, np.ndarray],
+           tau: float) -> np.ndarray:
+    """The state at load factor ``tau`` extrapolated along the chord of the last two states
+    (τ₀, x₀), (τ₁, x₁) of a loading path: x₁ + (x₁ − x₀)(τ − τ₁)/(τ₁ − τ₀)."""
+    (t0, x0), (t1, x1) = before, last
+    return x1 + (x1 - x0) * ((tau - t1) / (t1 - t0))
 
 
 @dataclass
@@ -439,7 +457,7 @@ def _direct_then_continuation(solver: WeftSolver, p: np.ndarray, x0: np.ndarray,
         attempts.append(f"direct: {rep.status} ({rep.iterations} it)")
         tried.append(rep)
     for steps in ([] if tried and tried[-1].success else [continuation] if continuation else [4, 16]):
-        rep = solver.continuation(p, x0, steps)
+        rep = solver.continuation(p, x0, steps, predict=solver.wnlp.model in MODEL_PREDICTOR)
         attempts.append(f"continuation x{steps}: {rep.status} ({rep.iterations} it, "
                         f"{rep.continuation_steps} steps)")
         tried.append(rep)
