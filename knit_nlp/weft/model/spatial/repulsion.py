@@ -6,8 +6,8 @@ below, courses two apart) repel each other by the soft-shell law.
 of the soft-shell energy density v (``compression.SoftShell``; stitch-by-stitch's
 ``contact_energy``): zero beyond touch (2r) with zero slope there, growing to +∞ at the hard
 core 2R_c. Each loop is sampled at S midpoints s_q = (q + ½)·L/S (``samples_for``: spaced
-closer than ``SPACING``·2R_c, so that two yarns cannot pass each other between samples; at
-least ``SAMPLES``, at most ``MOST``), each carrying the length w = L/S, and the integral is its midpoint rule over the pairs in the neighbour list
+closer than ``SPACING``·max(2R_c, r), so that two yarns cannot pass each other's core between
+samples; at least ``SAMPLES``, at most ``MOST``), each carrying the length w = L/S, and the integral is its midpoint rule over the pairs in the neighbour list
 (R1):
 
     U_other = Σ_(a, b) w² v(d′_ab),   d′_ab = 2R_c + a_ab (|x_a − x_b| + c_ab − 2R_c)   (C3),
@@ -47,7 +47,7 @@ SAMPLES = 12               # fewest sample points per loop
 MOST = 48                  # most sample points per loop (the pairs grow as its square)
 SPACING = 0.75             # samples closer than SPACING·2R_c along the yarn: the acrylic's 12
 #                            (0.94 mm against a core of 0.65 mm) let a leg pass between two samples
-#                            of the head below in a 3 mm diagonal push of a 2 x 2 fabric; 24: clean
+#                            of the head below in a 3 mm diagonal push of a 2 x 2 fabric; 21: clean
 REACH = 1.25               # natural pairs closer than REACH·2r are listed (measured: 1.5 and
 #                            16 samples listed 3,810 pairs on the 6 x 6 acrylic, the Hessian 3.2x
 #                            the NLP's without them; 1.25 and 12: 1,250 pairs, 1.3x)
@@ -60,9 +60,12 @@ def none(samples: int) -> "Neighbours":
     return Neighbours(*(np.zeros(0, int) for _ in range(4)), np.zeros(0), np.zeros(0), samples)
 
 
-def samples_for(L: float, core_radius: float) -> int:
-    """S of the module docstring: sample points per loop of length L."""
-    return int(np.clip(np.ceil(L / (SPACING * 2 * core_radius)), SAMPLES, MOST))
+def samples_for(L: float, core_radius: float, radius: float) -> int:
+    """S of the module docstring: sample points per loop of length L, spaced closer than
+    SPACING times the core's diameter, or the yarn's radius where the core is thinner (a law
+    with next to no core, as the acrylic's compression fit, has no core to resolve: its samples
+    resolve the shell)."""
+    return int(np.clip(np.ceil(L / (SPACING * max(2 * core_radius, radius))), SAMPLES, MOST))
 
 
 def sample_s(L: float, samples: int) -> np.ndarray:
@@ -103,7 +106,7 @@ def natural_neighbours(shape: Natural3D, shell: SoftShell, courses: int, wales: 
                        samples: int | None = None) -> Neighbours:
     """The neighbour list of a fabric of natural 3-D loops (module docstring)."""
     L, r = shape.length, shape.radius
-    samples = samples or samples_for(L, shell.core_radius)
+    samples = samples or samples_for(L, shell.core_radius, shell.radius)
     s = sample_s(L, samples)
     x = shape.xyz(s)
     lattice = np.array([shape.wale_spacing, shape.course_spacing])
