@@ -1,8 +1,8 @@
 """What the answer's own check was made cheaper with (issue 41, docs/measurements.md, "The own
 check's cost") still finds what the plain ways find: the crossing count's segments read from
 the course samples without a copy against every segment pair intersected, the course samples
-written loop block by loop block against one block, the natural interlocks' candidate segments
-from k-d trees against every segment pair, the per-pair counts against a plain count."""
+written loop block by loop block against one block, the per-pair counts against a plain count
+(the natural interlocks' k-d tree candidates: tests/test_contact_natural_crossings.py)."""
 from __future__ import annotations
 
 from collections import Counter
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.model.cases import unclamped
-from knit_nlp.weft.model.contact import natural, pairs
+from knit_nlp.weft.model.contact import pairs
 from knit_nlp.weft.model.contact.crossings import Crossings, find_crossings, segments_crossing
 from knit_nlp.weft.model.contact.curves import Curves
 from knit_nlp.weft.model.contact.pairs import Grid, course_samples
@@ -76,20 +76,6 @@ def test_the_course_samples_put_every_loop_block_in_its_course(monkeypatch, loop
     np.testing.assert_array_equal(blocks[:, :-1:p], curves.starts.reshape(3, 3, 2))
     ends = curves.points(np.array([2, 5, 8]), np.full(3, L))
     np.testing.assert_allclose(blocks[:, -1], ends, rtol=0, atol=1e-9)
-
-
-@pytest.mark.parametrize("seed", [0, 2, 4])
-def test_the_natural_crossings_near_each_other_are_those_of_every_segment_pair(seed):
-    """natural_crossings with ``near`` (candidate segments from k-d trees) on two wiggly walks
-    with steps of very uneven length: the crossings of every segment pair intersected."""
-    rng = np.random.default_rng(seed)
-    s = np.linspace(0.0, 1.0, 301)
-    a = np.cumsum(rng.normal(size=(301, 2)) * rng.lognormal(0.0, 1.0, (301, 1)), axis=0)
-    b = np.cumsum(rng.normal(size=(301, 2)) * rng.lognormal(0.0, 1.0, (301, 1)), axis=0)
-    b += a.mean(0) - b.mean(0)
-    dense = sorted(natural.natural_crossings(a, b, s))
-    assert len(dense) > 5
-    assert sorted(natural.natural_crossings(a, b, s, near=True)) == dense
 
 
 def test_the_pair_counts_are_the_crossings_of_each_pair_of_loops():
