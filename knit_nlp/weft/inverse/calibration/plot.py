@@ -49,7 +49,7 @@ def _panel(ax, t: Any, other: Any = None, other_name: str = "") -> None:
     rms = t.metric
     lat = "" if rms.rms_lateral is None else f", lateral {rms.rms_lateral:.3f}"
     axial = "n/a" if rms.rms_axial is None else f"{rms.rms_axial:.3f}"
-    state = "" if t.complete else f"\nmodel curve stops: {t.reason[:70]}"
+    state = "" if t.complete else f"\nmodel curve stops: {t.reason}"      # wrapped, not cut
     sp = t.specimen.problem
     ax.set_title(f"{t.test.file}: pulled along the {t.test.direction} ({t.test.use})\n"
                  f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
