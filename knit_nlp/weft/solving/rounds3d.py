@@ -83,8 +83,10 @@ class SpatialEquilibrium(SpatialSteps):
             again = SpatialSteps.solve(self, sol.params)
             if not again.success:
                 self.nlp, self.solver, self._kkt = old, old_solver, old_kkt
+                sol.add_effort(again)
                 return sol, again.status
             self.extra = extra
+            again.add_effort(sol)               # the solve it replaces was paid for too
             return again, again.status
         sigma = old.x.get(x, "sigma") if "sigma" in old.x.blocks else None
         x0 = self.nlp.lift3d(old.coefficients(x), old.elevations(x), old.starts3d(x), sigma)
