@@ -24,6 +24,10 @@ def centrelines(coeffs: np.ndarray, starts: np.ndarray, L: float, t: int,
 
 
 def natural_centrelines(pr: WeftProblem, samples: int = SAMPLES) -> np.ndarray:
-    """Sampled centrelines (m, n, samples, 2) of the natural configuration."""
+    """Sampled centrelines (m, n, samples, 2) of the natural configuration (in the 3-D model
+    the natural 3-D fabric projected, on its own lattice: docs/weft3d.md)."""
+    if pr.yarn is not None and pr.yarn.spatial:
+        s = np.linspace(0.0, pr.L, samples)
+        return pr.natural_starts()[:, :, None, :] + pr.natural_xy(s)[None, None]
     coeffs = np.broadcast_to(pr.natural.coeffs, (pr.courses, pr.wales, n_coeffs(pr.t)))
     return centrelines(coeffs, pr.natural_starts(), pr.L, pr.t, samples)[0]
