@@ -43,7 +43,7 @@ from ..model.energy import spring_pair_energy
 from ..model.parametrisation import Full
 from ..model.params import WeftParams, param_layout
 from ..model.problem import WeftProblem
-from ..model.spatial.crossing_contact import crossing_terms, natural_scale, separation
+from ..model.spatial.crossing_contact import crossing_terms, natural_scales, separation
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
 from ..model.spatial.natural3d import Natural3D, flat
 from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
@@ -204,7 +204,7 @@ class SpatialNLP(Assembled):
         cp, sig = self.x.get(x, "cp"), self.x.get(x, "sigma")
         h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T, self.signs)
         shell = self.problem.yarn.shell()
-        a = np.tile(natural_scale(shell, self.shape.h0), h.size // max(self.shape.h0.size, 1))
+        a = natural_scales(shell, self.shape.h0, h.size)
         hc = shell.seen(h, a)
         return {"sigma_upper": sig[0], "sigma_lower": sig[1], "h": h, "sin_angle": sin_a,
                 "compression": (hc - 2 * shell.radius) / a,
@@ -412,7 +412,7 @@ class _Builder:
             self.crossing = self.elements.call(
                 "crossings", crossing_terms(shell), self.K, cp[0:3, :],
                 cp[3:6, :], cp[6:9, :], cp[9:12, :], ca.DM(self.signs).T,
-                ca.DM(np.tile(natural_scale(shell, self.shape.h0), self.K // self.shape.h0.size)).T)
+                ca.DM(natural_scales(shell, self.shape.h0, self.K)).T)
             rows.add("closest", self.crossing[1])
         else:
             self.signs = np.zeros(0)

@@ -21,7 +21,7 @@ two equality rows and one energy term, whether its yarns touch (h < 2r) or not (
 **The natural compression.** A tight fabric's natural wraps are closer than touch (h₀ < 2r:
 the knitting pressed the yarn). The law then starts where the natural fabric puts it and keeps
 its core: E is evaluated at h′ = 2R_c + a (h − 2R_c), a = Δ/(h₀ − 2R_c) per contact (eq. C3 of
-``compression``; ``natural_scale``), as the other contacts' law is (``repulsion``, R1), so that
+``compression``; ``natural_scales``), as the other contacts' law is (``repulsion``, R1), so that
 every natural wrap just touches and carries no force, and no wrap passes the hard core 2R_c at
 which the independent check (``proximity``) judges.
 """
@@ -33,9 +33,11 @@ import numpy as np
 from ..compression import SoftShell
 
 
-def natural_scale(shell: SoftShell, h0: np.ndarray) -> np.ndarray:
-    """a of the module docstring (C3), per contact: 1 where it is at rest beyond touch."""
-    return shell.thinning(h0)
+def natural_scales(shell: SoftShell, h0: np.ndarray, count: int) -> np.ndarray:
+    """a of the module docstring (C3) for ``count`` contacts, the shape's contacts (natural
+    separations h0, one per contact of a loop) repeated loop by loop: 1 where a contact is at
+    rest beyond touch."""
+    return np.tile(shell.thinning(h0), count // max(len(h0), 1))
 
 
 def crossing_terms(shell: SoftShell) -> ca.Function:
