@@ -33,7 +33,8 @@ from ..output.results import WeftResult
 from ..solving.solve import SolveReport
 from ..solving.sensitivity import Stability
 from .forward import equilibrium_for
-from .plot import natural_plan, plot_control
+from ..model.centrelines import natural_centrelines
+from .plot import plot_control
 from .points import point_function, point_jacobian
 from .spec import Actuated, ControlProblem
 
@@ -140,7 +141,7 @@ class ControlResult(Outcome):
                      + f" at least {o['at_least']:.4g}: achieved {o['achieved']:.4g}")
                     for pair, o in zip(self.ctl.opening_points(self.state.x), result["openings"])]
         png = plot_control(out / f"{name}.control.png", self.equilibrium,
-                           natural_plan(wnlp), wnlp.centrelines(self.start.x),
+                           natural_centrelines(wnlp.problem), wnlp.centrelines(self.start.x),
                            wnlp.centrelines(self.state.x), goals, reached, travel, openings,
                            f"{name}: {result['status']}, objective {result['objective']:.3g}, "
                            f"{'stable' if result['stable'] else 'NOT STABLE'}"

@@ -35,7 +35,8 @@ from ..output.results import WeftResult
 from ..solving.solve import Equilibrium, SolveReport
 from .forward import equilibrium_for
 from .observations import Observation
-from .plot import natural_plan, plot_fit
+from ..model.centrelines import natural_centrelines
+from .plot import plot_fit
 from .points import point_function, point_jacobian
 
 CONVERGED = "Converged"
@@ -96,7 +97,7 @@ class FitResult(Outcome):
         :func:`fit_name` of the load cases, so fits of other cases never overwrite these."""
         out, result, name = Path(out_dir), self.to_json(), self._name()
         js = write_json(out / f"{name}.fit.json", result)
-        panels = [(c.name, self.case_result(c), natural_plan(c.eq.wnlp),
+        panels = [(c.name, self.case_result(c), natural_centrelines(c.eq.wnlp.problem),
                    c.eq.wnlp.centrelines(c.x), c.observed, self.fitted[c.name])
                   for c in self.cases if c.x is not None]
         title = (f"fit of {', '.join(self.names)}: {result['status']}, rms residual "

@@ -17,17 +17,9 @@ from ...figures import legend_below, new_figure, save_figure, settle_layout
 from ...units import Units
 from ..output.plot import (DPI, KEY_WIDTH, fabric_figure, colour_key, course_lines, draw_solution,
                            reference_arrow)
-from ..model.centrelines import natural_centrelines
 from ..output.reactions import SolvedFabric
 
 GOAL, TRAVEL, OPENING = "darkorange", "darkorange", "magenta"
-
-
-def natural_plan(wnlp: Any) -> np.ndarray:
-    """The natural loops a picture draws (m, n, samples, 2): the paper's natural loop, or the
-    3-D model's natural curves in projection (its natural shape, not the paper's)."""
-    natural3d = getattr(wnlp, "natural_centrelines3d", None)
-    return natural_centrelines(wnlp.problem) if natural3d is None else natural3d()[..., :2]
 CHECK_CHARS = 80            # a check's words per title line: control's picture
 PANEL_CHARS = 55            # ... a fit's panel (4.8 inches wide, 9 pt)
 
