@@ -113,35 +113,45 @@ def _cell_pairs(points: np.ndarray, radius: float, rows: int) -> np.ndarray:
     the pairs of a single point."""
     chunks = list(near.cell_pairs(points, radius, rows))
     for c in chunks:
-        assert len(c) <= rows or len(np.unique(c.min(axis=1))) == 1 or len(c) < len(points)
+        assert len(c) <= rows or any(np.all(np.any(c == p, axis=1)) for p in c[0])
     return np.concatenate(chunks) if chunks else np.zeros((0, 2), dtype=np.int64)
 
 
 def _points(kind: str) -> tuple[np.ndarray, float]:
-    """Points and a radius: uniform, on a lattice of exactly the radius (pairs at the cells'
-    edges), clumped (many points in one cell: chunks of one point's pairs), a wide sparse
-    cloud (cell numbers past 32 bits) and one too fine for 64 bits (the k-d tree instead)."""
+    """Points and a radius: uniform, on a lattice of exactly the radius, pairs exactly the
+    radius apart whose first point lies just below a cell's edge (two cells apart in cells
+    any narrower), clumped (many points in one cell: chunks of one point's pairs), a column
+    of points a radius apart over the rows whose cell numbers pass 2^31, a wide sparse cloud
+    and one too fine for 64-bit cell numbers (the k-d tree instead)."""
     rng = np.random.default_rng(5)
     if kind == "uniform":
         return rng.random((3000, 2)) * 3.0, 0.05
     if kind == "lattice":
         i, j = np.mgrid[0:40, 0:40]
         return np.stack([i.ravel(), j.ravel()], axis=1) * 0.25 + 1.0, 0.25
+    if kind == "edges":
+        k = np.arange(1.0, 61.0)
+        a = np.stack([k * 0.25 * (1 - 2e-6), 3.0 * k], axis=1)
+        return np.concatenate([[[0.0, 0.0]], a, a + [0.25, 0.0]]), 0.25
+    if kind == "rows":
+        column = np.stack([np.full(2000, 0.5), np.arange(42000, 44000) + 0.5], axis=1)
+        return np.concatenate([[[0.0, 0.0], [5e4, 0.0]], column]), 1.0
     if kind == "clumped":
         return np.concatenate([rng.random((400, 2)) * 0.01, rng.random((600, 2))]), 0.02
     if kind == "wide":
         far = rng.random((500, 2)) * 1e6
         return np.concatenate([far, far[:100] + rng.normal(0, 0.3, (100, 2))]), 1.0
     far = rng.random((300, 2)) * 1e12
-    return np.concatenate([far, far[:50] + rng.normal(0, 1e-7, (50, 2))]), 1e-6
+    return np.concatenate([far, far[:50]]), 1e-9
 
 
-@pytest.mark.parametrize("kind", ["uniform", "lattice", "clumped", "wide", "too_fine"])
+@pytest.mark.parametrize("kind", ["uniform", "lattice", "edges", "clumped", "rows", "wide",
+                                  "too_fine"])
 def test_the_cell_list_holds_every_pair_of_the_tree_once(kind):
-    """near.cell_pairs against the k-d tree's query_pairs (every pair within the radius): on
-    uniform points, a lattice spaced exactly the radius, a clump of 400 points in one cell
-    with chunks of 500 rows, a cloud 10^6 radii wide and one 10^18 wide: every tree pair is
-    there, each pair once with u < v, and none further than two cells' diagonal."""
+    """near.cell_pairs against the k-d tree's query_pairs (every pair within the radius), in
+    chunks of at most 500 pairs (or one point's): on the points of :func:`_points` (a cloud
+    10^6 radii wide, one 10^21 wide): every tree pair is there, each pair once with u < v,
+    and none further than two cells' diagonal."""
     pts, radius = _points(kind)
     got = _cell_pairs(pts, radius, 500)
     n = len(pts)
