@@ -4,7 +4,8 @@ natural fabric's.
 Every course is sampled as a polyline (:func:`crossing_samples` segments per loop, 200 unless a
 check asks for more, the same for the solver and ``check``); segment pairs come from a k-d tree
 over segment midpoints (two segments can only meet if their midpoints are within one segment
-length), never from all pairs, and a bounded number at a time (near.close_pairs). Two segments
+length), or from a cell list where the crossings' order does not show (near.cell_pairs), never
+from all pairs, and a bounded number at a time (near.close_pairs). Two segments
 cross when their parameters both lie in [0, 1) (half-open, so a crossing at a shared sample is
 counted once); neighbouring segments of one course share a sample and are skipped. A crossing
 is located on both yarns by its loops and material points. A pair of loops crossing more often

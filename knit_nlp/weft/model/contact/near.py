@@ -1,5 +1,6 @@
 """Neighbour searches in bounded memory: the k-d tree queries of the crossing count and the pair
-search, a bounded number of neighbour rows at a time.
+search, a bounded number of neighbour rows at a time, and the cell list (:func:`cell_pairs`)
+that counts crossings where their order does not show.
 
 A query over all points at once holds every neighbour pair in memory at once: a 10 x 10 result
 judged at r = 1.0 or 2.4 asked for 42 million rows and more (a MemoryError, or the kernel's kill
