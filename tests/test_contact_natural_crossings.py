@@ -24,7 +24,7 @@ def test_the_near_segments_hold_every_crossing_of_random_polylines(seed):
     near = sorted(natural.natural_crossings(a, b, s, natural._distances(a, b)))
     assert len(dense) > 5
     np.testing.assert_allclose(near, dense, rtol=0, atol=1e-12)
-    # candidate segments from k-d trees (``near``) find the same crossings, to the bit
+    # candidate segments from a cell list (``near``) find the same crossings, to the bit
     assert sorted(natural.natural_crossings(a, b, s, near=True)) == dense
 
 

@@ -257,7 +257,7 @@ def _check_state(problem: WeftProblem, coeffs: np.ndarray, starts: np.ndarray,
     grid = Grid(problem.courses, problem.wales, problem.L, samples)
     radius = problem.yarn.radius if problem.yarn is not None else None
     fab = NaturalFabric.of(problem, radius if radius is not None else problem.L / 100)
-    found = find_crossings(curves, grid)
+    found = find_crossings(curves, grid, ordered=places)     # the order only shows in places
     verdict = judge(fab, found, problem.courses, problem.wales)
     n = problem.wales
     report = CheckReport(problem.name, radius, _new(verdict, found, n, places),

@@ -4,7 +4,8 @@ natural fabric's.
 Every course is sampled as a polyline (:func:`crossing_samples` segments per loop, 200 unless a
 check asks for more, the same for the solver and ``check``); segment pairs come from a k-d tree
 over segment midpoints (two segments can only meet if their midpoints are within one segment
-length), never from all pairs, and a bounded number at a time (near.close_pairs). Two segments
+length), or from a cell list where the crossings' order does not show (near.cell_pairs), never
+from all pairs, and a bounded number at a time (near.close_pairs). Two segments
 cross when their parameters both lie in [0, 1) (half-open, so a crossing at a shared sample is
 counted once); neighbouring segments of one course share a sample and are skipped. A crossing
 is located on both yarns by its loops and material points. A pair of loops crossing more often
@@ -22,7 +23,7 @@ from .curves import Curves
 from .natural import NaturalFabric
 from .ranges import expand
 from .zones import Zones, half_width
-from .near import close_pairs
+from .near import cell_pairs, close_pairs
 from .pairs import MAX_SAMPLES, ROWS, SAMPLES, Grid, course_samples
 
 
@@ -67,9 +68,12 @@ class Crossings:
         return self._pairs
 
 
-def find_crossings(curves: Curves, grid: Grid) -> Crossings:
+def find_crossings(curves: Curves, grid: Grid, ordered: bool = True) -> Crossings:
     """Every crossing of two pieces of yarn (different loops, or one course with itself),
-    counted on polylines of :func:`crossing_samples` segments per loop."""
+    counted on polylines of :func:`crossing_samples` segments per loop; ``ordered``: in the
+    k-d tree's order (near.close_pairs), which ``knit-nlp check`` lists each pair of loops'
+    crossing points in, else in the cell list's (near.cell_pairs: the same crossings, found
+    with less work and without SciPy, for callers that only count them)."""
     grid = grid.sampled_at(crossing_samples(grid.per_loop))
     pts = course_samples(curves, grid)                       # (m, K, 2)
     m, K = pts.shape[:2]
@@ -80,8 +84,9 @@ def find_crossings(curves: Curves, grid: Grid) -> Crossings:
     mid = d * 0.5                   # the midpoints p0 + d / 2 in one array (halving is exact)
     mid += pts[:, :-1]
     d, mid = d.reshape(-1, 2), mid.reshape(-1, 2)
+    search = close_pairs if ordered else cell_pairs
     parts = [_crossing_segments(points, d, K, uv)
-             for uv in close_pairs(mid, _longest(d) + 1e-12, ROWS)]
+             for uv in search(mid, _longest(d) + 1e-12, ROWS)]
     parts = [p for p in parts if len(p[0])]
     if not parts:
         return _empty()
