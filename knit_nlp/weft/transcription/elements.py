@@ -264,3 +264,53 @@ def _assemble(nrow: int, ncol: int, parts: list, rest: ca.MX) -> ca.MX:
                           shape=(uniq.size, len(rr)))
         nz = nz + ca.mtimes(_to_dm(E), rest.nz[:])
     return ca.MX(sparsity, nz)
+
+
+def condensed_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elements,
+                          nz: int, Y: ca.MX, f_y: ca.MX
+                          ) -> tuple[ca.MX, ca.MX, dict[str, ca.Function]]:
+    """An NLP whose decision vector x = (z, y) ends in a lifted block y that only f uses,
+    condensed onto z: y = Y(z) substituted, not a variable with its rows y − Y(z) = 0.
+    Its derivatives are those of the lifted NLP (f, (g, y − Y)) (:func:`element_derivatives`)
+    mapped by the chain rule, with T = ∂(z, Y(z))/∂z = [I; ∂Y/∂z] (∂Y/∂z = minus the lifted
+    rows' Jacobian in z):
+
+        ∂g_c/∂z = ∂g/∂z,     ∇²_z L_c = Tᵀ ∇²_x L(x(z), λ_f, (λ_g, μ)) T,
+
+    the lifted rows' multipliers μ = −λ_f ∇_y f (they make the lifted Lagrangian stationary in
+    y, whence its (z, z) block carries Σ λ_f ∂f/∂y_i ∇²Y_i, the condensed curvature); ``f_y``:
+    the terms of f that use y (∇_y f = ∇_y f_y, refused otherwise). Returns
+    z, x(z) (to evaluate the lifted expressions at) and the ``jac_g`` and ``hess_lag`` Functions
+    (g and its Jacobian evaluated at y = 0: they do not use y).
+    The condensed KKT system has neither y nor its rows: the 3-D model's repulsion samples,
+    lifted, tripled its size and filled its factor sevenfold (docs/weft3d.md, "Cost")."""
+    nx, ng = x.numel(), g.numel()
+    ny = nx - nz
+    Yv = ca.vec(Y)
+    if Yv.numel() != ny:
+        raise NotElementwise(f"the lifted block has {ny} variables and {Yv.numel()} values")
+    lifted = element_derivatives(x, p, f, ca.vertcat(g, x[nz:] - Yv), elements, nx)
+    # ∂Y/∂z alone (the elements that Y uses), not the whole Jacobian again in every Hessian
+    dY = element_derivatives(x, p, ca.MX(0), x[nz:] - Yv, elements, nx)["jac_g"]
+    grad_y = ca.Function("grad_y", [x, p], [ca.gradient(f_y, x)[nz:]])
+    rest = ca.graph_substitute(f, [f_y], [ca.MX.sym("f_y")])
+    if ca.jacobian(rest, x)[:, nz:].nnz():
+        raise NotElementwise("f uses the condensed block outside the terms given")
+    z = ca.MX.sym("x", nz)
+    z0 = ca.vertcat(z, ca.DM.zeros(ny))          # where y does not matter (g, Y)
+    xz = ca.vertcat(z, ca.Function("Y", [x], [Yv])(z0))
+    r, c = (np.asarray(v) for v in lifted["jac_g"].sparsity_out(1).get_triplet())
+    if np.any((r < ng) & (c >= nz)) or np.count_nonzero((r >= ng) & (c >= nz)) != ny:
+        raise NotElementwise("the condensed block is used by g, or Y depends on it")
+    g_c, jac = element_derivatives(x, p, ca.MX(0), g, elements, nx)["jac_g"](z0, p)
+    jac = jac[:, :nz]
+    T = ca.vertcat(ca.MX(ca.DM.eye(nz)), -dY(xz, p)[1][:, :nz])
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng)
+    mu = -lam_f * grad_y(xz, p)
+    H = ca.triu2symm(lifted["hess_lag"](xz, p, lam_f, ca.vertcat(lam_g, mu)))
+    hess = ca.triu(ca.mtimes(T.T, ca.mtimes(H, T)))
+    return z, xz, {"jac_g": ca.Function("nlp_jac_g", [z, p], [g_c, jac], ["x", "p"],
+                                        ["g", "jac_g_x"]),
+                   "hess_lag": ca.Function("nlp_hess_l", [z, p, lam_f, lam_g], [hess],
+                                           ["x", "p", "lam_f", "lam_g"],
+                                           ["triu_hess_gamma_x_x"])}
