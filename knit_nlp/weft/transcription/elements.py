@@ -78,8 +78,10 @@ class Elements:
 
 
 def element_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elements,
-                        nx: int) -> dict[str, ca.Function]:
-    """``jac_g`` and ``hess_lag`` Functions for ``casadi.nlpsol`` (module docstring)."""
+                        nx: int, want: tuple[str, ...] = ("jac_g", "hess_lag")
+                        ) -> dict[str, ca.Function]:
+    """``jac_g`` and ``hess_lag`` Functions for ``casadi.nlpsol`` (module docstring); only
+    those in ``want`` are built (each assembly costs set-up time and memory)."""
     used = [(e, o) for e in elements.items for o in range(len(e.outputs))]
     Y = [ca.MX.sym(f"{e.name}_{o}", *e.outputs[o].shape) for e, o in used]
     outs = [e.outputs[o] for e, o in used]
@@ -99,22 +101,26 @@ def element_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elemen
         need_h = [bool(np.any(cf[starts[o]:starts[o + 1]]) or
                        Gy[:, starts[o]:starts[o + 1]].nnz) for o in range(len(e.outputs))]
         need_j = [bool(Gy[:, starts[o]:starts[o + 1]].nnz) for o in range(len(e.outputs))]
-        if any(need_j):
+        if any(need_j) and "jac_g" in want:
             jac_parts.append(local.jacobian(need_j, Gy, starts))
-        if any(need_h):
+        if any(need_h) and "hess_lag" in want:
             mus = [ca.reshape(mu_all[int(starts[o]):int(starts[o + 1])], *e.outputs[o].shape)
                    for o in range(len(e.outputs))]
             hess_parts.append(local.hessian(need_h, mus))
 
     # the rest (f0, g0) by CasADi's AD; separable, so evaluated with the outputs' own values
-    G0 = ca.graph_substitute(ca.jacobian(g_s, x), Y, outs)
-    lag0 = lam_f * f_s + ca.dot(lam_g, g_s)
-    H0 = ca.graph_substitute(ca.triu(ca.hessian(lag0, x)[0]), Y, outs)
-    jac = _assemble(g.numel(), nx, jac_parts, G0)
-    hess = _assemble(nx, nx, hess_parts, H0)
-    return {"jac_g": ca.Function("nlp_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
-            "hess_lag": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess],
-                                    ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])}
+    out = {}
+    if "jac_g" in want:
+        G0 = ca.graph_substitute(ca.jacobian(g_s, x), Y, outs)
+        jac = _assemble(g.numel(), nx, jac_parts, G0)
+        out["jac_g"] = ca.Function("nlp_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"])
+    if "hess_lag" in want:
+        lag0 = lam_f * f_s + ca.dot(lam_g, g_s)
+        H0 = ca.graph_substitute(ca.triu(ca.hessian(lag0, x)[0]), Y, outs)
+        out["hess_lag"] = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g],
+                                      [_assemble(nx, nx, hess_parts, H0)],
+                                      ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+    return out
 
 
 def _constant_coefficients(f_s: ca.MX, g_s: ca.MX, x: ca.MX, p: ca.MX, yv: ca.MX
@@ -289,28 +295,33 @@ def condensed_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elem
     Yv = ca.vec(Y)
     if Yv.numel() != ny:
         raise NotElementwise(f"the lifted block has {ny} variables and {Yv.numel()} values")
-    lifted = element_derivatives(x, p, f, ca.vertcat(g, x[nz:] - Yv), elements, nx)
+    hess_l = element_derivatives(x, p, f, ca.vertcat(g, x[nz:] - Yv), elements, nx,
+                                 ("hess_lag",))["hess_lag"]
     # ∂Y/∂z alone (the elements that Y uses), not the whole Jacobian again in every Hessian
-    dY = element_derivatives(x, p, ca.MX(0), x[nz:] - Yv, elements, nx)["jac_g"]
+    dY = element_derivatives(x, p, ca.MX(0), x[nz:] - Yv, elements, nx, ("jac_g",))["jac_g"]
     grad_y = ca.Function("grad_y", [x, p], [ca.gradient(f_y, x)[nz:]])
     rest = ca.graph_substitute(f, [f_y], [ca.MX.sym("f_y")])
-    if ca.jacobian(rest, x)[:, nz:].nnz():
+    if _uses(rest, x, nz):
         raise NotElementwise("f uses the condensed block outside the terms given")
     z = ca.MX.sym("x", nz)
     z0 = ca.vertcat(z, ca.DM.zeros(ny))          # where y does not matter (g, Y)
     xz = ca.vertcat(z, ca.Function("Y", [x], [Yv])(z0))
-    r, c = (np.asarray(v) for v in lifted["jac_g"].sparsity_out(1).get_triplet())
-    if np.any((r < ng) & (c >= nz)) or np.count_nonzero((r >= ng) & (c >= nz)) != ny:
+    if _uses(g, x, nz) or _uses(Yv, x, nz):
         raise NotElementwise("the condensed block is used by g, or Y depends on it")
-    g_c, jac = element_derivatives(x, p, ca.MX(0), g, elements, nx)["jac_g"](z0, p)
+    g_c, jac = element_derivatives(x, p, ca.MX(0), g, elements, nx, ("jac_g",))["jac_g"](z0, p)
     jac = jac[:, :nz]
     T = ca.vertcat(ca.MX(ca.DM.eye(nz)), -dY(xz, p)[1][:, :nz])
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng)
     mu = -lam_f * grad_y(xz, p)
-    H = ca.triu2symm(lifted["hess_lag"](xz, p, lam_f, ca.vertcat(lam_g, mu)))
+    H = ca.triu2symm(hess_l(xz, p, lam_f, ca.vertcat(lam_g, mu)))
     hess = ca.triu(ca.mtimes(T.T, ca.mtimes(H, T)))
     return z, xz, {"jac_g": ca.Function("nlp_jac_g", [z, p], [g_c, jac], ["x", "p"],
                                         ["g", "jac_g_x"]),
                    "hess_lag": ca.Function("nlp_hess_l", [z, p, lam_f, lam_g], [hess],
                                            ["x", "p", "lam_f", "lam_g"],
                                            ["triu_hess_gamma_x_x"])}
+
+
+def _uses(expr: ca.MX, x: ca.MX, nz: int) -> bool:
+    """Whether ``expr`` depends (structurally) on x[nz:]."""
+    return bool(np.any(np.asarray(ca.jacobian_sparsity(expr, x).get_triplet()[1]) >= nz))
