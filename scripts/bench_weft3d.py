@@ -2,7 +2,7 @@
 
     python scripts/bench_weft3d.py [--pull F] [--max-time S] [--predictor] [--steps K]
                                    [--ipopt NAME=VALUE ...] [--rounds R] [N ...]
-                                   (default: F = 0.5, S = 900, K = 4, N = 6 10)
+                                   (default: F = 0.5, S = 900, K = 3, N = 6 10)
 
 For each N: an N x N acrylic stockinette (L = 11.28 mm, R_f = 0.045 N·mm², r = 0.74 mm) with
 loop (1, 1)'s start held and H of loop (1, N) pulled by (F·N, F·N) mm, solved by
