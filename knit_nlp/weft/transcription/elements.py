@@ -20,6 +20,10 @@ sparse matrix (numpy/scipy, built once) applied to the stacked local nonzeros. T
 g outside the elements (f₀, g₀: loads, affine rows, or a term written directly in MX) keeps
 CasADi's AD, so a new energy term is correct whether or not it is registered as an element
 (registered, it is cheap). An NLP that is not of this form is refused (``NotElementwise``).
+
+A lifted block that only f uses (y = Y(z) with rows y − Y(z) = 0) can be condensed away
+(:func:`condensed_derivatives`): the NLP in z alone, its derivatives the lifted ones mapped by
+the chain rule.
 """
 from __future__ import annotations
 
@@ -291,23 +295,16 @@ def condensed_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elem
     The condensed KKT system has neither y nor its rows: the 3-D model's repulsion samples,
     lifted, tripled its size and filled its factor sevenfold (docs/weft3d.md, "Cost")."""
     nx, ng = x.numel(), g.numel()
-    ny = nx - nz
-    Yv = ca.vec(Y)
-    if Yv.numel() != ny:
-        raise NotElementwise(f"the lifted block has {ny} variables and {Yv.numel()} values")
+    ny, Yv = nx - nz, ca.vec(Y)
+    _condensable(x, f, g, Yv, f_y, nz)
     hess_l = element_derivatives(x, p, f, ca.vertcat(g, x[nz:] - Yv), elements, nx,
                                  ("hess_lag",))["hess_lag"]
     # ∂Y/∂z alone (the elements that Y uses), not the whole Jacobian again in every Hessian
     dY = element_derivatives(x, p, ca.MX(0), x[nz:] - Yv, elements, nx, ("jac_g",))["jac_g"]
     grad_y = ca.Function("grad_y", [x, p], [ca.gradient(f_y, x)[nz:]])
-    rest = ca.graph_substitute(f, [f_y], [ca.MX.sym("f_y")])
-    if _uses(rest, x, nz):
-        raise NotElementwise("f uses the condensed block outside the terms given")
     z = ca.MX.sym("x", nz)
     z0 = ca.vertcat(z, ca.DM.zeros(ny))          # where y does not matter (g, Y)
     xz = ca.vertcat(z, ca.Function("Y", [x], [Yv])(z0))
-    if _uses(g, x, nz) or _uses(Yv, x, nz):
-        raise NotElementwise("the condensed block is used by g, or Y depends on it")
     g_c, jac = element_derivatives(x, p, ca.MX(0), g, elements, nx, ("jac_g",))["jac_g"](z0, p)
     jac = jac[:, :nz]
     T = ca.vertcat(ca.MX(ca.DM.eye(nz)), -dY(xz, p)[1][:, :nz])
@@ -320,6 +317,18 @@ def condensed_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elem
                    "hess_lag": ca.Function("nlp_hess_l", [z, p, lam_f, lam_g], [hess],
                                            ["x", "p", "lam_f", "lam_g"],
                                            ["triu_hess_gamma_x_x"])}
+
+
+def _condensable(x: ca.MX, f: ca.MX, g: ca.MX, Yv: ca.MX, f_y: ca.MX, nz: int) -> None:
+    """Refuse (``NotElementwise``) a block y = x[nz:] that g or Y uses, that f uses outside
+    ``f_y``, or whose size is not Y's."""
+    if Yv.numel() != x.numel() - nz:
+        raise NotElementwise(f"the lifted block has {x.numel() - nz} variables and "
+                             f"{Yv.numel()} values")
+    if _uses(g, x, nz) or _uses(Yv, x, nz):
+        raise NotElementwise("the condensed block is used by g, or Y depends on it")
+    if _uses(ca.graph_substitute(f, [f_y], [ca.MX.sym("f_y")]), x, nz):
+        raise NotElementwise("f uses the condensed block outside the terms given")
 
 
 def _uses(expr: ca.MX, x: ca.MX, nz: int) -> bool:
