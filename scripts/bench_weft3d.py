@@ -1,8 +1,8 @@
 """Cost of the 3-D weft model against the paper's model, same run (docs/weft3d.md, "Cost").
 
     python scripts/bench_weft3d.py [--pull F] [--max-time S] [--predictor] [--steps K]
-                                   [--ipopt NAME=VALUE ...] [N ...]
-                                   (default: F = 0.5, S = 900, K = 4, N = 6 10)
+                                   [--ipopt NAME=VALUE ...] [--rounds R] [N ...]
+                                   (default: F = 0.5, S = 900, K = 3, N = 6 10)
 
 For each N: an N x N acrylic stockinette (L = 11.28 mm, R_f = 0.045 N·mm², r = 0.74 mm) with
 loop (1, 1)'s start held and H of loop (1, N) pulled by (F·N, F·N) mm, solved by
@@ -17,7 +17,9 @@ the 3-D load steps start from the secant predictor (``solve.MODEL_PREDICTOR``, o
 ``--steps``: the 3-D model's load steps (``solve.MODEL_CONTINUATION``); ``--ipopt``: an IPOPT
 option for the 3-D solves (``solve.MODEL_IPOPT``; repeat it for more; e.g.
 ``--ipopt mumps_pivot_order=5``; ``--ipopt output_file=log.txt --ipopt file_print_level=6
---ipopt file_append=yes`` writes IPOPT's log of every 3-D solve).
+--ipopt file_append=yes`` writes IPOPT's log of every 3-D solve); ``--rounds``: at most R rounds
+of other contacts (``rounds3d.ROUNDS``; 0: the first NLP's answer, for comparing two builds of
+one NLP: a round's pairs depend on the answer before it).
 """
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ import time
 
 from knit_nlp.weft.api import solve
 from knit_nlp.weft.solving import solve as solving
+from knit_nlp.weft.solving.rounds3d import SpatialEquilibrium
 from knit_nlp.weft.model.problem import parse_problem
 
 MAX_TIME = 900.0          # s of wall clock per solve
@@ -53,6 +56,12 @@ def split(res) -> str:
             f"f, g, grad f {1e3 * other / it:.1f} ms, IPOPT's own {1e3 * rest / it:.1f} ms")
 
 
+def rounds(block: dict) -> str:
+    """The rounds of other contacts (docs/weft3d.md): pairs added and status of each."""
+    done = block.get("other_contacts", {}).get("rounds", [])
+    return ", ".join(f"+{r['added']} {r['status']}" for r in done) or "none"
+
+
 def run(n: int, pull: float, max_time: float = MAX_TIME) -> None:
     rows = {}
     for spatial in (False, True):
@@ -68,7 +77,7 @@ def run(n: int, pull: float, max_time: float = MAX_TIME) -> None:
             extra = (f"  smallest separation {sp['smallest_separation']:.4f} mm (core "
                      f"{2 * pr.yarn.core_radius:.3f}, touch {2 * pr.yarn.radius:.3f}), flipped "
                      f"{sp['flipped']}, slid off their loop {sp['slid_off_loop']}, energy "
-                     f"{res.report.objective:.12g}\n{split(res)}")
+                     f"{res.report.objective:.12g}, rounds {rounds(sp)}\n{split(res)}")
         print(f"{n} x {n} pull {pull * n:g} mm {'3-D   ' if spatial else 'planar'}: {res.status} {res.iterations} it, "
               f"build {res.timings['build_s']:.2f} s, solve {res.report.solve_s:.2f} s, "
               f"wall {wall:.2f} s, CPU {cpu:.2f} s, peak memory {peak:.0f} MB{extra}", flush=True)
@@ -89,13 +98,16 @@ def option_value(text: str) -> int | float | str:
 if __name__ == "__main__":
     args = sys.argv[1:]
     fraction, budget = 0.5, MAX_TIME
-    while args[:1] in (["--pull"], ["--max-time"], ["--predictor"], ["--steps"], ["--ipopt"]):
+    while args[:1] in (["--pull"], ["--max-time"], ["--predictor"], ["--steps"], ["--ipopt"],
+                       ["--rounds"]):
         if args[0] == "--predictor":
             solving.MODEL_PREDICTOR.add("full3d")
             args = args[1:]
             continue
         if args[0] == "--pull":
             fraction = float(args[1])
+        elif args[0] == "--rounds":
+            SpatialEquilibrium.rounds_max = int(args[1])
         elif args[0] == "--steps":
             solving.MODEL_CONTINUATION["full3d"] = int(args[1])
         elif args[0] == "--ipopt":

@@ -1,6 +1,7 @@
 """The 3-D NLP's element-assembled derivatives (transcription/elements.py) against CasADi's AD
 of the same NLP, exactly (rounding), at random points; and the assembly's contract on a toy
-NLP (an unregistered term falls back to AD; a non-affine use of an output is refused)."""
+NLP (an unregistered term falls back to AD; a non-affine use of an output is refused; a lifted
+block condensed away has the condensed NLP's derivatives)."""
 from __future__ import annotations
 
 import casadi as ca
@@ -8,7 +9,8 @@ import numpy as np
 import pytest
 
 from knit_nlp.weft.model.problem import parse_problem
-from knit_nlp.weft.transcription.elements import Elements, NotElementwise, element_derivatives
+from knit_nlp.weft.transcription.elements import (Elements, NotElementwise,
+                                                   condensed_derivatives, element_derivatives)
 from knit_nlp.weft.transcription.spatial import Spatial, build_spatial
 
 PULL_3x2 = {"fabric": {"courses": 3, "wales": 2},
@@ -90,3 +92,47 @@ def test_a_nonaffine_use_of_an_output_is_refused() -> None:
     x, p, f, g, els = _toy(extra=False, misuse=True)
     with pytest.raises(NotElementwise, match="not affine"):
         element_derivatives(x, p, f, g, els, 7)
+
+
+def _lifted_toy(g_uses_y: bool = False):
+    """x = (z (4), y (4)): y = Y(z), two instances of an element Y_m(v) = (v0 sin v1,
+    cos(v0) v1) on z, used by f only through f_y = Σ y² y_next (+ z's own terms); rows in z."""
+    x, p = ca.MX.sym("x", 8), ca.MX.sym("p", 1)
+    v = ca.SX.sym("v", 2)
+    els = Elements()
+    Y = els.call("samples", ca.Function("Y", [v], [ca.vertcat(v[0] * ca.sin(v[1]),
+                                                             ca.cos(v[0]) * v[1])]),
+                 2, ca.reshape(x[0:4], 2, 2))[0]
+    y = x[4:8]
+    f_y = ca.sum1(y ** 2 * ca.vertcat(y[1:], y[0])) + p * ca.exp(y[2])
+    f = f_y + x[0] ** 2 * x[3] + p * x[2]
+    g = ca.vertcat(x[0] * x[1] - x[2], ca.sin(x[3]) + (y[0] if g_uses_y else 0))
+    return x, p, f, g, els, Y, f_y
+
+
+def test_a_condensed_block_has_the_condensed_nlps_derivatives() -> None:
+    """The lifted block y = Y(z) substituted (``condensed_derivatives``): Jacobian and
+    Lagrangian Hessian in z equal CasADi's AD of f(z, Y(z)), g(z) at random points, and the
+    returned x(z) is (z, Y(z))."""
+    x, p, f, g, els, Y, f_y = _lifted_toy()
+    z, xz, opts = condensed_derivatives(x, p, f, g, els, 4, Y, f_y)
+    fz, gz = ca.Function("fg", [x, p], [f, g])(xz, p)
+    jac, hess = _ad({"x": z, "p": p, "f": fz, "g": gz})
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        zv = rng.normal(size=4)
+        dj, dh = _compare(jac, hess, opts, zv, 1.3, rng.uniform(0.5, 2), rng.normal(size=2))
+        assert dj < 1e-14 and dh < 1e-13
+    zv = rng.normal(size=4)
+    Yv = ca.Function("Y", [x], [ca.vec(Y)])(np.r_[zv, np.zeros(4)])
+    assert np.allclose(np.ravel(ca.Function("xz", [z], [xz])(zv)), np.r_[zv, np.ravel(Yv)],
+                       rtol=0, atol=1e-15)
+
+
+def test_a_block_the_rows_use_cannot_be_condensed() -> None:
+    x, p, f, g, els, Y, f_y = _lifted_toy(g_uses_y=True)
+    with pytest.raises(NotElementwise, match="used by g"):
+        condensed_derivatives(x, p, f, g, els, 4, Y, f_y)
+    x, p, f, g, els, Y, f_y = _lifted_toy()
+    with pytest.raises(NotElementwise, match="outside the terms"):
+        condensed_derivatives(x, p, f + x[5] ** 3, g, els, 4, Y, f_y)

@@ -58,8 +58,11 @@ EASY_ITERATIONS = 6
 # factorisations of the KKT system.
 MODEL_IPOPT: dict[str, dict] = {"full": {"first_hessian_perturbation": 1.0}, "reduced": {}}
 # the 3-D model (docs/weft3d.md) by default in load steps: a direct solve from the natural
-# state of a 6 x 6 acrylic diagonal pull took 2113 iterations to fail, 4 steps 109 to succeed
-MODEL_CONTINUATION: dict[str, int] = {"full3d": 4}
+# state of a 6 x 6 acrylic diagonal pull took 2113 iterations to fail, 4 steps 109 to succeed;
+# with the repulsion's samples condensed, 3 steps took 47, 33 and 36 iterations on the 6 x 6,
+# 10 x 10 and 30 x 30 pulls of scripts/bench_weft3d.py against 4 steps' 55, 41 and 50, to the
+# same minima (energies within 1e-10, positions 6e-9 mm); 2 steps ended in another (6 x 6)
+MODEL_CONTINUATION: dict[str, int] = {"full3d": 3}
 # models whose load steps start from the secant predictor (``WeftSolver.continuation``,
 # ``predict``). None by default: on the 3-D diagonal pulls it saved 13-22 % of the iterations
 # (6 x 6: 105 -> 91, 10 x 10: 169 -> 131) but ended in a neighbouring minimum (energy 4e-7 and

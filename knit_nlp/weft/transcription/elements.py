@@ -20,6 +20,10 @@ sparse matrix (numpy/scipy, built once) applied to the stacked local nonzeros. T
 g outside the elements (f₀, g₀: loads, affine rows, or a term written directly in MX) keeps
 CasADi's AD, so a new energy term is correct whether or not it is registered as an element
 (registered, it is cheap). An NLP that is not of this form is refused (``NotElementwise``).
+
+A lifted block that only f uses (y = Y(z) with rows y − Y(z) = 0) can be condensed away
+(:func:`condensed_derivatives`): the NLP in z alone, its derivatives the lifted ones mapped by
+the chain rule.
 """
 from __future__ import annotations
 
@@ -78,8 +82,10 @@ class Elements:
 
 
 def element_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elements,
-                        nx: int) -> dict[str, ca.Function]:
-    """``jac_g`` and ``hess_lag`` Functions for ``casadi.nlpsol`` (module docstring)."""
+                        nx: int, want: tuple[str, ...] = ("jac_g", "hess_lag")
+                        ) -> dict[str, ca.Function]:
+    """``jac_g`` and ``hess_lag`` Functions for ``casadi.nlpsol`` (module docstring); only
+    those in ``want`` are built (each assembly costs set-up time and memory)."""
     used = [(e, o) for e in elements.items for o in range(len(e.outputs))]
     Y = [ca.MX.sym(f"{e.name}_{o}", *e.outputs[o].shape) for e, o in used]
     outs = [e.outputs[o] for e, o in used]
@@ -99,22 +105,26 @@ def element_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elemen
         need_h = [bool(np.any(cf[starts[o]:starts[o + 1]]) or
                        Gy[:, starts[o]:starts[o + 1]].nnz) for o in range(len(e.outputs))]
         need_j = [bool(Gy[:, starts[o]:starts[o + 1]].nnz) for o in range(len(e.outputs))]
-        if any(need_j):
+        if any(need_j) and "jac_g" in want:
             jac_parts.append(local.jacobian(need_j, Gy, starts))
-        if any(need_h):
+        if any(need_h) and "hess_lag" in want:
             mus = [ca.reshape(mu_all[int(starts[o]):int(starts[o + 1])], *e.outputs[o].shape)
                    for o in range(len(e.outputs))]
             hess_parts.append(local.hessian(need_h, mus))
 
     # the rest (f0, g0) by CasADi's AD; separable, so evaluated with the outputs' own values
-    G0 = ca.graph_substitute(ca.jacobian(g_s, x), Y, outs)
-    lag0 = lam_f * f_s + ca.dot(lam_g, g_s)
-    H0 = ca.graph_substitute(ca.triu(ca.hessian(lag0, x)[0]), Y, outs)
-    jac = _assemble(g.numel(), nx, jac_parts, G0)
-    hess = _assemble(nx, nx, hess_parts, H0)
-    return {"jac_g": ca.Function("nlp_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
-            "hess_lag": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess],
-                                    ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])}
+    out = {}
+    if "jac_g" in want:
+        G0 = ca.graph_substitute(ca.jacobian(g_s, x), Y, outs)
+        jac = _assemble(g.numel(), nx, jac_parts, G0)
+        out["jac_g"] = ca.Function("nlp_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"])
+    if "hess_lag" in want:
+        lag0 = lam_f * f_s + ca.dot(lam_g, g_s)
+        H0 = ca.graph_substitute(ca.triu(ca.hessian(lag0, x)[0]), Y, outs)
+        out["hess_lag"] = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g],
+                                      [_assemble(nx, nx, hess_parts, H0)],
+                                      ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+    return out
 
 
 def _constant_coefficients(f_s: ca.MX, g_s: ca.MX, x: ca.MX, p: ca.MX, yv: ca.MX
@@ -264,3 +274,63 @@ def _assemble(nrow: int, ncol: int, parts: list, rest: ca.MX) -> ca.MX:
                           shape=(uniq.size, len(rr)))
         nz = nz + ca.mtimes(_to_dm(E), rest.nz[:])
     return ca.MX(sparsity, nz)
+
+
+def condensed_derivatives(x: ca.MX, p: ca.MX, f: ca.MX, g: ca.MX, elements: Elements,
+                          nz: int, Y: ca.MX, f_y: ca.MX
+                          ) -> tuple[ca.MX, ca.MX, dict[str, ca.Function]]:
+    """An NLP whose decision vector x = (z, y) ends in a lifted block y that only f uses,
+    condensed onto z: y = Y(z) substituted, not a variable with its rows y − Y(z) = 0.
+    Its derivatives are those of the lifted NLP (f, (g, y − Y)) (:func:`element_derivatives`)
+    mapped by the chain rule, with T = ∂(z, Y(z))/∂z = [I; ∂Y/∂z] (∂Y/∂z = minus the lifted
+    rows' Jacobian in z):
+
+        ∂g_c/∂z = ∂g/∂z,     ∇²_z L_c = Tᵀ ∇²_x L(x(z), λ_f, (λ_g, μ)) T,
+
+    the lifted rows' multipliers μ = −λ_f ∇_y f (they make the lifted Lagrangian stationary in
+    y, whence its (z, z) block carries Σ λ_f ∂f/∂y_i ∇²Y_i, the condensed curvature); ``f_y``:
+    the terms of f that use y (∇_y f = ∇_y f_y, refused otherwise). Returns
+    z, x(z) (to evaluate the lifted expressions at) and the ``jac_g`` and ``hess_lag`` Functions
+    (g and its Jacobian evaluated at y = 0: they do not use y).
+    The condensed KKT system has neither y nor its rows: the 3-D model's repulsion samples,
+    lifted, tripled its size and filled its factor sevenfold (docs/weft3d.md, "Cost")."""
+    nx, ng = x.numel(), g.numel()
+    ny, Yv = nx - nz, ca.vec(Y)
+    _condensable(x, f, g, Yv, f_y, nz)
+    hess_l = element_derivatives(x, p, f, ca.vertcat(g, x[nz:] - Yv), elements, nx,
+                                 ("hess_lag",))["hess_lag"]
+    # ∂Y/∂z alone (the elements that Y uses), not the whole Jacobian again in every Hessian
+    dY = element_derivatives(x, p, ca.MX(0), x[nz:] - Yv, elements, nx, ("jac_g",))["jac_g"]
+    grad_y = ca.Function("grad_y", [x, p], [ca.gradient(f_y, x)[nz:]])
+    z = ca.MX.sym("x", nz)
+    z0 = ca.vertcat(z, ca.DM.zeros(ny))          # where y does not matter (g, Y)
+    xz = ca.vertcat(z, ca.Function("Y", [x], [Yv])(z0))
+    g_c, jac = element_derivatives(x, p, ca.MX(0), g, elements, nx, ("jac_g",))["jac_g"](z0, p)
+    jac = jac[:, :nz]
+    T = ca.vertcat(ca.MX(ca.DM.eye(nz)), -dY(xz, p)[1][:, :nz])
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng)
+    mu = -lam_f * grad_y(xz, p)
+    H = ca.triu2symm(hess_l(xz, p, lam_f, ca.vertcat(lam_g, mu)))
+    hess = ca.triu(ca.mtimes(T.T, ca.mtimes(H, T)))
+    return z, xz, {"jac_g": ca.Function("nlp_jac_g", [z, p], [g_c, jac], ["x", "p"],
+                                        ["g", "jac_g_x"]),
+                   "hess_lag": ca.Function("nlp_hess_l", [z, p, lam_f, lam_g], [hess],
+                                           ["x", "p", "lam_f", "lam_g"],
+                                           ["triu_hess_gamma_x_x"])}
+
+
+def _condensable(x: ca.MX, f: ca.MX, g: ca.MX, Yv: ca.MX, f_y: ca.MX, nz: int) -> None:
+    """Refuse (``NotElementwise``) a block y = x[nz:] that g or Y uses, that f uses outside
+    ``f_y``, or whose size is not Y's."""
+    if Yv.numel() != x.numel() - nz:
+        raise NotElementwise(f"the lifted block has {x.numel() - nz} variables and "
+                             f"{Yv.numel()} values")
+    if _uses(g, x, nz) or _uses(Yv, x, nz):
+        raise NotElementwise("the condensed block is used by g, or Y depends on it")
+    if _uses(ca.graph_substitute(f, [f_y], [ca.MX.sym("f_y")]), x, nz):
+        raise NotElementwise("f uses the condensed block outside the terms given")
+
+
+def _uses(expr: ca.MX, x: ca.MX, nz: int) -> bool:
+    """Whether ``expr`` depends (structurally) on x[nz:]."""
+    return bool(np.any(np.asarray(ca.jacobian_sparsity(expr, x).get_triplet()[1]) >= nz))

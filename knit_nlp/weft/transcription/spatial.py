@@ -11,6 +11,10 @@ Decision variables, by block (``Layout``):
   (K = 4 crossings or 2 wraps, ``Natural3D.labels``, per loop of courses 2..m) and ``cp`` (12 × K): the lifted closest points
   and tangents (p_u, t_u, p_l, t_l) there, each tied to one loop's coefficients by (S3);
 - ``PC`` (3 × specials): the clamped and loaded points.
+The other contacts' sample points (``rp``, 3 × N·S) are built as a lifted block at the end of
+a longer vector and condensed away (``elements.condensed_derivatives``): in the NLP they are
+functions of their loops (S2), not variables, and their repulsion's Hessian is a block per
+pair of neighbouring loops.
 Every nonlinear function of the coefficients belongs to one loop (its integrals to the panel
 points, its bending, its crossing segments), as in ``full``: the Lagrangian Hessian is block
 diagonal in the loops (with their σ's) plus 12 × 12 blocks per crossing. The sparsity is fixed
@@ -48,7 +52,7 @@ from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d
 from ..model.spatial.natural3d import Natural3D, flat
 from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
 from ..model.centrelines import SAMPLES
-from .elements import Elements, element_derivatives
+from .elements import Elements, condensed_derivatives, element_derivatives
 from .full import Constraints, clamp_constraints
 from .loop_hessians import bending_hessian, displacement_hessian, displacement_jacobian
 from .protocol import Assembled
@@ -318,23 +322,45 @@ class _Builder:
         lifted = self._rows(xb, rows)
         clamp_rows, rigid_rows, z_rows = self._clamps(xb, pb, rows)
         spring, contact, bend, work, h, sin_a = self._energy(xb, pb)
-        nlp = {"x": xs, "p": ps, "f": spring + contact + bend - work, "g": rows.expression()}
+        f, g = spring + contact + bend - work, rows.expression()
         terms = ca.Function("terms", [xs, ps], [spring, contact, bend, work, h, sin_a])
         names = [n for n in LIFTED if n in xl.blocks]
         lift_fn = ca.Function("lifted", [xs], [lifted[n] for n in names])
+        xs, f, g, terms, lift_fn, derivs = self._condensed(xs, ps, f, g, terms, lift_fn, xl.size)
+        nlp = {"x": xs, "p": ps, "f": f, "g": g}
         npar = pr.courses * pr.wales * (self.nc + (self.nq if self.opt.elevation else 0)) + 3 * pr.courses
         table = ClampTable(self.specials, self.clamp_pts, self.load_pts, self.rigid_pts,
                            clamp_rows, rigid_rows)
         out = SpatialNLP(pr, nlp, xl, pl, rows.layout, rows.lower(), rows.upper(),
                          WeftParams.of(pr), table, npar, options=self.opt, shape=self.shape,
                          z_rows=z_rows, terms=terms, lifted=lift_fn, signs=self.signs)
-        if self.opt.derivatives == "elements":
-            out.nlpsol_options = {**out.nlpsol_options, **element_derivatives(
-                xs, ps, nlp["f"], nlp["g"], self.elements, xl.size)}
+        out.nlpsol_options = {**out.nlpsol_options, **derivs}
         out.x0 = out.lift3d(np.broadcast_to(self.shape.coeffs, (pr.courses, pr.wales, self.nc)),
                             np.broadcast_to(self._b0(), (pr.courses, pr.wales, self.nq)),
                             self.shape.starts(pr.courses, pr.wales))
         return out
+
+    def _condensed(self, xs: ca.MX, ps: ca.MX, f: ca.MX, g: ca.MX, terms: ca.Function,
+                   lift_fn: ca.Function, nz: int) -> tuple:
+        """The NLP on the decision variables (the first ``nz`` of xs): the samples rp, at the
+        end of xs, substituted (``elements.condensed_derivatives``); f, g, the terms and the
+        lifted blocks as Functions of them, and the derivative Functions for IPOPT (none with
+        ``derivatives="casadi"``: CasADi's AD of the condensed NLP)."""
+        elements = self.opt.derivatives == "elements"
+        if self.pairs is None:
+            derivs = element_derivatives(xs, ps, f, g, self.elements, nz) if elements else {}
+            return xs, f, g, terms, lift_fn, derivs
+        xc, derivs = ca.MX.sym("x", nz), {}
+        zero_rp = ca.vertcat(xc, ca.DM.zeros(xs.numel() - nz))      # g and rp do not use rp
+        x_of = ca.vertcat(xc, ca.Function("rp", [xs], [ca.vec(self.rp)])(zero_rp))
+        if elements:
+            xc, x_of, derivs = condensed_derivatives(xs, ps, f, g, self.elements, nz, self.rp,
+                                                     self.repulsion)
+            zero_rp = ca.vertcat(xc, ca.DM.zeros(xs.numel() - nz))
+        return (xc, ca.Function("f", [xs, ps], [f])(x_of, ps),
+                ca.Function("g", [xs, ps], [g])(zero_rp, ps),
+                ca.Function("terms", [xc, ps], terms(x_of, ps)),
+                ca.Function("lifted", [xc], lift_fn(x_of)), derivs)
 
     def _b0(self) -> np.ndarray:
         return self.shape.elevation if self.opt.elevation else np.zeros(self.nq)
@@ -354,11 +380,13 @@ class _Builder:
             xl.add("cp", 12, self.K)
         if self.specials:
             xl.add("PC", 3, len(self.specials))
-        if self.pairs is not None:
-            xl.add("rp", 3, N * self.pairs.samples)        # the other contacts' samples
-        xs = ca.MX.sym("x", xl.size)
+        # the other contacts' samples: lifted at the end of xs, condensed in ``build``
+        n_rp = 3 * N * self.pairs.samples if self.pairs is not None else 0
+        xs = ca.MX.sym("x", xl.size + n_rp)
         xb = {name: ca.reshape(xs[xl.slice(name)], *shape)
               for name, (_, _, shape) in xl.blocks.items()}
+        if n_rp:
+            xb["rp"] = ca.reshape(xs[xl.size:], 3, N * self.pairs.samples)
         return xl, xs, xb
 
     def _rows(self, xb: dict[str, ca.MX], rows: Constraints) -> dict[str, ca.MX]:
@@ -394,7 +422,7 @@ class _Builder:
             lifted["PC"] = at(np.array([sp.s for sp in self.specials]),
                               np.array([sp.k for sp in self.specials]))
         if self.pairs is not None:
-            lifted["rp"] = self._samples(A, Bel, X)
+            self.rp = self._samples(A, Bel, X)          # condensed, not a lifted block
         for name, expr in lifted.items():
             rows.add(f"lift_{name}", xb[name] - expr)
         if n > 1:
@@ -483,7 +511,8 @@ class _Builder:
         if self.opt.contacts:
             out = self.crossing
             contact, h, sin_a = ca.sum2(out[0]), out[2].T, out[3].T
-        contact += self._repulsion(xb)
+        self.repulsion = self._repulsion(xb)
+        contact += self.repulsion
         work = ca.MX(0)
         for q, (ld, sp) in enumerate(zip(pr.loads, self.load_pts)):
             work += ca.dot(pb["forces"][:, q], xb["PC"][:2, sp] - ca.DM(pr.natural_position(ld.loop, ld.s)))
@@ -494,10 +523,13 @@ class _Builder:
 
     # -- the other contacts (model/spatial/repulsion.py, docs/weft3d.md) ------------------
     def _samples(self, A: ca.MX, Bel: ca.MX, X: ca.MX) -> ca.MX:
-        """Every loop's repulsion samples (3 × N·S, column k·S + q): start + (S2)."""
+        """Every loop's repulsion samples (3 × N·S, column k·S + q): start + (S2), an element
+        with the loops' closed-form Jacobian and Hessian (``loop_hessians``)."""
         pr, S = self.pr, self.pairs.samples
-        D = loop_displacements3d(pr.L, pr.t, self.shape.modes, sample_s(pr.L, S),
-                                 pr.quadrature_nodes).map(self.N, "serial")(A, Bel)
+        rule = (pr.L, pr.t, self.shape.modes, sample_s(pr.L, S), pr.quadrature_nodes)
+        D = self.elements.call("samples", loop_displacements3d(*rule), self.N, A, Bel,
+                               hessian=displacement_hessian(*rule),
+                               jacobian=displacement_jacobian(*rule))[0]
         return X[:, np.repeat(np.arange(self.N), S).tolist()] + D
 
     def _repulsion(self, xb: dict[str, ca.MX]) -> ca.MX:
