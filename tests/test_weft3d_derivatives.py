@@ -124,8 +124,8 @@ def test_a_condensed_block_has_the_condensed_nlps_derivatives() -> None:
         dj, dh = _compare(jac, hess, opts, zv, 1.3, rng.uniform(0.5, 2), rng.normal(size=2))
         assert dj < 1e-14 and dh < 1e-13
     zv = rng.normal(size=4)
-    Yv = ca.Function("Y", [x], [ca.vec(Y)])(np.r_[zv, np.zeros(4)])
-    assert np.allclose(np.ravel(ca.Function("xz", [z], [xz])(zv)), np.r_[zv, np.ravel(Yv)],
+    Yv = ca.Function("Y", [x], [ca.vec(Y)])(np.r_[zv, np.zeros(4)]).full().ravel()
+    assert np.allclose(ca.Function("xz", [z], [xz])(zv).full().ravel(), np.r_[zv, Yv],
                        rtol=0, atol=1e-15)
 
 
