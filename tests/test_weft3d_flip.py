@@ -69,3 +69,22 @@ def test_the_3d_model_keeps_every_designed_crossings_order() -> None:
     assert min(c["separation"] for c in sp["crossings"]) < min(c["natural_separation"]
                                                                 for c in sp["crossings"])
     assert sp["contact_energy"] > 0
+
+
+def test_an_answer_the_check_finds_through_each_other_is_not_converged() -> None:
+    """The check has the last word in 3-D as in the plane (issue 41): without the rounds of
+    other contacts the push's answer has yarns inside each other's hard core (the rounds find
+    them and start over, test above), and the solve says so: ``Contact_Check_Refuted``, not
+    converged, its message naming what the check found."""
+    from knit_nlp.weft.model.parametrisation import Full
+    from knit_nlp.weft.solving.contact.rounds import REFUTED
+    from knit_nlp.weft.solving.variants import equilibrium
+
+    pr = parse_problem(_doc(True), "flip2.toml")
+    eq = equilibrium(pr, Full())
+    eq.rounds_max = 0
+    sol = eq.solve()
+    rep = eq.report(sol.x)
+    assert rep.n_inside_core > 0 and not rep.ok
+    assert not sol.success and sol.status == REFUTED
+    assert "inside the hard core" in sol.detail

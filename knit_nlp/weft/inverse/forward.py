@@ -40,4 +40,5 @@ def equilibrium_for(problem: WeftProblem, keep: int = KEEP) -> Equilibrium:
     eq = equilibrium(problem, Full(), keep=keep, polish=POLISH)
     if isinstance(eq, SpatialEquilibrium):
         eq.rounds_max = 0        # the outer iteration's states must keep fitting its NLP
+        eq.refute = False        # its trial states are the outer iteration's to judge
     return eq

@@ -58,7 +58,7 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
     lines.append("  check: " + r.checked["verdict"])
     lines += implausible(r)                     # springs beyond L, folds, loops inside out
     if not r.success:
-        lines.append("  NOT CONVERGED: " + "; ".join(r.report.attempts))
+        lines.append("  NOT CONVERGED: " + ("; ".join(r.report.attempts) or r.message))
     lines.append("  wrote " + ", ".join(str(p) for p in paths))
     return "\n".join(lines)
 

@@ -10,7 +10,10 @@ so the round starts over instead: load steps from the natural state, the new pai
 unshifted, so that they hold from the start. Where that solve fails, the answer before it
 stands and the round says so. At most ``ROUNDS`` rounds; each round's pairs
 and status are recorded on the NLP (``SpatialNLP.rounds``) for the result JSON and the
-summary, and what is left after the last is the result's check's to say.
+summary. The check has the last word, as in the plane (``contact.rounds``): an answer it
+still finds with yarns through each other after the rounds (pairs of loops inside the hard
+core, or a designed crossing flipped) is not converged, ``REFUTED`` (exit 1), its message
+naming what is left.
 """
 from __future__ import annotations
 
@@ -18,9 +21,11 @@ from typing import Any
 
 import numpy as np
 
+from ..model.spatial.proximity import ProximityReport
 from ..model.spatial.state import spatial_samples, spatial_state
 from ..model.spatial.repulsion import Neighbours, missing
 from ..transcription.spatial import SpatialNLP, build_spatial
+from .contact.rounds import REFUTED
 from .solve import Solution, SpatialSteps
 
 ROUNDS = 3
@@ -30,10 +35,13 @@ class SpatialEquilibrium(SpatialSteps):
     """The 3-D model's equilibrium: ``SpatialSteps`` (the inverse problems' trial steps) with
     the rounds of other contacts. ``rounds``: at most this many (0 in the inverse problems,
     ``inverse.forward``: a round rebuilds the NLP with more variables, and the states an
-    outer iteration keeps would no longer fit it)."""
+    outer iteration keeps would no longer fit it). ``refute``: an answer the check still
+    finds through each other is not converged (``REFUTED``; off in the inverse problems,
+    whose trial states are judged by their own outer iteration)."""
 
     extra: Neighbours | None = None
     rounds_max: int = ROUNDS
+    refute: bool = True
 
     def solve(self, params: Any = None, x0: np.ndarray | None = None, **kw: Any) -> Solution:
         sol = super().solve(params, x0, **kw)
@@ -49,7 +57,14 @@ class SpatialEquilibrium(SpatialSteps):
             if status != "Solve_Succeeded":
                 break
         self.nlp.rounds = rounds
+        if sol.success and self.refute:
+            _refuted(sol, self.report(sol.x))
         return sol
+
+    def report(self, x: np.ndarray) -> ProximityReport:
+        """The independent all-pairs check of the state x (``model.spatial.proximity``)."""
+        pr = self.problem
+        return spatial_state(pr, self.nlp.centrelines3d(x, spatial_samples(pr)))
 
     def missing(self, x: np.ndarray) -> tuple[Neighbours, bool]:
         """The pairs the check finds closer than touch that the list lacks (module docstring),
@@ -58,7 +73,7 @@ class SpatialEquilibrium(SpatialSteps):
         is inside the core (then unshifted: the round starts over)."""
         nlp: SpatialNLP = self.nlp
         pr, shape = self.problem, nlp.shape
-        rep = spatial_state(pr, nlp.centrelines3d(x, spatial_samples(pr)))
+        rep = self.report(x)
         new = missing(rep.touching, nlp.neighbours, pr.L, pr.wales, shape)
         if not len(new):
             return new, False
@@ -98,3 +113,19 @@ class SpatialEquilibrium(SpatialSteps):
         self.extra = extra
         rep.add_effort(sol)
         return self.solution(rep, sol.params), rep.status
+
+
+def _refuted(sol: Solution, rep: ProximityReport) -> None:
+    """Mark ``sol`` not converged (``REFUTED``) when the check ``rep`` finds yarns through each
+    other: pairs of loops inside the hard core or a flipped designed crossing (a crossing order
+    it could not read is no refutation: the check says so itself)."""
+    if rep.n_inside_core == 0 and not rep.flipped:
+        return
+    what = [f"{rep.n_inside_core} pairs of loops inside the hard core 2R_c = {rep.core:.4g}"]
+    if rep.flipped:
+        what.append(f"{len(rep.flipped)} designed crossings flipped")
+    if rep.smallest is not None:
+        what.append(f"smallest distance {rep.smallest:.4g}")
+    sol.success, sol.status = False, REFUTED
+    sol.detail = ("not converged: after the rounds of other contacts the independent check "
+                  f"still finds the yarns through each other ({'; '.join(what)})")
