@@ -58,7 +58,8 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
     lines.append("  check: " + r.checked["verdict"])
     lines += implausible(r)                     # springs beyond L, folds, loops inside out
     if not r.success:
-        lines.append("  NOT CONVERGED: " + ("; ".join(r.report.attempts) or r.message))
+        why = "; ".join(r.report.attempts) or r.message.removeprefix("not converged: ")
+        lines.append("  NOT CONVERGED: " + why)
     lines.append("  wrote " + ", ".join(str(p) for p in paths))
     return "\n".join(lines)
 
