@@ -96,23 +96,17 @@ class SpatialEquilibrium(SpatialSteps):
         self.rebuild(build_spatial(self.problem, extra=extra))
         if over:
             again = SpatialSteps.solve(self, sol.params)
-            if not again.success:
-                self.nlp, self.solver, self._kkt = old, old_solver, old_kkt
-                sol.add_effort(again)
-                return sol, again.status
-            self.extra = extra
-            again.add_effort(sol)               # the solve it replaces was paid for too
-            return again, again.status
-        sigma = old.x.get(x, "sigma") if "sigma" in old.x.blocks else None
-        x0 = self.nlp.lift3d(old.coefficients(x), old.elevations(x), old.starts3d(x), sigma)
-        rep = self.solver.once(sol.params.vector(), x0)
-        if not rep.success:
+        else:
+            sigma = old.x.get(x, "sigma") if "sigma" in old.x.blocks else None
+            x0 = self.nlp.lift3d(old.coefficients(x), old.elevations(x), old.starts3d(x), sigma)
+            again = self.solver.once(sol.params.vector(), x0)
+        if not again.success:
             self.nlp, self.solver, self._kkt = old, old_solver, old_kkt
-            sol.add_effort(rep)
-            return sol, rep.status
+            sol.add_effort(again)
+            return sol, again.status
         self.extra = extra
-        rep.add_effort(sol)
-        return self.solution(rep, sol.params), rep.status
+        again.add_effort(sol)                   # the solve it replaces was paid for too
+        return (again if over else self.solution(again, sol.params)), again.status
 
 
 def _refuted(sol: Solution, rep: ProximityReport) -> None:

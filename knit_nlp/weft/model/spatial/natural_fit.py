@@ -109,32 +109,48 @@ def touching(coeffs: bytes, L: float, t: int, q: int, r: float, w: float, c: flo
         rows += list(ca.vertsplit(ca.mtimes(ca.DM(E - S), coef)))
         lo += [0.0] * 2
         hi += [0.0] * 2
-    nodes = np.linspace(0.0, L, 200)
-    smooth = ca.sumsqr(ca.mtimes(ca.DM(dphi(nodes, L, q)), b)) * (L / nodes.size)
     solver = ca.nlpsol("natural3d_touching", "ipopt",
                        {"x": ca.vertcat(a, b, su, sl), "g": ca.vertcat(*rows),
-                        "f": misfit / (SAMPLES - 1) + SMOOTH * L * smooth},
+                        "f": misfit / (SAMPLES - 1) + _smoothness(b, L, q)},
                        {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes",
                                                        "tol": 1e-12, "max_iter": 500}})
-    b0 = np.zeros(nq)
-    if q >= 2:       # legs in front, head and foot behind: z ≈ −α cos(4πs/L)
-        b0[1] = 4 * np.pi * (2 * r / 1.77) / L
     big = np.full(nc + nq, np.inf)
-    sol = solver(x0=np.concatenate([a_plan, b0, su0, sl0]), lbg=lo, ubg=hi,
+    sol = solver(x0=np.concatenate([a_plan, _lifted_legs(L, q, r), su0, sl0]), lbg=lo, ubg=hi,
                  lbx=np.concatenate([-big, np.zeros(8)]), ubx=np.concatenate([big, np.full(8, L)]))
     if not solver.stats()["success"]:
         raise NaturalShapeError(f"no natural 3-D loop with touching crossings for radius {r:g} "
                                 f"and {q} elevation modes (IPOPT: {solver.stats()['return_status']})")
     xs = np.asarray(sol["x"]).ravel()
     a3, b3, su3, sl3 = xs[:nc], xs[nc:nc + nq], xs[nc + nq:nc + nq + 4], xs[nc + nq + 4:]
-    rms = float(np.sqrt(np.mean(np.sum((positions3d(a3, b3, s, L, t, q)[:, :2] - target[:, :2])
-                                       ** 2, axis=1))))
+    rms = _projection_rms(a3, b3, s, target[:, :2], L, t, q)
     return _shape(L, t, q, r, a3, b3, (su3, sl3), (su3, sl3), w, c, rms)
 
 
 def gap(radius: float, core: float) -> float:
     """The natural fabric's smallest distance between non-neighbouring pieces (N5)."""
     return 2 * core + MARGIN * (2 * radius - 2 * core)
+
+
+def _lifted_legs(L: float, q: int, r: float) -> np.ndarray:
+    """φ coefficients of the paper's loop lifted for a start: legs in front, head and foot
+    behind, z ≈ −α cos(4πs/L)."""
+    b = np.zeros(n_coeffs(q))
+    if q >= 2:
+        b[1] = 4 * np.pi * (2 * r / 1.77) / L
+    return b
+
+
+def _smoothness(b: ca.SX | ca.MX, L: float, q: int):
+    """``SMOOTH``·L·∫φ′² ds of N1 (200 nodes)."""
+    nodes = np.linspace(0.0, L, 200)
+    return SMOOTH * L * (ca.sumsqr(ca.mtimes(ca.DM(dphi(nodes, L, q)), b)) * (L / nodes.size))
+
+
+def _projection_rms(a: np.ndarray, b: np.ndarray, s: np.ndarray, target: np.ndarray, L: float,
+                    t: int, q: int) -> float:
+    """RMS distance of the loop's projection at s from the paper's loop there (``target``)."""
+    proj = positions3d(a, b, s, L, t, q)[:, :2]
+    return float(np.sqrt(np.mean(np.sum((proj - target) ** 2, axis=1))))
 
 
 def parametric_start(L: float, t: int, q: int) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -202,10 +218,7 @@ def _solve(coeffs: bytes, L: float, t: int, q: int, r: float, core: float, w: fl
     target = positions3d(a_plan, np.zeros(n_coeffs(q)), np.linspace(0.0, L, SAMPLES)[1:], L,
                          t, q)[:, :2]
     g = gap(r, core)
-    b_plan = np.zeros(n_coeffs(q))
-    if q >= 2:                       # legs in front, head and foot behind: z ≈ −α cos(4πs/L)
-        b_plan[1] = 4 * np.pi * (2 * r / 1.77) / L
-    starts = [parametric_start(L, t, q), (a_plan, b_plan, w, c)]
+    starts = [parametric_start(L, t, q), (a_plan, _lifted_legs(L, q, r), w, c)]
     if 2 * r < THIN * c:             # a thin yarn: the paper's loop first
         starts.reverse()
     errors = []
@@ -289,10 +302,8 @@ def _fit(L: float, t: int, q: int, r: float, g: float, target: np.ndarray,
         off = ca.vertcat(ca.DM(DJ).T * w, ca.DM(DI).T * c, ca.DM.zeros(1, K.size))
         diff = ca.mtimes(G, ca.DM(_selector(M, sg.size) - _selector(K, sg.size))) + off
         add(ca.sum1(diff ** 2).T, g * g, ca.inf)
-    nodes = np.linspace(0.0, L, 200)
-    smooth = ca.sumsqr(ca.mtimes(ca.DM(dphi(nodes, L, q)), b)) * (L / nodes.size)
     solver = ca.nlpsol("natural3d", "ipopt",
-                       {"x": xs, "f": misfit + SMOOTH * L * smooth, "g": ca.vertcat(*rows)},
+                       {"x": xs, "f": misfit + _smoothness(b, L, q), "g": ca.vertcat(*rows)},
                        {"print_time": False, "ipopt": {
                            "print_level": 0, "sb": "yes", "tol": 1e-9, "max_iter": 1000}})
     free = np.full(nc + nq, np.inf)
@@ -319,8 +330,7 @@ def _unpack(L: float, t: int, q: int, r: float, x: np.ndarray, target: np.ndarra
             ) -> Natural3D:
     nc, nq = n_coeffs(t), n_coeffs(q)
     a, b, o = x[:nc], x[nc:nc + nq], nc + nq
-    proj = positions3d(a, b, np.linspace(0.0, L, SAMPLES)[1:], L, t, q)[:, :2]
-    rms = float(np.sqrt(np.mean(np.sum((proj - target) ** 2, axis=1))))
+    rms = _projection_rms(a, b, np.linspace(0.0, L, SAMPLES)[1:], target, L, t, q)
     return _shape(L, t, q, r, a, b, (x[o:o + 2], x[o + 2:o + 4]), (x[o + 4:o + 8], x[o + 8:o + 12]),
                   x[-2], x[-1], rms)
 
