@@ -111,3 +111,54 @@ def test_calibrate_checks_each_test_at_its_largest_load(tmp_path, capsys, titles
     assert any(t.endswith("\n" + line) for t, _ in titles)
     travel = block["at"]["axial_strain"] * doc["tests"][0]["specimen"]["gauge"]
     assert seen == [pytest.approx(travel, rel=1e-6)], (seen, travel)
+
+
+def test_calibrate_finds_the_first_node_the_check_calls_not_clean(tmp_path, capsys, titles,
+                                                                  monkeypatch):
+    """Where the answer at the curve's largest load is not clean, the nodes are checked from the
+    unloaded one on and the first that is not clean is named (JSON ``first_not_clean``, the
+    summary's and the panel's check line): here a check that calls a node clean while its
+    loops are stretched by less than half the last node's travel, so the first node not clean
+    is the first whose stretch (recomputed from its loops) passes that."""
+    seen = []
+
+    def judge(problem, coeffs, starts):
+        stretch = _stretch(problem, coeffs, starts)
+        seen.append(stretch)
+        block = own_check(problem, coeffs, starts)[1]
+        ok = stretch < limit[0] and not (only_last[0] and len(seen) == 1)
+        return None, {**block, "ok": ok, "verdict": f"{'clean' if ok else 'NOT CLEAN'} (test)"}
+    limit, only_last = [np.inf], [False]
+    monkeypatch.setattr(calibrate_module, "own_check", judge)
+    width = synthetic_columns(tmp_path / "synthetic.csv", rows=400)
+    spec = synthetic_spec(tmp_path, width, "[]", SYNTH_TRUTH, tables="")
+    assert main(["calibrate", str(spec), "--out", str(tmp_path / "first")]) in (0, 1)
+    doc = json.loads((tmp_path / "first" / "synthetic.calibration.json").read_text())
+    gauge = doc["tests"][0]["specimen"]["gauge"]
+    last_travel = doc["tests"][0]["check"]["at"]["axial_strain"] * gauge
+    assert doc["tests"][0]["check"]["ok"] and "first_not_clean" not in doc["tests"][0]["check"]
+    assert len(seen) == 1                       # a clean last node: only it is checked
+    capsys.readouterr()
+    seen.clear()
+    limit[0] = 0.5 * last_travel
+    assert main(["calibrate", str(spec), "--out", str(tmp_path / "again")]) in (0, 1)
+    doc = json.loads((tmp_path / "again" / "synthetic.calibration.json").read_text())
+    first = doc["tests"][0]["check"]["first_not_clean"]
+    stretches = seen[1:]                        # seen[0]: the last node, checked first
+    k = next(i for i, s in enumerate(stretches) if s >= limit[0])
+    assert first["node"] == k and len(stretches) == k + 1
+    assert all(s < limit[0] for s in stretches[:k])
+    assert first["axial_strain"] * gauge == pytest.approx(stretches[k], rel=1e-6)
+    assert first["verdict"] == "NOT CLEAN (test)"
+    words = (f"the first node not clean: {first['force_N']:.4g} N (axial strain "
+             f"{first['axial_strain']:.3g}), the nodes before it clean")
+    assert words in capsys.readouterr().out
+    assert any(words in " ".join(t.split("\n")) for t, _ in titles)
+    # only the last node not clean: it is the first not clean, every node before it checked
+    seen.clear()
+    limit[0], only_last[0] = np.inf, True
+    assert main(["calibrate", str(spec), "--out", str(tmp_path / "last")]) in (0, 1)
+    first = json.loads((tmp_path / "last" / "synthetic.calibration.json").read_text()
+                       )["tests"][0]["check"]["first_not_clean"]
+    assert first["node"] == len(seen) - 1 and first["verdict"] == "NOT CLEAN (test)"
+    assert first["axial_strain"] * gauge == pytest.approx(last_travel, rel=1e-6)

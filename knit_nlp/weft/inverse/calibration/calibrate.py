@@ -255,19 +255,43 @@ class Calibration:
 def final_check(tm: TestModel, c: Curve, curve: ModelCurve) -> dict:
     """The own check every weft result carries (``output.check.own_check``, as
     ``WeftResult.checked``; in 3-D ``spatial_own_check``, all pairs of yarn pieces) of a
-    test's answer at the final values and its largest load: the model curve's last node. Only
-    that node is checked: the check of every node of every curve would cost as many checks as
+    test's answer at the final values and its largest load: the model curve's last node.
+    Where that answer is not clean, the curve's nodes are checked from the unloaded one on up
+    to the first that is not (``first_not_clean``: its force, strain and verdict): past it
+    the model curve is not a clean answer. Where the last node is clean the nodes before it
+    are not checked: the check of every node of every curve would cost as many checks as
     forward solves (``at`` says where it was made)."""
-    wnlp, x = tm.model.eq.wnlp, c.xs[-1]
+    block = _node_check(tm, c.xs[-1])
+    out = {**block, "at": {"force_N": float(curve.force[-1]),
+                           "axial_strain": float(curve.axial[-1]),
+                           "node": "the model curve's last (largest load); the others are "
+                                   "checked only where it is not clean"}}
+    if not block["ok"]:
+        out["first_not_clean"] = _first_not_clean(tm, c, curve, block)
+    return out
+
+
+def _node_check(tm: TestModel, x: np.ndarray) -> dict:
+    """The own check's block of one curve node's answer x."""
+    wnlp = tm.model.eq.wnlp
     if tm.model.spatial:
         pr = tm.specimen.problem
-        block = spatial_own_check(pr, wnlp.centrelines3d(x, spatial_samples(pr)))
-    else:
-        _, block = own_check(tm.specimen.problem, wnlp.coefficients(x), wnlp.starts(x))
-    return {**block, "at": {"force_N": float(curve.force[-1]),
-                            "axial_strain": float(curve.axial[-1]),
-                            "node": "the model curve's last (largest load); the others are "
-                                    "not checked"}}
+        return spatial_own_check(pr, wnlp.centrelines3d(x, spatial_samples(pr)))
+    return own_check(tm.specimen.problem, wnlp.coefficients(x), wnlp.starts(x))[1]
+
+
+def _first_not_clean(tm: TestModel, c: Curve, curve: ModelCurve, last: dict) -> dict:
+    """The first node of the curve, from the unloaded one, whose answer the own check does not
+    call clean (``last``, the last node's block, is not, so there is one): its index, force,
+    axial strain and verdict."""
+    k, block = len(c.xs) - 1, last
+    for node, x in enumerate(c.xs[:-1]):
+        seen = _node_check(tm, x)
+        if not seen["ok"]:
+            k, block = node, seen
+            break
+    return {"node": k, "force_N": float(curve.force[k]), "axial_strain": float(curve.axial[k]),
+            "verdict": block["verdict"]}
 
 
 def evaluate(spec: CalibrationSpec) -> list[TestOutcome]:

@@ -42,6 +42,10 @@ def _panel(ax, t: Any, other: Any = None, other_name: str = "") -> None:
                     ls="-.", alpha=0.7, label=f"{other_name} ({kind})")
         points = t.metric.measured_axial if kind == "axial" else t.metric.measured_lateral
         ax.plot(t.metric.forces, points, "o", ms=4, mfc="white", color=colour)
+    first = t.check.get("first_not_clean") if t.check else None
+    if first is not None and first["force_N"] <= right:
+        ax.plot(first["force_N"], first["axial_strain"], "x", color="k", ms=8, mew=1.5,
+                label="first model answer the check finds not clean (axial)")
     ax.axhline(0.0, color="0.6", lw=0.5)
     ax.set_xlabel("force (N)")
     ax.set_ylabel("strain (–)")
@@ -55,7 +59,7 @@ def _panel(ax, t: Any, other: Any = None, other_name: str = "") -> None:
                  f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
                  f"{axial}{lat}{state}\n{_checks_line(t.checks)}\n{_other_line(other, other_name)}"
                  f"{t.verdict()}\n{t.check_line()}", fontsize=8, wrap=True)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2)
     ax.grid(alpha=0.3)
 
 

@@ -67,9 +67,13 @@ class TestOutcome:
         answer at its largest load (the summary's and the panel's words)."""
         if not self.check:
             return "check: not made"
-        at = self.check["at"]
-        return (f"check at {at['force_N']:.4g} N (axial strain {at['axial_strain']:.3g}, the "
+        at, first = self.check["at"], self.check.get("first_not_clean")
+        line = (f"check at {at['force_N']:.4g} N (axial strain {at['axial_strain']:.3g}, the "
                 f"curve's largest load): {self.check['verdict']}")
+        if first is None:
+            return line
+        return (f"{line}; the first node not clean: {first['force_N']:.4g} N (axial strain "
+                f"{first['axial_strain']:.3g}), the nodes before it clean")
 
     def errors(self) -> dict[str, float | None]:
         """RMS strain error by strain (None: the model did not reach every metric force)."""
