@@ -143,7 +143,7 @@ class IterationLine(ca.Callback):
 
     def done(self) -> None:
         """End the updating line (if one is open on this line's stream) and the loading path."""
-        _PATH.clear()
+        no_path()
         if _OPEN.get(self.stream, 0):
             self.stream.write("\n")
             self.stream.flush()
@@ -157,6 +157,12 @@ def loading(fraction: float) -> None:
     if _PATH.get("t0") is None or fraction <= 0 or fraction < _PATH["fraction"]:
         _PATH["t0"] = time.perf_counter()
     _PATH["fraction"] = float(fraction)
+
+
+def no_path() -> None:
+    """No loading path runs any more (a single solve follows, which must not be told as a
+    share of the last path's load)."""
+    _PATH.clear()
 
 
 def duration(seconds: float) -> str:

@@ -224,3 +224,20 @@ def test_a_continuation_tells_its_share_of_the_load(monkeypatch, capsys, tmp_pat
     assert main(["solve", "wada_fig7", "--continuation", "4", "--out", str(tmp_path)]) == 0
     err = capsys.readouterr().err
     assert "elapsed" in err and "75% of the load reached, about" in err
+
+
+def test_a_calibration_curve_step_is_not_told_as_a_share_of_the_last_path():
+    """A 3-D calibration curve step is one IPOPT solve from the last node: its progress line
+    must not go on telling the unloaded solve's load steps ("67% of the load reached, about 1
+    min left" for every step of a 4-minute calibration)."""
+    from types import SimpleNamespace
+    from knit_nlp.weft.inverse.calibration.curve import SpecimenModel
+    told = []
+    solver = SimpleNamespace(start_clock=lambda: None,
+                             once=lambda p, x0: told.append(progress.path_told()) or "report")
+    fake = SimpleNamespace(eq=SimpleNamespace(solver=solver, solution=lambda rep, p: rep))
+    progress.loading(0.0)
+    progress.loading(2 / 3)
+    assert "67% of the load reached" in progress.path_told()
+    assert SpecimenModel._step3d(fake, np.zeros(1), np.zeros(1)) == "report"
+    assert told == [""]

@@ -34,6 +34,7 @@ from scipy.sparse.linalg import splu
 from ..forward import CURVE_KEEP, equilibrium_for
 from ..points import point_function, point_jacobian
 from ...model.params import WeftParams
+from ....progress import no_path
 from .specimen import PULLED, Specimen
 
 SENSITIVITIES = ("implicit", "finite_differences", "curve_differences")
@@ -126,6 +127,7 @@ class SpecimenModel:
         bounds each."""
         solver = self.eq.solver
         solver.start_clock()
+        no_path()              # one solve: not a share of the unloaded solve's load steps
         return self.eq.solution(solver.once(p, x0), p)
 
     def curve(self, material: dict[str, float], goal: float,
