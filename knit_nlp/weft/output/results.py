@@ -189,6 +189,9 @@ class WeftResult(Outcome):
         if spatial is None:
             return None
         block = spatial(self.x, self.params.vector())
+        friction = self.nlp.friction_block(self.x, self.report.friction)
+        if friction is not None:                                    # [yarn] friction > 0
+            block["friction"] = friction
         if getattr(self.nlp, "neighbours", None) is not None:      # rounds3d: other contacts
             block["other_contacts"] = {"listed_pairs": len(self.nlp.neighbours),
                                        "rounds": list(self.nlp.rounds)}
