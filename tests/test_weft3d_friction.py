@@ -163,9 +163,14 @@ def test_a_pull_with_friction_needs_more_force_and_balances_its_energy(monkeypat
     assert abs(w0 - u0) < 0.005 * w0
     for mu in (0.3, 0.6):
         w, u, dis = _work_and_energy(runs[mu])
-        block = runs[mu].to_json()["spatial"]["friction"]
+        spatial = runs[mu].to_json()["spatial"]
+        block = spatial["friction"]
         assert block["load_steps"] == 6 and block["mu"] == mu
         assert block["dissipation"] == pytest.approx(sum(dis), rel=1e-12)
+        lag = runs[mu].nlp.lagged_at(runs[mu].loading_path()[-2][1].x)
+        assert [c["friction_force"] for c in spatial["crossings"]] == pytest.approx(
+            mu * lag.normal, rel=1e-12)
+        assert max(c["slide"] for c in spatial["crossings"]) > 0
         assert sum(dis) > 0.02 * w
         assert abs(w - u - sum(dis)) < 0.2 * sum(dis)
 
@@ -173,7 +178,8 @@ def test_a_pull_with_friction_needs_more_force_and_balances_its_energy(monkeypat
 def test_friction_derivatives_equal_ad_and_finite_differences() -> None:
     """With friction the element-assembled Hessian (the friction element's by AD of one
     crossing, ``elements.py``) equals CasADi's AD of the whole NLP to rounding, at random
-    states with slides on both sides of ε; and AD's Hessian of f on the σ block equals central
+    states with slides on both sides of ε and none (a step's start, where |Δ| has no
+    derivative: η); and AD's Hessian of f on the σ block equals central
     differences of its gradient."""
     pr = _problem(0.4)
     el, ad = build_spatial(pr), build_spatial(pr, Spatial(derivatives="casadi"))
@@ -187,7 +193,8 @@ def test_friction_derivatives_equal_ad_and_finite_differences() -> None:
     for _ in range(2):
         x = ad.x0 + 0.02 * rng.normal(size=ad.x.size)
         s = el.x.get(x, "sigma")
-        off = rng.choice([0.2, 2.0], size=(2, K)) * EPS * rng.choice([-1, 1], size=(2, K))
+        off = rng.choice([0.0, 0.2, 2.0], size=(2, K)) * EPS * rng.choice([-1, 1], size=(2, K))
+        off[:, 0] = 0.0                   # a step's start: no slide yet (F1-F2 at Δ = 0)
         lag = np.vstack([rng.uniform(0.01, 0.1, K), s[0] + off[0], s[1] + off[1],
                          rng.uniform(-0.6, 0.6, K)]).ravel(order="F")
         p = np.concatenate([ad.params.vector(), lag])

@@ -234,19 +234,19 @@ class SpatialNLP(Assembled):
         sig = self.x.get(x, "sigma")
         return self.friction.dissipation(lagged, sig[0], sig[1])
 
-    def friction_block(self, x: np.ndarray, path: FrictionPath | None) -> dict[str, Any] | None:
-        """The result's ``friction`` block (docs/weft3d.md, "Friction"): μ, ε, the load steps
-        of the path, its dissipation (F4: the steps before the last plus the last one's at
-        x) and per crossing the friction force μN̄ and the slide |Δ| of the last step; None
-        without friction or without the path that reached x."""
+    def _friction_rows(self, x: np.ndarray, path: FrictionPath | None
+                       ) -> tuple[dict[str, Any] | None, np.ndarray, np.ndarray]:
+        """The ``spatial`` block's ``friction`` summary (μ, ε, the load steps of the path from
+        the natural state, its dissipation F4: the steps before the last plus the last one's
+        at x) and per crossing the friction force μN̄ and the slide |Δ| of the last step;
+        (None, empty, empty) without friction or without the path that reached x."""
         if self.friction is None or path is None:
-            return None
+            return None, np.zeros(0), np.zeros(0)
         sig = self.x.get(x, "sigma")
         lag, fr = path.lagged, self.friction
-        return {"mu": fr.mu, "epsilon": fr.eps, "load_steps": path.steps,
-                "dissipation": path.earlier + self.step_dissipation(x, lag),
-                "force": (fr.mu * lag.normal).tolist(),
-                "slide": lag.slides(sig[0], sig[1]).tolist()}
+        summary = {"mu": fr.mu, "epsilon": fr.eps, "load_steps": path.steps,
+                   "dissipation": path.earlier + self.step_dissipation(x, lag)}
+        return summary, fr.mu * lag.normal, lag.slides(sig[0], sig[1])
 
     def contact_points(self, x: np.ndarray) -> np.ndarray:
         """Per crossing, the midpoint of its two closest points (K, 3): where the yarns touch."""
@@ -255,8 +255,11 @@ class SpatialNLP(Assembled):
         cp = self.x.get(x, "cp")
         return 0.5 * (cp[0:3].T + cp[6:9].T)          # rows: x_u, t_u, x_l, t_l
 
-    def spatial_block(self, x: np.ndarray, p: np.ndarray) -> dict[str, Any]:
-        """The result JSON's ``spatial`` block (docs/weft3d.md, "Results")."""
+    def spatial_block(self, x: np.ndarray, p: np.ndarray,
+                      path: FrictionPath | None = None) -> dict[str, Any]:
+        """The result JSON's ``spatial`` block (docs/weft3d.md, "Results"); with friction and
+        the load path that reached x (``path``), its ``friction`` summary and each crossing's
+        ``friction_force`` and ``slide`` (``_friction_rows``)."""
         spring, contact = (float(v) for v in self.terms(x, p)[:2])
         state = self.crossing_state(x)
         out: dict[str, Any] = {"geometry": "3d", "elevation_modes": self.shape.modes,
@@ -265,6 +268,9 @@ class SpatialNLP(Assembled):
         if not state:
             return {**out, "crossings": [], "smallest_separation": None, "flipped": 0}
         n = self.problem.wales
+        summary, force, slide = self._friction_rows(x, path)
+        if summary is not None:
+            out["friction"] = summary
         rows = []
         for c, h in enumerate(state["h"]):
             k, kind = divmod(c, self.shape.s_upper.size)
@@ -276,7 +282,9 @@ class SpatialNLP(Assembled):
                          "s_lower": float(state["sigma_lower"][c]),
                          "separation": float(h), "compression": float(state["compression"][c]),
                          "force": float(state["force"][c]),
-                         "sin_angle": float(state["sin_angle"][c])})
+                         "sin_angle": float(state["sin_angle"][c]),
+                         **({"friction_force": float(force[c]), "slide": float(slide[c])}
+                            if summary is not None else {})})
         sig = np.concatenate([state["sigma_upper"], state["sigma_lower"]])
         return {**out, "crossings": rows, "smallest_separation": float(np.min(state["h"])),
                 "flipped": int(np.sum(state["h"] <= 0)),
