@@ -225,3 +225,27 @@ def test_friction_is_refused_where_it_cannot_be_carried_or_has_no_meaning() -> N
         parse_problem(planar, "planar.toml")
     with pytest.raises(ProblemError, match=r"\[yarn\] friction: control, fit and calibrate"):
         equilibrium_for(_problem(0.3))
+
+
+def test_a_round_of_other_contacts_keeps_the_lagged_values_of_the_step_it_solves_again(
+        monkeypatch) -> None:
+    """The wale pull's answer gains a round of other contacts (pairs added, the NLP rebuilt,
+    its last load step solved again from the answer): that solve keeps the last step's lagged
+    values (the friction forces μN̄ are those of the path without the round) and the path's
+    steps; its dissipation is the earlier steps' plus its own last step's."""
+    monkeypatch.setitem(PULL, "clamp", WALE_PULL)
+    plain = _solve(0.3, 6)
+    eq = equilibrium(_problem(0.3, 6), Full())
+    sol = eq.solve()
+    assert sol.success, sol.status
+    rounds = WeftResult.of(sol).to_json()["spatial"]
+    assert [r["started_over"] for r in rounds["other_contacts"]["rounds"]] == [False]
+    assert rounds["friction"]["load_steps"] == 6
+    assert [c["friction_force"] for c in rounds["crossings"]] == pytest.approx(
+        [c["friction_force"] for c in plain.to_json()["spatial"]["crossings"]], rel=1e-12)
+    assert max(c["friction_force"] for c in rounds["crossings"]) > 0
+    last = sol.nlp.step_dissipation(sol.x, sol.friction.lagged)
+    assert rounds["friction"]["dissipation"] == pytest.approx(sol.friction.earlier + last,
+                                                              rel=1e-12)
+    assert rounds["friction"]["dissipation"] == pytest.approx(
+        plain.to_json()["spatial"]["friction"]["dissipation"], rel=0.05)
