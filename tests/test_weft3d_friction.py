@@ -249,3 +249,34 @@ def test_a_round_of_other_contacts_keeps_the_lagged_values_of_the_step_it_solves
                                                               rel=1e-12)
     assert rounds["friction"]["dissipation"] == pytest.approx(
         plain.to_json()["spatial"]["friction"]["dissipation"], rel=0.05)
+
+
+def test_a_halved_step_keeps_the_last_accepted_lagged_values(monkeypatch) -> None:
+    """The continuation's lagged block: the first step's from the natural state, each next
+    one's from the last accepted answer, and a failed step retried at half the size keeps
+    them (never taken from the failed iterate); the parameters are interpolated, the lagged
+    block is not."""
+    monkeypatch.setitem(PULL, "clamp", WALE_PULL)
+    eq = equilibrium(_problem(0.3, 2), Full())
+    eq.rounds_max = 0
+    solver, nlp, calls = eq.solver, eq.nlp, []
+    real = solver.once
+
+    def once(p, x0, **kw):
+        calls.append((solver.path.lagged, p))
+        rep = real(p, x0, **kw)
+        if len(calls) == 2:                  # the second step fails once (its iterate kept)
+            rep.success, rep.x = False, rep.x + 0.01
+        return rep
+    monkeypatch.setattr(solver, "once", once)
+    sol = eq.solve()
+    assert sol.success
+    answers = [x for _, x, _ in sol.path]
+    assert len(calls) == 4 and len(answers) == 3          # 1/2, (1 failed), 3/4, 1
+    expect = [nlp.lagged_at(nlp.x0), nlp.lagged_at(answers[0]), nlp.lagged_at(answers[0]),
+              nlp.lagged_at(answers[1])]
+    for (got, _), want in zip(calls, expect):
+        assert np.array_equal(got.block(), want.block())
+    assert np.all(calls[0][0].normal == 0) and np.any(calls[1][0].normal > 0)
+    p_nat, p_end = WeftParams.natural(nlp.problem).vector(), nlp.params.vector()
+    assert np.allclose(calls[2][1], p_nat + 0.75 * (p_end - p_nat))
