@@ -19,6 +19,13 @@ The specimen, yarn and steps are scripts/physics_weft3d.py's (6 x 6 acrylic, sti
 soft-shell law, steps of 2.5 % strain, each warm-started from the last):
 
     OMP_NUM_THREADS=1 python scripts/friction_weft3d.py [--size 6] [--to 0.3] [--direction courses]
+
+With ``--mu MU`` it measures the friction that is built ([yarn] friction, docs/weft3d.md
+"Friction"): the same specimen pulled along one load path (``WeftSolver.continuation``, steps of
+2.5 %, friction lagged per step) with friction MU and without, in the same run; it prints the
+force at every step, the force at 10 % and 30 % and the stiffening K(45 %)/K(5 %):
+
+    OMP_NUM_THREADS=1 python scripts/friction_weft3d.py --mu 0.3 --direction courses --to 0.475
 """
 from __future__ import annotations
 
@@ -35,7 +42,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from physics_weft3d import BASE, STEP, doc_of  # noqa: E402
 
 from knit_nlp.weft.inverse.calibration.curve import SpecimenModel  # noqa: E402
-from knit_nlp.weft.inverse.calibration.specimen import build_specimen  # noqa: E402
+from knit_nlp.weft.inverse.calibration.specimen import PULLED, build_specimen  # noqa: E402
+from knit_nlp.weft.model.parametrisation import Full  # noqa: E402
+from knit_nlp.weft.model.params import WeftParams  # noqa: E402
+from knit_nlp.weft.solving.variants import equilibrium  # noqa: E402
 
 
 def crossing_states(sm: SpecimenModel, material: dict[str, float], us: np.ndarray,
@@ -89,6 +99,51 @@ def run(direction: str, size: int, to: float, max_time: float) -> dict[str, Any]
             "ratio_total": total, "reason": c.reason}
 
 
+def path_with_friction(direction: str, size: int, to: float, mu: float,
+                       max_time: float, step: float = STEP) -> dict[str, Any]:
+    """The specimen pulled to strain ``to`` along one load path of ``step`` strain steps with
+    friction ``mu`` (lagged per step): the force along the pull at every step reached, the
+    clamp's work (trapezoid) and the path's dissipation."""
+    BASE["solver"]["max_time"] = max_time
+    doc = doc_of("3d")
+    doc["yarn"] = {**doc["yarn"], "friction": mu}
+    sp = build_specimen(doc, "<friction>", direction, size, size, f"friction_{direction}")
+    eq = equilibrium(sp.problem, Full())
+    eq.rounds_max, eq.refute = 0, False     # one load path, as the frictionless pulls above
+    rows = eq.nlp.clamp_table.rigid_rows[PULLED - 1]
+    rows = np.arange(rows.start, rows.stop).reshape(-1, 2)[:, sp.axis]
+    p = WeftParams.of(sp.problem).with_(rigid={PULLED: sp.translation(to * sp.gauge)}).vector()
+    t0 = time.perf_counter()
+    eq.solver.start_clock()
+    rep = eq.solver.continuation(p, eq.nlp.x0, int(round(to / step)))
+    strain = [0.0] + [tau * to for tau, _, _ in rep.path]
+    force = [0.0] + [float(-np.sum(lam[rows])) for _, _, lam in rep.path]
+    path = rep.friction
+    dis = None if path is None else path.earlier + path.last
+    print(f"mu {mu}: {rep.status}, reached {strain[-1]:.4f}, {rep.iterations} it, "
+          f"{time.perf_counter() - t0:.0f} s, dissipation {dis}", flush=True)
+    work = float(np.trapezoid(force, np.array(strain) * sp.gauge))
+    return {"mu": mu, "step": step, "strain": strain, "force_N": force, "status": rep.status,
+            "dissipation_Nmm": dis, "work_Nmm": work, "wall_s": time.perf_counter() - t0,
+            "iterations": rep.iterations, "pitch_width_mm": sp.pitch_width, "gauge_mm": sp.gauge}
+
+
+def compare(runs: list[dict[str, Any]]) -> None:
+    """Force at 10 % and 30 %, K(45 %)/K(5 %) (K: central differences over +-2.5 %) per run."""
+    def at(r: dict[str, Any], e: float) -> float:
+        return float(np.interp(e, r["strain"], r["force_N"])) if r["strain"][-1] >= e - 1e-9 \
+            else float("nan")
+    print("| mu | step | F(10 %) N | F(30 %) N | K(45 %)/K(5 %) | reached | W (N mm) | D / W |"
+          " IPOPT it | wall s |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in runs:
+        k = [(at(r, e + STEP) - at(r, e - STEP)) / (2 * STEP) for e in (0.05, 0.45)]
+        ratio = (r["dissipation_Nmm"] or 0.0) / r["work_Nmm"]
+        print(f"| {r['mu']} | {r['step']} | {at(r, 0.1):.4g} | {at(r, 0.3):.4g} | "
+              f"{k[1] / k[0]:.3g} | {r['strain'][-1]:.3f} | {r['work_Nmm']:.4g} | {ratio:.3g} | "
+              f"{r['iterations']} | {r['wall_s']:.0f} |")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", type=int, default=6)
@@ -96,10 +151,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--direction", choices=("courses", "wales", "both"), default="both")
     ap.add_argument("--max-time", type=float, default=120.0, help="wall seconds per step")
     ap.add_argument("--out", default="results")
+    ap.add_argument("--mu", type=float, default=None,
+                    help="the built friction: one load path with this mu and one without")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     dirs = ("courses", "wales") if args.direction == "both" else (args.direction,)
+    if args.mu is not None:
+        runs = [path_with_friction(d, args.size, args.to, mu, args.max_time, step)
+                for d in dirs for mu, step in ((0.0, STEP), (args.mu, STEP),
+                                               (args.mu, STEP / 2))]
+        compare(runs)
+        (out / "friction_weft3d_built.json").write_text(json.dumps(runs, indent=1))
+        return 0
     res = [run(d, args.size, args.to, args.max_time) for d in dirs]
     (out / "friction_weft3d.json").write_text(json.dumps(res, indent=1))
     return 0

@@ -13,7 +13,7 @@ from __future__ import annotations
 from ..model.parametrisation import Full
 from ..model.problem import WeftProblem
 from ..solving.contact.equilibrium import KEEP
-from ..solving.solve import Equilibrium
+from ..solving.solve import Equilibrium, refuse_friction
 from ..solving.rounds3d import SpatialEquilibrium
 from ..solving.variants import equilibrium
 
@@ -36,7 +36,9 @@ def equilibrium_for(problem: WeftProblem, keep: int = KEEP) -> Equilibrium:
     contact for a problem with a radius, remembering ``keep`` contact states for their
     sensitivities, its solves polished; the 3-D model's ``SpatialEquilibrium``, whose
     crossings are energy terms of an equality-constrained NLP, so its sensitivities are the
-    plain KKT system's, without the other contacts' rounds)."""
+    plain KKT system's, without the other contacts' rounds). Lagged friction is refused
+    (``solve.refuse_friction``): their solves are not one forward load path."""
+    refuse_friction(problem, "control, fit and calibrate")
     eq = equilibrium(problem, Full(), keep=keep, polish=POLISH)
     if isinstance(eq, SpatialEquilibrium):
         eq.rounds_max = 0        # the outer iteration's states must keep fitting its NLP

@@ -27,7 +27,7 @@ from .spatial.natural3d import NaturalShapeError, flat
 
 GEOMETRIES = ("planar", "3d")
 SPATIAL_KEYS = ("core_radius", "contact_rigidity", "contact_exponent", "elevation_modes",
-                "crossing_springs")
+                "crossing_springs", "friction")
 MAX_ELEVATION_MODES = 12
 
 # Gauss-Legendre nodes per panel. Panels break at every material point the model needs and are
@@ -99,7 +99,9 @@ class Yarn:
     ``geometry = "3d"`` (docs/weft3d.md): loops are space curves, the designed crossings
     persistent sliding contacts with the soft-shell law (``compression.SoftShell``: the
     other fields), ``elevation_modes`` harmonics q of the elevation angle, the paper's
-    crossing springs only with ``crossing_springs``; ``natural3d`` the natural 3-D loop."""
+    crossing springs only with ``crossing_springs``; ``friction`` μ of the lagged Coulomb
+    friction at the designed crossings (0: none; ``model/spatial/friction.py``);
+    ``natural3d`` the natural 3-D loop."""
 
     radius: float
     geometry: str = "planar"
@@ -108,6 +110,7 @@ class Yarn:
     contact_exponent: float | None = None
     elevation_modes: int = 0
     crossing_springs: bool = False
+    friction: float = 0.0
     natural3d: Any = field(default=None, compare=False, repr=False)
 
     @property
@@ -296,7 +299,9 @@ def _read_yarn(tab: Table, natural: NaturalLoop, crossings: Crossings | None) ->
     if geometry == "planar":
         for key in SPATIAL_KEYS:
             if tab.has(key):
-                raise tab.error(key, 'only with geometry = "3d"')
+                raise tab.error(key, 'only with geometry = "3d"' + (
+                    " (friction acts where the 3-D model's yarns slide through their crossings;"
+                    " the planar model has no such contacts)" if key == "friction" else ""))
         tab.finish()
         return Yarn(radius)
     core = tab.number("core_radius", radius * ACRYLIC.core_radius / ACRYLIC.radius,
@@ -309,6 +314,7 @@ def _read_yarn(tab: Table, natural: NaturalLoop, crossings: Crossings | None) ->
         raise tab.error("contact_exponent", f"must exceed 1, got {exponent:g}")
     modes = tab.integer("elevation_modes", 4, minimum=2, maximum=MAX_ELEVATION_MODES)
     springs = tab.boolean("crossing_springs", False)
+    friction = tab.number("friction", 0.0, nonnegative=True)
     tab.finish()
     from .spatial.natural_fit import natural_3d  # it checks with proximity, which reads problems
     try:
@@ -316,7 +322,7 @@ def _read_yarn(tab: Table, natural: NaturalLoop, crossings: Crossings | None) ->
                  else flat(natural, modes, radius))
     except NaturalShapeError as err:
         raise tab.error("radius", f"{err}; try a smaller radius or more elevation_modes") from None
-    return Yarn(radius, geometry, core, rigidity, exponent, modes, springs, shape)
+    return Yarn(radius, geometry, core, rigidity, exponent, modes, springs, friction, shape)
 
 
 def _read_loop(tab: Table, fab: Table, m: int,

@@ -188,7 +188,7 @@ class WeftResult(Outcome):
         spatial = getattr(self.nlp, "spatial_block", None)
         if spatial is None:
             return None
-        block = spatial(self.x, self.params.vector())
+        block = spatial(self.x, self.params.vector(), self.report.friction)
         if getattr(self.nlp, "neighbours", None) is not None:      # rounds3d: other contacts
             block["other_contacts"] = {"listed_pairs": len(self.nlp.neighbours),
                                        "rounds": list(self.nlp.rounds)}

@@ -30,10 +30,12 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from ...errors import ProblemError
 from ...ipopt import ipopt_options, succeeded
 from ...outcome import OUT_OF_TIME
 from ...progress import QUIET_FOR, IterationLine
 from ..model.parametrisation import Full, Parametrisation, Reduced
+from ..model.spatial.friction import FrictionPath
 from ..model.params import WeftParams
 from ..model.problem import WeftProblem
 from ..transcription.factory import transcribe
@@ -89,6 +91,8 @@ class SolveReport:
     # continuation: (load factor, x, lam_g) of every step reached, the loading path
     path: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)
     detail: str = ""          # a sentence that says more than the status (the result's message)
+    # lagged friction (3-D, [yarn] friction > 0): the load path's state after this solve
+    friction: FrictionPath | None = None
 
     def add_effort(self, other: "SolveReport") -> None:
         """Count another solve's iterations, time and IPOPT profile into this report."""
@@ -124,7 +128,15 @@ class OnClock:
 
 
 class WeftSolver(OnClock):
-    """One IPOPT instance for one assembled NLP, reusable across parameter values and starts."""
+    """One IPOPT instance for one assembled NLP, reusable across parameter values and starts.
+
+    With lagged friction (``SpatialNLP.friction``, docs/weft3d.md "Friction") it carries the
+    load path's state ``path`` (``FrictionPath``): the lagged block of the NLP's parameters,
+    appended to the ``WeftParams`` vector of every solve (:meth:`parameters`), set from the
+    natural state when a path starts (:meth:`begin_path`) and from each accepted step's answer
+    when the next step starts (:meth:`continuation`); a halved step keeps it."""
+
+    path: FrictionPath | None = None
 
     def __init__(self, wnlp: WeftNLP, tol: float | None = None, max_iter: int | None = None,
                  print_level: int = 0, verbose: bool | None = False,
@@ -154,6 +166,32 @@ class WeftSolver(OnClock):
             self.start_clock()
         self._g = ca.Function("g", [wnlp.nlp["x"], wnlp.nlp["p"]], [wnlp.nlp["g"]])
 
+    # -- lagged friction: the load path's state (model/spatial/friction.py) ------------------
+    def begin_path(self, x: np.ndarray | None = None) -> None:
+        """Start a load path whose first step lags from x (None: the natural state)."""
+        if getattr(self.wnlp, "friction", None) is not None:
+            self.path = FrictionPath(self.wnlp.lagged_at(self.wnlp.x0 if x is None else x))
+
+    def parameters(self, p: np.ndarray) -> np.ndarray:
+        """The NLP's parameter vector: ``p`` (``WeftParams.vector``) and, with friction, the
+        path's lagged block (a solve outside a path is one step from the natural state)."""
+        if getattr(self.wnlp, "friction", None) is None:
+            return p
+        if self.path is None:
+            self.begin_path()
+        return np.concatenate([np.asarray(p, dtype=float).ravel(), self.path.lagged.block()])
+
+    def accept_step(self, x: np.ndarray) -> None:
+        """Count an accepted step that reached x into the path (its dissipation, F4)."""
+        if self.path is not None:
+            self.path = self.path.accepted(self.wnlp.step_dissipation(x, self.path.lagged))
+
+    def _lag_from(self, x: np.ndarray) -> None:
+        """The next step's lagged values: the accepted answer x's (the one method that moves
+        them within a path)."""
+        if self.path is not None:
+            self.path = self.path.next_step(self.wnlp.lagged_at(x))
+
     def sibling(self, wnlp: WeftNLP, ipopt: dict | None = None) -> "WeftSolver":
         """An IPOPT instance for another NLP of the same problem (yarn contact's, with more
         variables and rows) that shares this one's clock and progress setting: its solves stop
@@ -181,7 +219,7 @@ class WeftSolver(OnClock):
         lbg = np.asarray(self.wnlp.lbg if lbg is None else lbg, dtype=float).ravel()
         ubg = np.asarray(self.wnlp.ubg if ubg is None else ubg, dtype=float).ravel()
         self.progress.bounds = (lbg, ubg)
-        sol = self.solver(x0=x0, p=p, lbg=lbg, ubg=ubg, **warm)
+        sol = self.solver(x0=x0, p=self.parameters(p), lbg=lbg, ubg=ubg, **warm)
         stats = self.solver.stats()
         status = str(stats["return_status"])
         if status == "User_Requested_Stop" and time.perf_counter() >= self.deadline:
@@ -193,18 +231,23 @@ class WeftSolver(OnClock):
 
     def violation(self, x: np.ndarray, p: np.ndarray) -> float:
         """Largest constraint violation at x: how far g(x, p) lies outside [lbg, ubg]."""
-        return self.wnlp.violation(np.asarray(self._g(x, p)).ravel())
+        return self.wnlp.violation(np.asarray(self._g(x, self.parameters(p))).ravel())
 
     def continuation(self, p: np.ndarray, x0: np.ndarray, steps: int,
                      max_halvings: int = 6, p_from: np.ndarray | None = None,
                      predict: bool = False) -> SolveReport:
         """Step the parameters from their natural values (or ``p_from``, x0's) to ``p``,
         warm-starting each solve: from the last step's solution, or with ``predict`` from its
-        secant extrapolation (:func:`secant`) once two states of the path are known."""
+        secant extrapolation (:func:`secant`) once two states of the path are known. With
+        friction the steps are a load path (class docstring): the first lags from the natural
+        state (from x0 with ``p_from``: a solved state), each next one from the last accepted
+        answer; only the ``WeftParams`` part of the parameters is interpolated."""
         p_nat = WeftParams.natural(self.wnlp.problem).vector() if p_from is None else p_from
         x, tau, dtau = x0, 0.0, 1.0 / steps
         total = SolveReport(False, "", x0, np.zeros(self.wnlp.n_constraints), np.nan, 0, 0.0)
         halvings, before = 0, None                    # before: (τ, x) of the step before x
+        self.begin_path(None if p_from is None else x0)
+        lag_from = None                               # an accepted answer the next step lags from
         while tau < 1.0 - 1e-12:
             if time.perf_counter() >= self.deadline:
                 total.status = OUT_OF_TIME
@@ -212,10 +255,16 @@ class WeftSolver(OnClock):
             nxt = min(1.0, tau + dtau)
             self.progress.at(tau)                     # the progress line's share and estimate
             start = x if before is None or not predict else secant(before, (tau, x), nxt)
+            if lag_from is not None:
+                self._lag_from(lag_from)
+                lag_from = None
             rep = self.once(p_nat + nxt * (p - p_nat), start)
             total.add_effort(rep)
             if rep.success:
                 before, x, tau = (tau, x), rep.x, nxt
+                self.accept_step(rep.x)
+                lag_from = rep.x
+                total.friction = self.path
                 total.continuation_steps += 1
                 total.path.append((tau, rep.x, rep.lam_g))
                 total.x, total.lam_g, total.objective, total.status = rep.x, rep.lam_g, rep.objective, rep.status
@@ -286,10 +335,12 @@ class Equilibrium:
     def rebuild(self, nlp: WeftNLP) -> None:
         """Solve ``nlp`` from now on (the 3-D model's rounds of other contacts, rounds3d.py):
         its IPOPT instance built here on the same wall-clock budget ([solver] max_time), the
-        KKT system afresh."""
+        KKT system afresh; the load path's friction state carried over (a round that solves
+        the last step again keeps that step's lagged values)."""
         t0 = time.perf_counter()
-        self.nlp, self._kkt = nlp, None
+        self.nlp, self._kkt, path = nlp, None, self.solver.path
         self.solver = WeftSolver(nlp, verbose=self.solver.verbose, clock=self.solver.clock)
+        self.solver.path = path
         self._build_s += time.perf_counter() - t0
 
     @property
@@ -342,8 +393,11 @@ class Equilibrium:
         """A report of this NLP at ``params`` as a :class:`Solution` (its violation, and what
         the variant keeps for its x)."""
         params = self.as_params(params)
-        return Solution.of(report, nlp=self.nlp, params=params, build_s=self.build_s,
-                           violation=self.solver.violation(report.x, params.vector()))
+        sol = Solution.of(report, nlp=self.nlp, params=params, build_s=self.build_s,
+                          violation=self.solver.violation(report.x, params.vector()))
+        if sol.friction is None:            # a step solved again (rounds3d): its path's state
+            sol.friction = self.solver.path
+        return sol
 
     # -- sensitivities: an optional capability, built on first use ----------------------
     @property
@@ -409,6 +463,7 @@ class SpatialSteps(Equilibrium):
               origin: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
         if origin is None or x0 is None:
             return super().solve(params, x0, continuation=continuation, start=start)
+        refuse_friction(self.problem, "the inverse problems' trial steps")
         params = self.as_params(params)
         p = params.vector()
         self.forward_solves += 1
@@ -425,6 +480,17 @@ class SpatialSteps(Equilibrium):
             step.attempts = rep.attempts + [f"load step from the last state: {step.status}"]
             rep = step
         return self.solution(rep, params)
+
+
+def refuse_friction(problem: WeftProblem, what: str) -> None:
+    """Refuse lagged friction (``[yarn] friction`` > 0) in ``what``, whose load path is not a
+    forward continuation (exit 2)."""
+    yarn = problem.yarn
+    if yarn is not None and yarn.spatial and yarn.friction > 0:
+        raise ProblemError(problem.source, "yarn", "friction",
+                           f"{what}: lagged friction needs a forward load path (its answer "
+                           "depends on the steps), which these solves do not follow; remove "
+                           "friction or set it to 0")
 
 
 def solve_nlp(wnlp: WeftNLP, solver: WeftSolver | None = None,
@@ -456,7 +522,11 @@ def _direct_then_continuation(solver: WeftSolver, p: np.ndarray, x0: np.ndarray,
                               continuation: int | None) -> SolveReport:
     attempts, tried = [], []
     if continuation is None:
+        solver.begin_path()                  # friction: one load step from the natural state
         rep = solver.once(p, x0)
+        if rep.success:
+            solver.accept_step(rep.x)
+            rep.friction = solver.path
         attempts.append(f"direct: {rep.status} ({rep.iterations} it)")
         tried.append(rep)
     for steps in ([] if tried and tried[-1].success else [continuation] if continuation else [4, 16]):

@@ -11,6 +11,10 @@ Decision variables, by block (``Layout``):
   (K = 4 crossings or 2 wraps, ``Natural3D.labels``, per loop of courses 2..m) and ``cp`` (12 × K): the lifted closest points
   and tangents (p_u, t_u, p_l, t_l) there, each tied to one loop's coefficients by (S3);
 - ``PC`` (3 × specials): the clamped and loaded points.
+With ``[yarn] friction`` μ > 0 the energy gains the lagged friction potential Σ_c D_c
+(``model/spatial/friction.py``, F1-F3) of the σ block, and the NLP's parameter vector a lagged
+block (4 × K: N̄, σ̄_u, σ̄_l, c̄ per crossing) after the ``WeftParams`` ones: the load path's
+state (``FrictionPath``), set by the solver (``WeftSolver.parameters``), never interpolated.
 The other contacts' sample points (``rp``, 3 × N·S) are built as a lifted block at the end of
 a longer vector and condensed away (``elements.condensed_derivatives``): in the NLP they are
 functions of their loops (S2), not variables, and their repulsion's Hessian is a block per
@@ -48,6 +52,8 @@ from ..model.parametrisation import Full
 from ..model.params import WeftParams, param_layout
 from ..model.problem import WeftProblem
 from ..model.spatial.crossing_contact import crossing_terms, natural_scales, separation
+from ..model.spatial.friction import (EPSILON, LAGGED_ROWS, Friction, FrictionPath, Lagged,
+                                      friction_potential)
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
 from ..model.spatial.natural3d import Natural3D, flat
 from ..model.spatial.repulsion import Neighbours, natural_neighbours, repulsion_energy, sample_s
@@ -110,6 +116,7 @@ class SpatialNLP(Assembled):
     parametrisation: Full = Full()
     model: str = "full3d"
     neighbours: Neighbours | None = None   # the other contacts' list (repulsion.py)
+    friction: Friction | None = None       # lagged friction at the crossings (friction.py)
     rounds: list[dict[str, Any]] = field(default_factory=list)   # rounds3d's, per round
 
     # -- the protocol ----------------------------------------------------------------
@@ -214,6 +221,33 @@ class SpatialNLP(Assembled):
                 "compression": (hc - 2 * shell.radius) / a,
                 "force": np.where(hc < 2 * shell.radius, a * shell.crossing_force(hc, sin_a), 0.0)}
 
+    # -- lagged friction (model/spatial/friction.py) --------------------------------------
+    def lagged_at(self, x: np.ndarray) -> Lagged:
+        """The lagged values a load step takes from the accepted state x (F1, F3): each
+        crossing's normal force, material coordinates and the cosine between its tangents."""
+        state, cp = self.crossing_state(x), self.x.get(x, "cp")
+        return Lagged(np.abs(state["force"]), np.array(state["sigma_upper"]),
+                      np.array(state["sigma_lower"]), np.einsum("ik,ik->k", cp[3:6], cp[9:12]))
+
+    def step_dissipation(self, x: np.ndarray, lagged: Lagged) -> float:
+        """μ Σ N̄|Δ| (F4) of the step that reached x with these lagged values."""
+        sig = self.x.get(x, "sigma")
+        return self.friction.dissipation(lagged, sig[0], sig[1])
+
+    def _friction_rows(self, x: np.ndarray, path: FrictionPath | None
+                       ) -> tuple[dict[str, Any] | None, np.ndarray, np.ndarray]:
+        """The ``spatial`` block's ``friction`` summary (μ, ε, the load steps of the path from
+        the natural state, its dissipation F4: the steps before the last plus the last one's
+        at x) and per crossing the friction force μN̄ and the slide |Δ| of the last step;
+        (None, empty, empty) without friction or without the path that reached x."""
+        if self.friction is None or path is None:
+            return None, np.zeros(0), np.zeros(0)
+        sig = self.x.get(x, "sigma")
+        lag, fr = path.lagged, self.friction
+        summary = {"mu": fr.mu, "epsilon": fr.eps, "load_steps": path.steps,
+                   "dissipation": path.earlier + self.step_dissipation(x, lag)}
+        return summary, fr.mu * lag.normal, lag.slides(sig[0], sig[1])
+
     def contact_points(self, x: np.ndarray) -> np.ndarray:
         """Per crossing, the midpoint of its two closest points (K, 3): where the yarns touch."""
         if "cp" not in self.x.blocks:
@@ -221,8 +255,11 @@ class SpatialNLP(Assembled):
         cp = self.x.get(x, "cp")
         return 0.5 * (cp[0:3].T + cp[6:9].T)          # rows: x_u, t_u, x_l, t_l
 
-    def spatial_block(self, x: np.ndarray, p: np.ndarray) -> dict[str, Any]:
-        """The result JSON's ``spatial`` block (docs/weft3d.md, "Results")."""
+    def spatial_block(self, x: np.ndarray, p: np.ndarray,
+                      path: FrictionPath | None = None) -> dict[str, Any]:
+        """The result JSON's ``spatial`` block (docs/weft3d.md, "Results"); with friction and
+        the load path that reached x (``path``), its ``friction`` summary and each crossing's
+        ``friction_force`` and ``slide`` (``_friction_rows``)."""
         spring, contact = (float(v) for v in self.terms(x, p)[:2])
         state = self.crossing_state(x)
         out: dict[str, Any] = {"geometry": "3d", "elevation_modes": self.shape.modes,
@@ -231,6 +268,9 @@ class SpatialNLP(Assembled):
         if not state:
             return {**out, "crossings": [], "smallest_separation": None, "flipped": 0}
         n = self.problem.wales
+        summary, force, slide = self._friction_rows(x, path)
+        if summary is not None:
+            out["friction"] = summary
         rows = []
         for c, h in enumerate(state["h"]):
             k, kind = divmod(c, self.shape.s_upper.size)
@@ -242,7 +282,9 @@ class SpatialNLP(Assembled):
                          "s_lower": float(state["sigma_lower"][c]),
                          "separation": float(h), "compression": float(state["compression"][c]),
                          "force": float(state["force"][c]),
-                         "sin_angle": float(state["sin_angle"][c])})
+                         "sin_angle": float(state["sin_angle"][c]),
+                         **({"friction_force": float(force[c]), "slide": float(slide[c])}
+                            if summary is not None else {})})
         sig = np.concatenate([state["sigma_upper"], state["sigma_lower"]])
         return {**out, "crossings": rows, "smallest_separation": float(np.min(state["h"])),
                 "flipped": int(np.sum(state["h"] <= 0)),
@@ -310,12 +352,15 @@ class _Builder:
         self.evals = list(dict.fromkeys(float(v) for v in pts))
         self.col = {s: q for q, s in enumerate(self.evals)}
         self.elements = Elements()          # every nonlinear term's mapped call (elements.py)
+        mu = pr.yarn.friction if pr.yarn is not None else 0.0
+        self.friction = Friction(mu, EPSILON * pr.L, self.K) if mu > 0 and self.K else None
 
     def build(self) -> SpatialNLP:
         pr = self.pr
         xl, xs, xb = self._variables()
         pl = param_layout(pr)
-        ps = ca.MX.sym("p", pl.size)
+        n_lag = LAGGED_ROWS * self.K if self.friction is not None else 0
+        ps = ca.MX.sym("p", pl.size + n_lag)
         pb = {name: ca.reshape(ps[pl.slice(name)], *shape)
               for name, (_, _, shape) in pl.blocks.items()}
         rows = Constraints()
@@ -323,10 +368,15 @@ class _Builder:
         clamp_rows, rigid_rows, z_rows = self._clamps(xb, pb, rows)
         spring, contact, bend, work, h, sin_a = self._energy(xb, pb)
         f, g = spring + contact + bend - work, rows.expression()
+        if n_lag:
+            f += self._friction(xb, ca.reshape(ps[pl.size:], LAGGED_ROWS, self.K))
         terms = ca.Function("terms", [xs, ps], [spring, contact, bend, work, h, sin_a])
         names = [n for n in LIFTED if n in xl.blocks]
         lift_fn = ca.Function("lifted", [xs], [lifted[n] for n in names])
         xs, f, g, terms, lift_fn, derivs = self._condensed(xs, ps, f, g, terms, lift_fn, xl.size)
+        if n_lag:           # the terms do not use the lagged block: called with p as WeftParams'
+            xt, pt = ca.MX.sym("x", xs.numel()), ca.MX.sym("p", pl.size)
+            terms = ca.Function("terms", [xt, pt], terms(xt, ca.vertcat(pt, ca.DM.zeros(n_lag))))
         nlp = {"x": xs, "p": ps, "f": f, "g": g}
         npar = pr.courses * pr.wales * (self.nc + (self.nq if self.opt.elevation else 0)) + 3 * pr.courses
         table = ClampTable(self.specials, self.clamp_pts, self.load_pts, self.rigid_pts,
@@ -335,6 +385,7 @@ class _Builder:
                          WeftParams.of(pr), table, npar, options=self.opt, shape=self.shape,
                          z_rows=z_rows, terms=terms, lifted=lift_fn, signs=self.signs)
         out.nlpsol_options = {**out.nlpsol_options, **derivs}
+        out.friction = self.friction
         out.x0 = out.lift3d(np.broadcast_to(self.shape.coeffs, (pr.courses, pr.wales, self.nc)),
                             np.broadcast_to(self._b0(), (pr.courses, pr.wales, self.nq)),
                             self.shape.starts(pr.courses, pr.wales))
@@ -520,6 +571,13 @@ class _Builder:
                                A[:, loop_index(pr, ld.loop)] - ca.DM(sh.coeffs))
             work += pb["moments"][q] * dtheta
         return spring, contact, bend, work, h, sin_a
+
+    def _friction(self, xb: dict[str, ca.MX], lagged: ca.MX) -> ca.MX:
+        """Σ_c D_c (F3) of the crossings' coordinates σ with the lagged block (4 × K), one
+        element per crossing."""
+        fr = self.friction
+        return ca.sum2(self.elements.call("friction", friction_potential(fr.mu, fr.eps), self.K,
+                                          xb["sigma"], lagged)[0])
 
     # -- the other contacts (model/spatial/repulsion.py, docs/weft3d.md) ------------------
     def _samples(self, A: ca.MX, Bel: ca.MX, X: ca.MX) -> ca.MX:
