@@ -223,7 +223,7 @@ def test_friction_is_refused_where_it_cannot_be_carried_or_has_no_meaning() -> N
     planar["yarn"] = {"radius": 0.2, "friction": 0.3}
     with pytest.raises(ProblemError, match=r"\[yarn\] friction.*geometry = \"3d\""):
         parse_problem(planar, "planar.toml")
-    with pytest.raises(ProblemError, match=r"\[yarn\] friction: control, fit and calibrate"):
+    with pytest.raises(ProblemError, match=r"\[yarn\] friction: control and fit"):
         equilibrium_for(_problem(0.3))
 
 

@@ -31,14 +31,18 @@ POLISH = 4
 CURVE_KEEP = 1024
 
 
-def equilibrium_for(problem: WeftProblem, keep: int = KEEP) -> Equilibrium:
+def equilibrium_for(problem: WeftProblem, keep: int = KEEP, *,
+                    load_path: bool = False) -> Equilibrium:
     """The forward equilibrium control, fit and calibrate share: the full model (with yarn
     contact for a problem with a radius, remembering ``keep`` contact states for their
     sensitivities, its solves polished; the 3-D model's ``SpatialEquilibrium``, whose
     crossings are energy terms of an equality-constrained NLP, so its sensitivities are the
     plain KKT system's, without the other contacts' rounds). Lagged friction is refused
-    (``solve.refuse_friction``): their solves are not one forward load path."""
-    refuse_friction(problem, "control, fit and calibrate")
+    (``solve.refuse_friction``) unless the caller's solves follow one forward load path
+    (``load_path``: calibrate's curves, each node a step lagged from the last, ``curve.py``);
+    control's and fit's do not."""
+    if not load_path:
+        refuse_friction(problem, "control and fit")
     eq = equilibrium(problem, Full(), keep=keep, polish=POLISH)
     if isinstance(eq, SpatialEquilibrium):
         eq.rounds_max = 0        # the outer iteration's states must keep fitting its NLP

@@ -75,7 +75,7 @@ class SpecimenModel:
         self.specimen = specimen
         yarn = specimen.problem.yarn
         self.spatial = yarn is not None and yarn.spatial
-        self.eq = equilibrium_for(specimen.problem, CURVE_KEEP)
+        self.eq = equilibrium_for(specimen.problem, CURVE_KEEP, load_path=True)
         low, high = specimen.lateral_points
         points = point_function(self.eq.wnlp, [*low, *high])
         self._points = point_jacobian(points)
@@ -124,10 +124,13 @@ class SpecimenModel:
         3-D solve steps the load from the natural state in 4 solves whatever ``x0``; on a
         5 x 3 wale pull that ran over 4000 iterations at 7.5 % strain where single warm steps
         took 4-6 each, measured). A failed step is halved by the caller; ``[solver] max_iter``
-        bounds each."""
+        bounds each. With lagged friction (``[yarn] friction``, docs/weft3d.md "Friction") the
+        curve is the load path: every step lags from ``x0``, the last accepted state (a halved
+        step from it too), so a curve depends on its steps as a pull does on its load steps."""
         solver = self.eq.solver
         solver.start_clock()
         no_path()              # one solve: not a share of the unloaded solve's load steps
+        solver.begin_path(x0)  # lagged friction (if any): from the last node, halved or not
         return self.eq.solution(solver.once(p, x0), p)
 
     def curve(self, material: dict[str, float], goal: float,
