@@ -20,6 +20,7 @@ from knit_nlp.weft.model.spatial.crossing_contact import crossing_terms
 from knit_nlp.weft.model.spatial.curve3d import segment
 from knit_nlp.weft.model.spatial.friction import LAGGED_ROWS, friction_potential
 from knit_nlp.weft.output.results import WeftResult
+from knit_nlp.weft.output.summary import solve_summary
 from knit_nlp.weft.solving.variants import equilibrium
 from knit_nlp.weft.transcription.spatial import Spatial, build_spatial
 
@@ -173,6 +174,11 @@ def test_a_pull_with_friction_needs_more_force_and_balances_its_energy(monkeypat
         assert max(c["slide"] for c in spatial["crossings"]) > 0
         assert sum(dis) > 0.02 * w
         assert abs(w - u - sum(dis)) < 0.2 * sum(dis)
+        told = solve_summary(runs[mu], [])
+        assert (f"  friction: mu = {mu:g} at the designed crossings, lagged over 6 load steps; "
+                f"dissipated {sum(dis):.4g} [{runs[mu].problem.units.energy}]"
+                ) in told.splitlines(), told
+    assert "friction" not in solve_summary(runs[0.0], [])
 
 
 def test_friction_derivatives_equal_ad_and_finite_differences() -> None:

@@ -183,7 +183,7 @@ class WeftResult(Outcome):
         return own_check(self.problem, self.coefficients, self.starts)[1]
 
     @cached_property
-    def _spatial(self) -> dict[str, Any] | None:
+    def spatial(self) -> dict[str, Any] | None:
         """The 3-D model's ``spatial`` block (docs/weft3d.md), None for the planar models."""
         spatial = getattr(self.nlp, "spatial_block", None)
         if spatial is None:
@@ -238,8 +238,8 @@ class WeftResult(Outcome):
         reps = self.representatives()
         if reps is not None:
             result["representatives"] = reps
-        if self._spatial is not None:                        # the 3-D model (docs/weft3d.md)
-            result["spatial"] = self._spatial
+        if self.spatial is not None:                         # the 3-D model (docs/weft3d.md)
+            result["spatial"] = self.spatial
             result["loops"].update(course_starts_z=self.nlp.starts3d(self.x)[:, 0, 2].tolist(),
                                    elevations=self.nlp.elevations(self.x).tolist())
         source = source_record(self.problem.source)

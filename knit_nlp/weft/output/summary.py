@@ -55,6 +55,11 @@ def solve_summary(r: WeftResult, paths: list[Path]) -> str:
                      "check found closer than 2r" + (f" (the last round's solve failed: "
                                                      f"{failed[0]}; its pairs not kept)"
                                                      if failed else ""))
+    friction = (r.spatial or {}).get("friction")               # lagged friction (3-D)
+    if friction is not None:
+        lines.append(f"  friction: mu = {friction['mu']:g} at the designed crossings, lagged over "
+                     f"{friction['load_steps']} load step{'s' * (friction['load_steps'] != 1)}; "
+                     f"dissipated {friction['dissipation']:.4g} [{u.energy}]")
     lines.append("  check: " + r.checked["verdict"])
     lines += implausible(r)                     # springs beyond L, folds, loops inside out
     if not r.success:
