@@ -3,9 +3,12 @@ the independent check over all pairs of yarn pieces (``model.spatial.proximity``
 pieces closer than touch (2r) that are neither one piece of yarn nor a designed crossing's own
 contact, and whose sample points the neighbour list (``model.spatial.repulsion``) does not
 hold, are added to the list, and the NLP is built again and solved from the answer (one
-direct solve: load steps from the natural state would start over), each new pair's law shifted
-to start at most half way into the shell. When a pair is found already inside the hard core
-(the yarns passed each other between the list's sample points), a shift would keep it there,
+direct solve: load steps from the natural state would start over), each new pair's law thinned
+by its natural distance (C3) and shifted to start at most half way into the shell. A
+designed contact's own pairs are judged by windows at its crossing's current material
+coordinates σ (the yarn slides through its crossings), not the natural ones. When a pair is
+found already inside the hard core (the yarns passed each other between the list's sample
+points), a shift would keep it there,
 so the round starts over instead: load steps from the natural state, the new pairs' law
 unshifted, so that they hold from the start. Where that solve fails, the answer before it
 stands and the round says so. At most ``ROUNDS`` rounds; each round's pairs
@@ -23,7 +26,7 @@ import numpy as np
 
 from ..model.spatial.proximity import ProximityReport
 from ..model.spatial.state import spatial_samples, spatial_state
-from ..model.spatial.repulsion import Neighbours, missing
+from ..model.spatial.repulsion import Neighbours, missing, natural_distance
 from ..transcription.spatial import SpatialNLP, build_spatial
 from .contact.rounds import REFUTED
 from .solve import Solution, SpatialSteps
@@ -68,24 +71,29 @@ class SpatialEquilibrium(SpatialSteps):
 
     def missing(self, x: np.ndarray) -> tuple[Neighbours, bool]:
         """The pairs the check finds closer than touch that the list lacks (module docstring),
-        each shifted so that it starts no deeper than half way into the shell (R1: a pair
-        found inside the core would make the energy infinite at the answer), and whether one
-        is inside the core (then unshifted: the round starts over)."""
+        no designed contact's own by the windows at the crossings' current σ (a round rebuilds
+        the NLP: the windows follow the yarn sliding through its crossings), their law thinned
+        by their natural distance (C3: a pair beside a wrap may be pressed at rest), each
+        shifted so that it starts no deeper than half way into the shell (R1: a pair found
+        inside the core would make the energy infinite at the answer), and whether one is
+        inside the core (then unshifted: the round starts over)."""
         nlp: SpatialNLP = self.nlp
         pr, shape = self.problem, nlp.shape
         rep = self.report(x)
-        new = missing(rep.touching, nlp.neighbours, pr.L, pr.wales, shape)
+        sigma = nlp.x.get(x, "sigma") if "sigma" in nlp.x.blocks else None
+        new = missing(rep.touching, nlp.neighbours, pr.L, pr.wales, shape, sigma)
         if not len(new):
             return new, False
+        scale = pr.yarn.shell().thinning(natural_distance(new, shape, pr.courses, pr.wales))
         inside = rep.touching.select(rep.touching.d < 2 * pr.yarn.core_radius)
-        through = bool(len(missing(inside, nlp.neighbours, pr.L, pr.wales, shape)))
-        if through:
-            return new, True
+        if len(missing(inside, nlp.neighbours, pr.L, pr.wales, shape, sigma)):
+            return Neighbours(new.ka, new.qa, new.kb, new.qb, new.shift, scale,
+                              new.samples), True
         pts = nlp.sample_points(x, new.samples)
         d = np.linalg.norm(pts[new.ka, new.qa] - pts[new.kb, new.qb], axis=1)
         half = pr.yarn.radius + pr.yarn.core_radius
         return Neighbours(new.ka, new.qa, new.kb, new.qb, np.maximum(0.0, half - d),
-                          new.scale, new.samples), False
+                          scale, new.samples), False
 
     def _again(self, sol: Solution, new: Neighbours, over: bool = False) -> tuple[Solution, str]:
         """The NLP with ``new`` pairs added, solved from ``sol``'s answer (or, ``over``, by
