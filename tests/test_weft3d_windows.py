@@ -115,3 +115,23 @@ def test_the_rounds_judge_by_the_crossings_current_sigma(fabric, monkeypatch) ->
     d0 = natural_distance(new, sh, pr.courses, pr.wales)
     np.testing.assert_allclose(new.scale, pr.yarn.shell().thinning(d0))
     assert np.all(new.shift == 0.0) and np.all(new.scale > 1.0)
+
+
+def test_a_refuted_answer_is_solved_again_on_finer_samples(fabric, monkeypatch) -> None:
+    """When the check still finds pairs of loops in the core after the rounds, the solve
+    rebuilds its list on samples twice as fine and starts over (load steps from the natural
+    state), once, says so in its rounds' record, and the check still has the last word (a
+    check that keeps saying "inside the core" refutes the answer)."""
+    from knit_nlp.weft.solving.contact.rounds import REFUTED
+    pr, sh, listed, _ = fabric
+    eq = equilibrium(pr)
+    rep = ProximityReport(pr.yarn.radius, 2 * pr.yarn.core_radius, 61, n_inside_core=1)
+    monkeypatch.setattr(eq, "report", lambda _x: rep)
+    sol = eq.solve()
+    S = 2 * listed.samples
+    assert eq.nlp.rounds == [{"added": 0, "status": "Solve_Succeeded", "started_over": True,
+                              "samples": S}]
+    assert eq.nlp.neighbours.samples == S
+    assert len(eq.nlp.neighbours) == len(natural_neighbours(sh, pr.yarn.shell(), pr.courses,
+                                                             pr.wales, S))
+    assert not sol.success and sol.status == REFUTED
