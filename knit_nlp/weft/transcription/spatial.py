@@ -325,7 +325,8 @@ def build_spatial(pr: WeftProblem, options: Spatial = Spatial(),
         raise ValueError(f"derivatives must be 'elements' or 'casadi'; got {options.derivatives!r}")
     pairs = None
     if contacts and options.repulsion:
-        pairs = natural_neighbours(shape, pr.yarn.shell(), pr.courses, pr.wales)
+        pairs = natural_neighbours(shape, pr.yarn.shell(), pr.courses, pr.wales,
+                                   None if extra is None else extra.samples)
         pairs = pairs if extra is None else pairs.plus(extra)
     out = _Builder(pr, Spatial(options.elevation, contacts, springs, pairs is not None,
                                options.derivatives), shape, pairs).build()

@@ -27,7 +27,10 @@ energy (S7) acts (``Windows``): for touching crossings (thin yarns) both points 
 (``proximity.reference_crossings``); for wraps both within ``WRAP_WINDOW``·2r of the wrap's
 closest points, so that the legs pressing on the head below away from the wraps are other
 contacts. Pairs that come close only after deformation are added by the solve's rounds
-(``missing``), from the independent check (``proximity``).
+(``missing``), from the independent check (``proximity``), judged by the same windows centred
+on each crossing's current material coordinates σ (S5: the yarn slides through its
+crossings), so that a pair pressed where a crossing was is added, and its law thinned by its
+natural distance (C3) as the list's own.
 """
 from __future__ import annotations
 
@@ -156,11 +159,10 @@ def _designed(shape: Natural3D) -> Windows:
     on the head below, away from the wraps) is an other contact, which holds a course that
     would otherwise hang on two nearly collinear points."""
     if shape.labels == WRAPS:
-        return Windows(shape.s_upper, shape.s_lower, WRAP_WINDOW * 2 * shape.radius)
+        return Windows(shape.s_upper, shape.s_lower, _width(shape))
     s = np.linspace(0.0, shape.length, 241)
     lines = shape.xyz(s)[None, None] + shape.starts(2, 3)[:, :, None, :]
-    return Windows(*reference_crossings(Courses.of(lines, shape.length)),
-                   DESIGNED * 2 * shape.radius)
+    return Windows(*reference_crossings(Courses.of(lines, shape.length)), _width(shape))
 
 
 def _in_window(windows: Windows, s: np.ndarray, dj: int, L: float) -> np.ndarray:
@@ -200,10 +202,15 @@ def repulsion_energy(shell: SoftShell, weight: float, points: ca.MX, pairs: Neig
 
 
 def missing(close: Near | None, listed: Neighbours, L: float, wales: int,
-            shape: Natural3D) -> Neighbours:
+            shape: Natural3D, sigma: np.ndarray | None = None) -> Neighbours:
     """The sample-point pairs nearest the check's other pairs closer than touch (``close``)
     that the list does not hold (each pair with its neighbours along both yarns, shift 0),
-    except pairs inside a designed crossing's window (module docstring, (2))."""
+    except pairs inside a designed crossing's window (module docstring, (2)), centred where
+    each crossing is now: ``sigma`` (2 × K: σ_u, σ_l of every crossing, S5) when given, else
+    where the natural fabric has it. Under a large pull the yarn slides through its crossings
+    (σ moves by up to 1.6 mm on the 12 × 12 course pull to +50 %, against a window of
+    ±0.37 mm): windows left at the natural σ₀ would drop pairs beside the wrap that the
+    check finds inside the core, round after round."""
     S = listed.samples
     if close is None or not len(close.d):
         return none(S)
@@ -219,12 +226,22 @@ def missing(close: Near | None, listed: Neighbours, L: float, wales: int,
                                                          & (cand[:, 1] == cand[:, 3]))]
     new = Neighbours(cand[:, 0], cand[:, 1], cand[:, 2], cand[:, 3], np.zeros(len(cand)),
                      np.ones(len(cand)), S)
-    keep = ~np.isin(new.keys(), listed.keys()) & ~_designed_pair(new, shape, wales)
+    keep = ~np.isin(new.keys(), listed.keys()) & ~_designed_pair(new, shape, wales, sigma)
     keep &= ~_same_piece(new, L, wales, shape.radius)
     k = np.flatnonzero(keep)
     _, first = np.unique(new.keys()[k], return_index=True)
     k = k[first]
     return Neighbours(new.ka[k], new.qa[k], new.kb[k], new.qb[k], new.shift[k], new.scale[k], S)
+
+
+def natural_distance(pairs: Neighbours, shape: Natural3D, courses: int, wales: int
+                     ) -> np.ndarray:
+    """d⁰ of (C3) of any listed pairs: their sample points' distance in the natural fabric
+    (loops on their lattice, ``Natural3D.starts``)."""
+    s = sample_s(shape.length, pairs.samples)
+    x = shape.starts(courses, wales).reshape(-1, 3)
+    return np.linalg.norm(x[pairs.ka] + shape.xyz(s[pairs.qa])
+                          - x[pairs.kb] - shape.xyz(s[pairs.qb]), axis=1)
 
 
 def _sample_of(course: np.ndarray, u: np.ndarray, L: float, wales: int, S: int
@@ -251,8 +268,11 @@ def _same_piece(p: Neighbours, L: float, wales: int, r: float) -> np.ndarray:
     return (p.ka // wales == p.kb // wales) & (np.abs(ua - ub) < EXCLUSION * np.pi * r)
 
 
-def _designed_pair(p: Neighbours, shape: Natural3D, wales: int) -> np.ndarray:
-    """Pairs of loops one course apart inside a designed crossing's window."""
+def _designed_pair(p: Neighbours, shape: Natural3D, wales: int,
+                   sigma: np.ndarray | None = None) -> np.ndarray:
+    """Pairs of loops one course apart inside a designed crossing's window: at the natural
+    crossings (``_designed``), or, given ``sigma`` (2 × K), centred on each crossing's
+    current material coordinates (``_tracked``)."""
     out = np.zeros(len(p), dtype=bool)
     if not shape.s_upper.size or not len(p):
         return out
@@ -262,10 +282,41 @@ def _designed_pair(p: Neighbours, shape: Natural3D, wales: int) -> np.ndarray:
     up_is_a = p.ka // wales == p.kb // wales + 1
     low_k, low_q = np.where(up_is_b, p.ka, p.kb), np.where(up_is_b, p.qa, p.qb)
     up_k, up_q = np.where(up_is_b, p.kb, p.ka), np.where(up_is_b, p.qb, p.qa)
+    if sigma is not None:
+        return _tracked(up_is_a | up_is_b, (up_k, s[up_q]), (low_k, s[low_q]), shape, wales,
+                        np.asarray(sigma, dtype=float))
     dj = up_k % wales - low_k % wales
     windows = _designed(shape)
     for d in np.unique(dj[up_is_a | up_is_b]):
         mask = _in_window(windows, s, int(d), L)
         sel = (up_is_a | up_is_b) & (dj == d)
         out[sel] = mask[low_q[sel], up_q[sel]]
+    return out
+
+
+def _width(shape: Natural3D) -> float:
+    """A designed contact's window half-width along both yarns (module docstring, (2))."""
+    return (WRAP_WINDOW if shape.labels == WRAPS else DESIGNED) * 2 * shape.radius
+
+
+def _tracked(pair: np.ndarray, up: tuple[np.ndarray, np.ndarray],
+             low: tuple[np.ndarray, np.ndarray], shape: Natural3D, wales: int,
+             sigma: np.ndarray) -> np.ndarray:
+    """Which of the pairs ``pair`` (upper point: loop, s; lower point: loop, s) lie within
+    ``_width`` along both yarns of a crossing's current points: crossing c of upper loop
+    (i, J) (c = ((i − 1)·n + J)·P + kind, P per loop) is at J·L + σ_u[c] along course i and
+    J·L + σ_l[c] along course i − 1 (σ_l from the lower loop (i − 1, J)'s start); the upper
+    point's wale and its two neighbours are looked at."""
+    L, per, w = shape.length, shape.s_upper.size, _width(shape)
+    (ku, su), (kl, sl) = up, low
+    u_up, u_low = (ku % wales) * L + su, (kl % wales) * L + sl
+    course = ku // wales
+    out = np.zeros(len(pair), dtype=bool)
+    for dj in (-1, 0, 1):
+        J = ku % wales + dj
+        valid = pair & (course >= 1) & (J >= 0) & (J < wales)
+        for q in range(per):
+            c = np.where(valid, ((course - 1) * wales + J) * per + q, 0)
+            out |= valid & (np.abs(u_up - (J * L + sigma[0, c])) < w) & (
+                np.abs(u_low - (J * L + sigma[1, c])) < w)
     return out
