@@ -49,11 +49,23 @@ def test_the_paper_model_passes_a_designed_pair_of_loops_through_each_other() ->
     assert designed and designed[0]["natural"] == 4 and designed[0]["count"] > 4
 
 
-def test_the_3d_model_keeps_every_designed_crossings_order() -> None:
+def test_the_3d_model_keeps_every_designed_crossings_order(monkeypatch) -> None:
+    """... and one answer spends one ``[solver] max_time`` budget: every IPOPT solve of it,
+    the rounds' start-over included, sees the deadline the first one started (a start-over
+    had restarted the clock: a refuted 20 x 20 pull with a 900 s budget ran past 20 min)."""
+    from knit_nlp.weft.solving import solve as solving
+    deadlines, once = [], solving.WeftSolver.once
+
+    def spy(self, *args, **kw):
+        deadlines.append(self.deadline)
+        return once(self, *args, **kw)
+    monkeypatch.setattr(solving.WeftSolver, "once", spy)
     pr = parse_problem(_doc(True), "flip2.toml")
     result = knit_nlp.solve(pr)
     assert result.success, result.status
     out = result.to_json()
+    assert any(r["started_over"] for r in out["spatial"]["other_contacts"]["rounds"])
+    assert len(deadlines) > 4 and len(set(deadlines)) == 1, deadlines
     sp = out["spatial"]
     assert len(sp["crossings"]) == 4                   # two wraps per loop of course 2
     assert sp["flipped"] == 0

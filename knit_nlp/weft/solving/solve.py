@@ -106,9 +106,12 @@ class SolveReport:
 class Clock:
     """The wall-clock deadline (``time.perf_counter`` seconds) that solvers sharing it stop at:
     the paper's solves and the contact solves of one forward solve share one budget
-    ``[solver] max_time`` (:meth:`WeftSolver.sibling`)."""
+    ``[solver] max_time`` (:meth:`WeftSolver.sibling`). ``held``: the budget is running for an
+    answer whose further solves (the 3-D model's rounds and finer samples, ``rounds3d``) must
+    spend it, so starting the clock again leaves the deadline where it is."""
 
     deadline: float = np.inf
+    held: bool = False
 
 
 class OnClock:
@@ -201,8 +204,10 @@ class WeftSolver(OnClock):
     def start_clock(self) -> None:
         """Start the wall-clock budget ``[solver] max_time`` shared by the solves that follow
         (:meth:`once` ends a solve at this deadline through the iteration callback), and by
-        every solver sharing this one's clock."""
-        self.deadline = time.perf_counter() + self.wnlp.problem.solver.max_time
+        every solver sharing this one's clock; a held clock (:class:`Clock`) keeps its
+        deadline."""
+        if not self.clock.held:
+            self.deadline = time.perf_counter() + self.wnlp.problem.solver.max_time
         self.progress.start()
 
     def once(self, p: np.ndarray, x0: np.ndarray, *, lbg: np.ndarray | None = None,
