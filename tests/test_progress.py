@@ -233,7 +233,7 @@ def test_a_calibration_curve_step_is_not_told_as_a_share_of_the_last_path():
     from types import SimpleNamespace
     from knit_nlp.weft.inverse.calibration.curve import SpecimenModel
     told = []
-    solver = SimpleNamespace(start_clock=lambda: None,
+    solver = SimpleNamespace(start_clock=lambda: None, begin_path=lambda x0: None,
                              once=lambda p, x0: told.append(progress.path_told()) or "report")
     fake = SimpleNamespace(eq=SimpleNamespace(solver=solver, solution=lambda rep, p: rep))
     progress.loading(0.0)
