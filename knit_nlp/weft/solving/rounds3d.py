@@ -136,7 +136,7 @@ class SpatialEquilibrium(SpatialSteps):
         nlp: SpatialNLP = self.nlp
         pr, shape = self.problem, nlp.shape
         rep = self.report(x)
-        sigma = nlp.x.get(x, "sigma") if "sigma" in nlp.x.blocks else None
+        sigma = nlp.sigmas(x)
         new = missing(rep.touching, nlp.neighbours, pr.L, pr.wales, shape, sigma)
         if not len(new):
             return new, False
@@ -161,8 +161,8 @@ class SpatialEquilibrium(SpatialSteps):
         if over:
             again = SpatialSteps.solve(self, sol.params)
         else:
-            sigma = old.x.get(x, "sigma") if "sigma" in old.x.blocks else None
-            x0 = self.nlp.lift3d(old.coefficients(x), old.elevations(x), old.starts3d(x), sigma)
+            x0 = self.nlp.lift3d(old.coefficients(x), old.elevations(x), old.starts3d(x),
+                                 old.sigmas(x))
             again = self.solver.once(sol.params.vector(), x0)
         if not again.success:
             self.nlp, self.solver, self._kkt = old, old_solver, old_kkt

@@ -206,6 +206,11 @@ class SpatialNLP(Assembled):
                         sh.modes)
         return d.reshape(pr.courses, pr.wales, samples, 3) + X[:, :, None, :]
 
+    def sigmas(self, x: np.ndarray) -> np.ndarray | None:
+        """Each crossing's material coordinates at x (2 × K: σ_u, σ_l, S5), None where the NLP
+        has no crossings."""
+        return self.x.get(x, "sigma") if "sigma" in self.x.blocks else None
+
     def crossing_state(self, x: np.ndarray) -> dict[str, np.ndarray]:
         """Per crossing (K): σ_u, σ_l, h, sin α, the compression h − d₀ (d₀ where its law starts:
         touch 2r, or its natural separation h₀ if that is closer; eq. C3) and the contact force
