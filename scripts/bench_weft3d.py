@@ -14,8 +14,9 @@ solve before it), and where the 3-D solve's time went (IPOPT's wall seconds in t
 Jacobian, the other evaluations, and the rest: its own linear algebra). Timings are wall-clock
 on a shared machine: compare the ratio of one run, not seconds across runs. ``--predictor``:
 the 3-D load steps start from the secant predictor (``solve.MODEL_PREDICTOR``, off by default);
-``--steps``: the 3-D model's load steps (``solve.MODEL_CONTINUATION``); ``--ipopt``: an IPOPT
-option for the 3-D solves (``solve.MODEL_IPOPT``; repeat it for more; e.g.
+``--steps``: exactly K load steps of the 3-D model (``solve.MODEL_CONTINUATION``; without it,
+more where a held point moves far, ``solve.MODEL_STEP_MOVE``); ``--ipopt``: an IPOPT option
+for the 3-D solves (``solve.MODEL_IPOPT``; repeat it for more; e.g.
 ``--ipopt mumps_pivot_order=5``; ``--ipopt output_file=log.txt --ipopt file_print_level=6
 --ipopt file_append=yes`` writes IPOPT's log of every 3-D solve); ``--rounds``: at most R rounds
 of other contacts (``rounds3d.ROUNDS``; 0: the first NLP's answer, for comparing two builds of
@@ -110,6 +111,7 @@ if __name__ == "__main__":
             SpatialEquilibrium.rounds_max = int(args[1])
         elif args[0] == "--steps":
             solving.MODEL_CONTINUATION["full3d"] = int(args[1])
+            solving.MODEL_STEP_MOVE.pop("full3d", None)     # exactly K steps
         elif args[0] == "--ipopt":
             name, value = args[1].split("=", 1)
             solving.MODEL_IPOPT.setdefault("full3d", {})[name] = option_value(value)

@@ -42,8 +42,8 @@ from ..transcription.factory import transcribe
 from ..transcription.protocol import WeftNLP
 from .blocks import AdaptiveBlock, ContactBlock
 from .sensitivity import KKT, ContactState, Stability
-from .starts import (STARTS, coarse_chain, needs_perturbation, perturbed_starts, prolong,
-                     prolong_multipliers, rigid_start)
+from .starts import (STARTS, coarse_chain, largest_move, needs_perturbation, perturbed_starts,
+                     prolong, prolong_multipliers, rigid_start)
 
 DEFAULT_START = "multilevel"    # measured: docs/measurements.md
 # a cold solve of the coarsest fabric in at most this many iterations marks a pull the natural
@@ -65,6 +65,14 @@ MODEL_IPOPT: dict[str, dict] = {"full": {"first_hessian_perturbation": 1.0}, "re
 # 10 x 10 and 30 x 30 pulls of scripts/bench_weft3d.py against 4 steps' 55, 41 and 50, to the
 # same minima (energies within 1e-10, positions 6e-9 mm); 2 steps ended in another (6 x 6)
 MODEL_CONTINUATION: dict[str, int] = {"full3d": 3}
+# ... and more where a held point would move further in a step than this many natural lattice
+# spacings (the smaller of the two): the 30 x 30 bench pull at its default (a corner moved
+# (15, 15) mm; the documented 30 x 30 figures are its 3 mm pull) in 3 steps moved the corner
+# 7.1 mm in the first, which IPOPT did not survive (70 iterations towards objective 1e15 N mm,
+# the violation stuck at 2.9 mm; the same at c9a5219); in 10 steps (2.1 mm) every step
+# converged, 28 iterations each (the 900 s budget ran out in the ninth). 1.2 spacings (2.4 mm
+# for the acrylic) keeps the 10 x 10 bench pull's 3 steps of 2.36 mm
+MODEL_STEP_MOVE: dict[str, float] = {"full3d": 1.2}
 # models whose load steps start from the secant predictor (``WeftSolver.continuation``,
 # ``predict``). None by default: on the 3-D diagonal pulls it saved 13-22 % of the iterations
 # (6 x 6: 105 -> 91, 10 x 10: 169 -> 131) but ended in a neighbouring minimum (energy 4e-7 and
@@ -498,6 +506,19 @@ def refuse_friction(problem: WeftProblem, what: str) -> None:
                            "friction or set it to 0")
 
 
+def model_steps(wnlp: WeftNLP, p: np.ndarray) -> int | None:
+    """The model's own load steps to parameters p (None: it solves directly): the 3-D model's
+    MODEL_CONTINUATION, or more where a held point would move further in a step than
+    MODEL_STEP_MOVE natural lattice spacings."""
+    steps = MODEL_CONTINUATION.get(wnlp.model)
+    if steps is None or wnlp.model not in MODEL_STEP_MOVE:
+        return steps
+    shape = wnlp.shape                       # the natural 3-D shape's lattice
+    spacing = MODEL_STEP_MOVE[wnlp.model] * min(shape.wale_spacing, shape.course_spacing)
+    move = largest_move(wnlp.problem, WeftParams.natural(wnlp.problem).vector(), p)
+    return max(steps, int(np.ceil(move / spacing - 1e-9)))
+
+
 def solve_nlp(wnlp: WeftNLP, solver: WeftSolver | None = None,
               params: WeftParams | None = None, x0: np.ndarray | None = None,
               continuation: int | None = None, start: str = DEFAULT_START) -> SolveReport:
@@ -508,8 +529,7 @@ def solve_nlp(wnlp: WeftNLP, solver: WeftSolver | None = None,
     solver = solver or WeftSolver(wnlp)
     solver.start_clock()
     p = (params or wnlp.params).vector()
-    continuation = (continuation or wnlp.problem.solver.continuation
-                    or MODEL_CONTINUATION.get(wnlp.model))
+    continuation = continuation or wnlp.problem.solver.continuation or model_steps(wnlp, p)
     if needs_perturbation(wnlp, p) and x0 is None:
         return _best_of_perturbed(wnlp, solver, p, continuation)
     if x0 is not None:

@@ -255,3 +255,17 @@ def needs_perturbation(wnlp: WeftNLP, p: np.ndarray) -> bool:
     if not wnlp.problem.natural.is_straight:
         return False
     return not np.allclose(WeftParams.natural(wnlp.problem).vector(), p)
+
+
+def largest_move(pr: WeftProblem, p_from: np.ndarray, p_to: np.ndarray) -> float:
+    """The furthest any held point moves from parameters p_from to p_to: a point clamp's held
+    coordinates, a rigid clamp's every point (in the plane)."""
+    a, b = WeftParams.from_vector(pr, p_from), WeftParams.from_vector(pr, p_to)
+    moves = [0.0]
+    for c, t0, t1 in zip(pr.clamps, a.targets, b.targets):
+        d = (np.asarray(t1) - np.asarray(t0)) * np.asarray(c.fix, dtype=float)
+        moves.append(float(np.hypot(*d)))
+    for rc, P0, m0, m1 in zip(pr.rigid_clamps, rigid_natural_points(pr), a.rigid, b.rigid):
+        d = np.asarray(rigid_targets(rc, P0, *m1)) - np.asarray(rigid_targets(rc, P0, *m0))
+        moves.append(float(np.max(np.hypot(*d))))
+    return max(moves)
