@@ -241,3 +241,17 @@ def test_a_calibration_curve_step_is_not_told_as_a_share_of_the_last_path():
     assert "67% of the load reached" in progress.path_told()
     assert SpecimenModel._step3d(fake, np.zeros(1), np.zeros(1)) == "report"
     assert told == [""]
+
+
+def test_calibrate_s_own_lines_start_on_a_line_of_their_own(monkeypatch):
+    """``knit-nlp calibrate --breaks`` printed 'calibrate: breaks: ...' at the end of the last
+    solve's open IPOPT line ('... elapsed 4 s  calibrate: breaks: core radius × 0.455')."""
+    from knit_nlp.weft.inverse.calibration import command
+
+    clock, stream = Clock(), io.StringIO()
+    monkeypatch.setattr(progress.time, "perf_counter", clock)
+    monkeypatch.setattr(command.sys, "stderr", stream)
+    line = IterationLine(1, 1, stream, quiet_for=0.0)
+    _iterate(line, clock, 0.0)
+    command._progress("breaks: R_f × 0.5 (6 of 29), 194 s")
+    assert re.search(r"IPOPT iterate +1 [^\n]*\ncalibrate: breaks: R_f × 0\.5", stream.getvalue())

@@ -13,6 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ....outdir import prepare_out
+from ....progress import end_lines
 from ....provenance import check_overwrite
 from .calibrate import calibrate
 from .checks import describe
@@ -34,7 +35,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _progress(line: str) -> None:
-    """A progress line on stderr (the summary and verdict go to stdout)."""
+    """A progress line on stderr (the summary and verdict go to stdout), on a line of its own:
+    an IPOPT progress line still open there is ended first (the breaks' lines were glued onto
+    the last solve's iterate line)."""
+    end_lines()
     print(f"calibrate: {line}", file=sys.stderr, flush=True)
 
 
