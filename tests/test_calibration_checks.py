@@ -93,3 +93,13 @@ def test_force_at_interpolates_between_the_points_that_bracket_the_strain(strain
     no read fell between the first two points)."""
     axial, forces = np.array([0.0, 0.2, 0.4]), np.array([0.5, 2.0, 6.0])
     assert force_at(axial, forces, strain) == (None if force is None else pytest.approx(force))
+
+
+def test_a_curve_without_a_solved_node_has_no_final_check() -> None:
+    """``calibrate --breaks`` on acrylic_3d_source crashed after 38 minutes (IndexError) where
+    the loop length ×2 left a test's model curve without a solved node."""
+    from knit_nlp.weft.inverse.calibration.calibrate import final_check
+    from knit_nlp.weft.inverse.calibration.curve import Curve
+
+    empty = Curve(np.zeros(0), np.zeros(0), np.zeros(0), complete=False, reason="no start")
+    assert final_check(None, empty, None) == {}
