@@ -306,12 +306,13 @@ def main(argv: list[str] | None = None) -> int:
         m = MEASURED[direction]
         show = lambda v: "n/a" if v is None else f"{v:.3g}"                          # noqa: E731
         dirty = next((n["strain"] for n in nodes if not n["clean"]), None)
-        print(f"{direction} ({time.perf_counter() - t0:.0f} s, reached {nodes[-1]['strain'] if nodes else 0:.3f}"
-              f" from {spacing0:.4f} mm, "
-              f"{'every node clean' if dirty is None else f'not clean from {dirty:.3f}'}): F(10 %) {show(fig['F10'])} N (measured {m['F10']}), "
-              f"F(30 %) {show(fig['F30'])} N (measured {m.get('F30', 'n/a')}), K/W(10 %) "
-              f"{show(fig['K10'])} N/mm (measured {m['K10']}), stiffening 5 -> 45 % "
-              f"{show(fig['stiffening'])} (measured {m.get('stiffening', 'n/a')})")
+        reached = nodes[-1]["strain"] if nodes else 0.0
+        clean = "every node clean" if dirty is None else f"not clean from {dirty:.3f}"
+        print(f"{direction} ({time.perf_counter() - t0:.0f} s, reached {reached:.3f} from "
+              f"{spacing0:.4f} mm, {clean}): F(10 %) {show(fig['F10'])} N (measured "
+              f"{m['F10']}), F(30 %) {show(fig['F30'])} N (measured {m.get('F30', 'n/a')}), "
+              f"K/W(10 %) {show(fig['K10'])} N/mm (measured {m['K10']}), stiffening "
+              f"5 -> 45 % {show(fig['stiffening'])} (measured {m.get('stiffening', 'n/a')})")
     return 0
 
 

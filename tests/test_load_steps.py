@@ -1,7 +1,8 @@
 """The 3-D model's own load steps (``solve.model_steps``): MODEL_CONTINUATION's three, more
-where a held point would move further than 1.2 natural lattice spacings (the smaller) in a step. The bug it
-catches: a large 3-D pull (the 30 x 30 bench pull, a corner moved (15, 15) mm) taken in three
-steps of 7.1 mm, in which IPOPT ran for minutes towards objective 1e15 N mm without converging."""
+where a held point would move further than 1.2 natural lattice spacings (the smaller) in a
+step. The bug it catches: a large 3-D pull (the 30 x 30 bench pull, a corner moved (15, 15)
+mm) taken in three steps of 7.1 mm, in which IPOPT ran for minutes towards objective 1e15 N mm
+without converging."""
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -51,6 +52,6 @@ def test_three_steps_or_one_lattice_spacing_a_step(n: int, expected: int) -> Non
     pr, _, p1 = _pull(n, 0.5)
     spatial = SimpleNamespace(model="full3d", problem=pr,
                               shape=SimpleNamespace(wale_spacing=2.97, course_spacing=2.0))
-    assert model_steps(spatial, p1) == expected          # ceil(0.5 n √2 / (1.2 · 2.0)), at least 3
+    assert model_steps(spatial, p1) == expected     # ceil(0.5 n √2 / (1.2 · 2.0)), at least 3
     planar = SimpleNamespace(model="full", problem=pr)
     assert model_steps(planar, p1) == MODEL_CONTINUATION.get("full")

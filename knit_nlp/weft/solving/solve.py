@@ -63,7 +63,8 @@ MODEL_IPOPT: dict[str, dict] = {"full": {"first_hessian_perturbation": 1.0}, "re
 # state of a 6 x 6 acrylic diagonal pull took 2113 iterations to fail, 4 steps 109 to succeed;
 # with the repulsion's samples condensed, 3 steps took 47, 33 and 36 iterations on the 6 x 6,
 # 10 x 10 and 30 x 30 pulls of scripts/bench_weft3d.py (corners moved 3, 2 and 3 mm: --pull
-# 0.5, 0.2, 0.1) against 4 steps' 55, 41 and 50, to the same minima (energies within 1e-10, positions 6e-9 mm); 2 steps ended in another (6 x 6)
+# 0.5, 0.2, 0.1) against 4 steps' 55, 41 and 50, to the same minima (energies within 1e-10,
+# positions 6e-9 mm); 2 steps ended in another (6 x 6)
 MODEL_CONTINUATION: dict[str, int] = {"full3d": 3}
 # ... and more where a held point would move further in a step than this many natural lattice
 # spacings (the smaller of the two): the 30 x 30 bench pull at its default (a corner moved
