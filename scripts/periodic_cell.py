@@ -17,18 +17,20 @@ The pull fixes the lattice spacing along it, w = (1 + ε) w₀ (courses) or c = 
 (wales), by one row whose multiplier is the force through one cell, F = dU/dw (the envelope
 theorem: checked by ``tests/test_periodic_cell.py`` against differences of U); the other
 spacing is free (no lateral force, as a uniaxial pull). Per width: F / c₀ (courses) or F / w₀
-(wales); at a specimen's real width: times the width (66.6 mm along the courses, 95.9 mm
-along the wales: the source's 35.5 mm clamp, docs/real_fabric.md).
+(wales); at a specimen's real width: times the width, the test file's width in clamps times
+35.5 mm (66.6 mm along the courses, 95.9 mm along the wales; docs/real_fabric.md).
 With ``--straight`` the cell is first relaxed at zero force (w and c free) and the pull starts
 there, its force relative to that state's.
 
     python scripts/periodic_cell.py [--spec real_fabric/acrylic_3d_source] [--straight]
-                                    [--to 0.5] [--step 0.025] [--samples 80] [--reach 2.5]
+                                    [--to 0.6] [--step 0.025] [--samples 80] [--reach 2.5]
                                     [--rigidity-factor K] [--bending-factor B]
 
-Prints one line per strain node and, per direction, F at 10 % and 30 % at the real width, the
-stiffness per width at 10 % and the tangent stiffening from 5 % to 45 % (K(e) by central
-differences over ±2.5 %, as ``calibration.checks``), beside the measured values.
+Prints one line per strain node and, per direction, ``calibrate``'s checks of the curve at the
+test's real width (``calibration.checks``: F at 10 % and 30 %, the stiffness per width at 10 %,
+the tangent stiffening from 5 % to 45 %), model beside measured, and its metric
+(``calibration.metric``: the RMS axial and lateral strain errors at 2-25 N; n/a where the
+curve does not reach 25 N).
 """
 from __future__ import annotations
 
@@ -45,6 +47,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from knit_nlp.tomlio import load_toml  # noqa: E402
+from knit_nlp.weft.inverse.calibration.checks import outcome_checks  # noqa: E402
+from knit_nlp.weft.inverse.calibration.measured import (MeasuredTest,  # noqa: E402
+                                                        read_stitch_by_stitch)
+from knit_nlp.weft.inverse.calibration.metric import METRIC_FORCES, metric  # noqa: E402
+from knit_nlp.weft.inverse.calibration.spec import CLAMP_WIDTH_MM  # noqa: E402
 from knit_nlp.weft.model.basis import continuity_rows, n_coeffs  # noqa: E402
 from knit_nlp.weft.model.compression import SoftShell  # noqa: E402
 from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
@@ -57,9 +64,7 @@ from knit_nlp.weft.model.spatial.repulsion import WRAP_WINDOW  # noqa: E402
 
 GAUSS = 16                       # Gauss nodes of a wrap's segment to σ
 OFFSETS = tuple((di, dj) for di in (0, 1, 2) for dj in range(-2, 3) if di > 0 or dj >= 0)
-WIDTH_MM = {"courses": 66.6, "wales": 95.9}        # the specimens' real widths (35.5 mm clamp)
-MEASURED = {"courses": {"F10": 1.99, "F30": 7.33, "stiffening": 6.65, "K10": 0.295},
-            "wales": {"F10": 7.51, "K10": 1.08}}   # docs/real_fabric.md
+TESTS = {"courses": "acrylic_stockinette_x.csv", "wales": "acrylic_stockinette_y.csv"}
 
 
 @dataclass
@@ -240,22 +245,68 @@ def pull(cell: Cell, strains: np.ndarray, x0: np.ndarray, say=print) -> list[dic
     return out
 
 
-def figures(cell: Cell, nodes: list[dict], f0: float) -> dict:
-    """F at 10 % and 30 % at the real width (N), K/W at 10 % (N/mm) and K(45 %)/K(5 %)."""
-    e = np.array([n["strain"] for n in nodes])
-    F = (np.array([n["F"] for n in nodes]) - f0) / cell.across0       # N per mm of width
+def measured(direction: str) -> MeasuredTest:
+    """The measured pull along ``direction`` (problems/real_fabric, stitch-by-stitch's data)."""
+    name = TESTS[direction]
+    return read_stitch_by_stitch(ROOT / "problems" / "real_fabric" / name, name)
 
-    def at(x: float) -> float | None:
-        return float(np.interp(x, e, F)) if e.size and e[0] <= x <= e[-1] else None
 
-    def K(x: float) -> float | None:
-        lo, hi = at(x - 0.025), at(x + 0.025)
-        return None if lo is None or hi is None else (hi - lo) / 0.05
-    width = WIDTH_MM[cell.direction]
-    k5, k45 = K(0.05), K(0.45)
-    return {"F10": None if at(0.1) is None else at(0.1) * width,
-            "F30": None if at(0.3) is None else at(0.3) * width,
-            "K10": K(0.1), "stiffening": None if not (k5 and k45) else k45 / k5}
+def curve(cell: Cell, nodes: list[dict], f0: float, width: float) -> tuple[np.ndarray, ...]:
+    """(axial strain, force at the real ``width`` (N), lateral strain) from the unloaded
+    state on: the force per cell less ``f0``, per mm of the cell's reference width, times
+    the width."""
+    e = np.array([0.0] + [n["strain"] for n in nodes])
+    F = np.array([0.0] + [n["F"] - f0 for n in nodes]) / cell.across0 * width
+    lat = np.array([0.0] + [n["lateral"] for n in nodes])
+    return e, F, lat
+
+
+def at_forces(e: np.ndarray, F: np.ndarray, y: np.ndarray, forces) -> np.ndarray:
+    """y at the first point of the curve whose force reaches each force (linear between
+    nodes), NaN where it never does: the model's side of calibrate's metric."""
+    out = np.full(len(forces), np.nan)
+    for k, force in enumerate(forces):
+        hits = np.flatnonzero(F >= force)
+        if hits.size and hits[0] > 0:
+            i = int(hits[0])
+            out[k] = y[i - 1] + (y[i] - y[i - 1]) * (force - F[i - 1]) / (F[i] - F[i - 1])
+    return out
+
+
+def compare(cell: Cell, nodes: list[dict], f0: float, test: MeasuredTest) -> dict:
+    """calibrate's checks (``checks.outcome_checks``, model beside measured) and its metric
+    (``metric.metric`` at METRIC_FORCES: RMS axial and lateral strain errors, None where the
+    curve does not reach every force) of the cell's curve at the test's real width."""
+    width = test.width_clamps * CLAMP_WIDTH_MM
+    e, F, lat = curve(cell, nodes, f0, width)
+    checks = outcome_checks((e, F), [(r.axial, r.force) for r in test.runs], width)
+    pts = metric(test, METRIC_FORCES, at_forces(e, F, e, METRIC_FORCES),
+                 at_forces(e, F, lat, METRIC_FORCES))
+    return {"checks": checks, "rms_axial": pts.rms_axial, "rms_lateral": pts.rms_lateral,
+            "width_mm": width, "top_N": float(F.max())}
+
+
+def _show(v: float | None, fmt: str = ".3g") -> str:
+    return "n/a" if v is None else f"{v:{fmt}}"
+
+
+def summary(direction: str, seconds: float, nodes: list[dict], spacing0: float, c: dict) -> str:
+    """One line: how far and how clean the pull went, the checks model (measured) and the
+    metric."""
+    dirty = next((n["strain"] for n in nodes if not n["clean"]), None)
+    reached = nodes[-1]["strain"] if nodes else 0.0
+    clean = "every node clean" if dirty is None else f"not clean from {dirty:.3f}"
+    mo, me = c["checks"]["model"], c["checks"]["measured"]
+
+    def pair(key: str, sub: str | None = None) -> str:
+        a, b = (d[key] if sub is None else d[key][sub] for d in (mo, me))
+        return f"{_show(a)} ({_show(b)})"
+    return (f"{direction} ({seconds:.0f} s, reached {reached:.3f} from {spacing0:.4f} mm, {clean}"
+            f"; at {c['width_mm']:.1f} mm, up to {c['top_N']:.3g} N), model (measured): "
+            f"F(10 %) {pair('force_N', '0.1')} N, F(30 %) {pair('force_N', '0.3')} N, K/W(10 %) "
+            f"{pair('stiffness_per_width')} N/mm, stiffening 5 -> 45 % {pair('stiffening')}; "
+            f"RMS strain error axial {_show(c['rms_axial'], '.4f')}, lateral "
+            f"{_show(c['rms_lateral'], '.4f')}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -264,7 +315,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="a calibration spec under problems/ whose [loop], [material] and "
                          "[yarn] give the yarn")
     ap.add_argument("--straight", action="store_true")
-    ap.add_argument("--to", type=float, default=0.5)
+    ap.add_argument("--to", type=float, default=0.6, help="the largest strain (the measured "
+                    "course pulls end near 60 %)")
     ap.add_argument("--step", type=float, default=0.025)
     ap.add_argument("--samples", type=int, default=80, help="repulsion samples per loop")
     ap.add_argument("--rigidity-factor", type=float, default=1.0,
@@ -302,17 +354,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.straight:
             cell.shape = _relaxed(shape, x0)
         nodes = pull(cell, strains, x0)
-        fig = figures(cell, nodes, 0.0 if not args.straight else rest["F"])
-        m = MEASURED[direction]
-        show = lambda v: "n/a" if v is None else f"{v:.3g}"                          # noqa: E731
-        dirty = next((n["strain"] for n in nodes if not n["clean"]), None)
-        reached = nodes[-1]["strain"] if nodes else 0.0
-        clean = "every node clean" if dirty is None else f"not clean from {dirty:.3f}"
-        print(f"{direction} ({time.perf_counter() - t0:.0f} s, reached {reached:.3f} from "
-              f"{spacing0:.4f} mm, {clean}): F(10 %) {show(fig['F10'])} N (measured "
-              f"{m['F10']}), F(30 %) {show(fig['F30'])} N (measured {m.get('F30', 'n/a')}), "
-              f"K/W(10 %) {show(fig['K10'])} N/mm (measured {m['K10']}), stiffening "
-              f"5 -> 45 % {show(fig['stiffening'])} (measured {m.get('stiffening', 'n/a')})")
+        c = compare(cell, nodes, rest["F"] if args.straight else 0.0, measured(direction))
+        print(summary(direction, time.perf_counter() - t0, nodes, spacing0, c))
     return 0
 
 

@@ -70,3 +70,11 @@ def test_a_straight_bending_reference_relaxes_to_a_prestressed_cell(yarn) -> Non
     pulled = pc.solve(cell, 1.1 * rest["x"][-2], rest["x"])
     assert held["success"] and pulled["success"]
     assert abs(held["F"]) < 1e-3 * pulled["F"]            # relaxed: no force at its own spacing
+
+
+def test_the_cell_s_side_of_the_metric_reads_its_curve_where_it_first_reaches_each_force() -> None:
+    e = np.array([0.0, 0.1, 0.2, 0.3])
+    F = np.array([0.0, 2.0, 1.5, 6.0])            # not monotone: the first crossing counts
+    got = pc.at_forces(e, F, e, (1.0, 2.0, 4.0, 7.0))
+    np.testing.assert_allclose(got[:3], [0.05, 0.1, 0.2 + 0.1 * 2.5 / 4.5], rtol=1e-12)
+    assert np.isnan(got[3])                       # never reached: no strain, no RMS
