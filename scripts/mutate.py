@@ -81,6 +81,8 @@ GUARDS = {
                                                  "tests/test_weft3d_flip.py"],
     "knit_nlp/weft/model/spatial/friction.py": ["tests/test_weft3d_friction.py",
                                                 "tests/test_calibration_friction.py"],
+    "knit_nlp/weft/solving/starts.py": ["tests/test_load_steps.py"],
+    "scripts/periodic_cell.py": ["tests/test_periodic_cell.py"],
     "knit_nlp/weft/inverse/calibration/*.py": ["tests/test_calibration_input.py",
                                                "tests/test_calibration_checks.py",
                                                "tests/test_calibration_verdict.py",

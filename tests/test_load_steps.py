@@ -55,3 +55,11 @@ def test_three_steps_or_one_lattice_spacing_a_step(n: int, expected: int) -> Non
     assert model_steps(spatial, p1) == expected     # ceil(0.5 n √2 / (1.2 · 2.0)), at least 3
     planar = SimpleNamespace(model="full", problem=pr)
     assert model_steps(planar, p1) == MODEL_CONTINUATION.get("full")
+
+
+def test_a_coordinate_the_clamp_does_not_hold_does_not_count() -> None:
+    doc = document(6, False, 0.5)
+    doc["clamp"][1].update(displacement=[3.0, 4.0], fix=["x"])     # y free: only x moves
+    pr = parse_problem(doc, "steps_fix.toml")
+    p0, p1 = WeftParams.natural(pr).vector(), WeftParams.of(pr).vector()
+    assert largest_move(pr, p0, p1) == pytest.approx(3.0, rel=1e-12)
