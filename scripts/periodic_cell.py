@@ -59,11 +59,10 @@ from knit_nlp.weft.model.spatial.crossing_contact import crossing_terms  # noqa:
 from knit_nlp.weft.model.spatial.curve3d import (bending3d, loop_displacements3d,  # noqa: E402
                                                  positions3d, segment)
 from knit_nlp.weft.model.spatial.natural3d import Natural3D  # noqa: E402
-from knit_nlp.weft.model.spatial.proximity import check_3d, natural_lines  # noqa: E402
-from knit_nlp.weft.model.spatial.repulsion import WRAP_WINDOW  # noqa: E402
+from knit_nlp.weft.model.spatial.natural_fit import natural_check  # noqa: E402
+from knit_nlp.weft.model.spatial.repulsion import natural_neighbours, sample_s  # noqa: E402
 
 GAUSS = 16                       # Gauss nodes of a wrap's segment to σ
-OFFSETS = tuple((di, dj) for di in (0, 1, 2) for dj in range(-2, 3) if di > 0 or dj >= 0)
 TESTS = {"courses": "acrylic_stockinette_x.csv", "wales": "acrylic_stockinette_y.csv"}
 
 
@@ -97,36 +96,19 @@ class Cell:
 
 def sample_pairs(shape: Natural3D, law: SoftShell, samples: int,
                  reach: float = 2.5) -> tuple[np.ndarray, ...]:
-    """The other contacts' pairs (k on the loop, m on its image at (dj·w, di·c)), their sample
-    coordinates s and each pair's thinning scale (C3): naturally closer than ``reach``·2r, not
-    one piece of yarn (π·r along one course), not inside a wrap's window. The 3-D model lists
-    pairs within REACH·2r (1.25) and its rounds add those that come close; the cell has no
-    rounds, so its list reaches further (the law is zero beyond touch: a listed pair that stays
-    apart costs only its evaluation)."""
-    L, r = shape.length, shape.radius
-    s = (np.arange(samples) + 0.5) * L / samples
-    X = shape.xyz(s)
-    K, M, DI, DJ, D0 = [], [], [], [], []
-    for di, dj in OFFSETS:
-        d = np.linalg.norm(X[None, :, :] + [dj * shape.wale_spacing, di * shape.course_spacing,
-                                            0.0] - X[:, None, :], axis=2)
-        keep = d < reach * 2 * r
-        if di == 0:
-            keep &= np.abs(dj * L + s[None, :] - s[:, None]) > np.pi * r
-            if dj == 0:
-                keep &= np.triu(np.ones_like(keep), 1).astype(bool)
-        if (di, dj) == (1, 0):                   # the wraps' own pairs: their energy is S7
-            for su, sl in zip(shape.s_upper, shape.s_lower):
-                keep &= ~((np.abs(s[:, None] - sl) < WRAP_WINDOW * 2 * r)
-                          & (np.abs(s[None, :] - su) < WRAP_WINDOW * 2 * r))
-        k, m = np.nonzero(keep)
-        K.append(k)
-        M.append(m)
-        DI.append(np.full(k.size, di))
-        DJ.append(np.full(k.size, dj))
-        D0.append(d[k, m])
-    K, M, DI, DJ, D0 = (np.concatenate(v) for v in (K, M, DI, DJ, D0))
-    return s, K, M, DI, DJ, law.thinning(np.maximum(D0, 2 * law.core_radius + 1e-9))
+    """The other contacts' pairs of the cell: the 3-D model's own neighbour list
+    (``repulsion.natural_neighbours``: one piece of yarn and the wraps' windows left out, each
+    pair's thinning scale, C3) read from one loop of a 3 × 5 fabric, which holds every lattice
+    offset of the list, to its images: sample coordinates s, sample k on the loop, m on its
+    image at (dj·w, di·c), di, dj and the scale. The model lists pairs naturally closer than
+    REACH·2r (1.25) and its rounds add those that come close; the cell has no rounds, so its
+    list reaches ``reach``·2r (the law is zero beyond touch: a listed pair that stays apart
+    costs only its evaluation)."""
+    wales, loop = 5, 2                   # loop (course 1, wale 3); kb − ka = di·wales + dj
+    nb = natural_neighbours(shape, law, 3, wales, samples, reach)
+    sel = nb.ka == loop
+    DI, DJ = np.divmod(nb.kb[sel] - loop + 2, wales)
+    return sample_s(shape.length, samples), nb.qa[sel], nb.qb[sel], DI, DJ - 2, nb.scale[sel]
 
 
 def build(shape: Natural3D, law: SoftShell, R_f: float, direction: str, samples: int = 80,
@@ -148,7 +130,7 @@ def build(shape: Natural3D, law: SoftShell, R_f: float, direction: str, samples:
     for deg, coef in ((q, b), (t, a)):                                          # N2
         E, S = continuity_rows(L, deg)
         rows.append(ca.mtimes(ca.DM(E - S), coef))
-    signs, scales = _wrap_signs(shape, law)
+    signs, scales = shape.crossing_signs(), law.thinning(shape.h0)
     for k in range(len(shape.s_upper)):                                         # S5-S7
         pu, tu = seg(a, b, 0.0, su[k])
         pl, tl = seg(a, b, 0.0, sl[k])
@@ -170,19 +152,6 @@ def build(shape: Natural3D, law: SoftShell, R_f: float, direction: str, samples:
                                   "max_iter": 500}})
     return Cell(shape, shape, law.core_radius, direction, solver,
                 ca.Function("U", [xs], [energy]), g.numel(), int(K.size))
-
-
-def _wrap_signs(shape: Natural3D, law: SoftShell) -> tuple[np.ndarray, np.ndarray]:
-    """ς (h = +h₀ at rest) and the thinning a (C3) of each wrap, from the natural loop."""
-    L, t, q = shape.length, shape.harmonics, shape.modes
-    seg = segment(L, t, q, GAUSS)
-    signs = []
-    for su, sl in zip(shape.s_upper, shape.s_lower):
-        pu, tu = (np.asarray(v).ravel() for v in seg(shape.coeffs, shape.elevation, 0.0, su))
-        pl, tl = (np.asarray(v).ravel() for v in seg(shape.coeffs, shape.elevation, 0.0, sl))
-        n = np.cross(tu, tl)
-        signs.append(np.sign(np.dot(pu + [0, shape.course_spacing, 0] - pl, n)))
-    return np.array(signs), law.thinning(shape.h0)
 
 
 def natural_x(shape: Natural3D) -> np.ndarray:
@@ -212,17 +181,15 @@ def solve(cell: Cell, spacing: float, x0: np.ndarray, free: bool = False) -> dic
 
 
 def check(cell: Cell, x: np.ndarray, core: float):
-    """The independent all-pairs check (``proximity.check_3d``, as the natural construction's
-    ``natural_check``) of 4 x 4 loops of the periodic fabric at x, the designed crossings read
-    on the natural fabric: no pair of pieces inside the hard core, no crossing flipped."""
+    """The independent all-pairs check of 4 x 4 loops of the periodic fabric at x, the designed
+    crossings read on the natural fabric (``natural_fit.natural_check``): no pair of pieces
+    inside the hard core, no crossing flipped."""
     from dataclasses import replace
     sh = cell.shape
     nc, nq = n_coeffs(sh.harmonics), n_coeffs(sh.modes)
     now = replace(sh, coeffs=x[:nc], elevation=x[nc:nc + nq], wale_spacing=float(x[-2]),
                   course_spacing=float(x[-1]))
-    S = max(241, int(np.ceil(4 * sh.length / sh.radius)))
-    lines = now.xyz(np.linspace(0.0, sh.length, S))[None, None] + now.starts(4, 4)[:, :, None, :]
-    return check_3d(lines, natural_lines(cell.natural, 4, S), sh.length, sh.radius, core)
+    return natural_check(now, core, reference=cell.natural)
 
 
 def pull(cell: Cell, strains: np.ndarray, x0: np.ndarray, say=print) -> list[dict]:

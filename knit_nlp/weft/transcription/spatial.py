@@ -522,16 +522,7 @@ class _Builder:
 
     def _signs(self) -> np.ndarray:
         """ς per crossing (S6): h = +2r in the natural state (the same on every loop)."""
-        sh = self.shape
-        up = sh.xyz(sh.s_upper) + [0.0, sh.course_spacing, 0.0]
-        low = sh.xyz(sh.s_lower)
-        L, t, q = sh.length, sh.harmonics, sh.modes
-        tang = []
-        for s in (sh.s_upper, sh.s_lower):
-            th, el = phi(s, L, t) @ sh.coeffs, phi(s, L, q) @ sh.elevation
-            tang.append(np.stack([np.cos(el) * np.cos(th), np.cos(el) * np.sin(th), np.sin(el)], 1))
-        h, _ = separation(up, tang[0], low, tang[1], np.ones(sh.s_upper.size))
-        return np.tile(np.sign(h), self.K // sh.s_upper.size)
+        return np.tile(self.shape.crossing_signs(), self.K // self.shape.s_upper.size)
 
     def _clamps(self, xb: dict[str, ca.MX], pb: dict[str, ca.MX], rows: Constraints
                 ) -> tuple[list[ClampRows], list[slice], dict[int, int]]:

@@ -17,9 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..basis import n_coeffs
+from ..basis import n_coeffs, phi
 from ..natural_loop import NaturalLoop
-from .curve3d import positions3d
+from .crossing_contact import separation
+from .curve3d import positions3d, tangent
 
 # (upper label, lower label, order): +1 where the upper course's yarn is in front (+z)
 PAIRS = (("A", "D", -1), ("C", "F", +1), ("Q", "G", +1), ("S", "P", -1))
@@ -60,6 +61,19 @@ class Natural3D:
         """Positions (len(s), 3) along the natural loop from its start."""
         return positions3d(self.coeffs, self.elevation, s, self.length, self.harmonics,
                            self.modes)
+
+    def tangents(self, s: np.ndarray) -> np.ndarray:
+        """Unit tangents (len(s), 3) along the natural loop (S1)."""
+        L, t, q = self.length, self.harmonics, self.modes
+        return np.stack(tangent(phi(s, L, t) @ self.coeffs, phi(s, L, q) @ self.elevation), 1)
+
+    def crossing_signs(self) -> np.ndarray:
+        """ς of each contact of a loop (S6): the sign that makes its separation h positive in
+        the natural state, the loop one course up over the loop."""
+        up = self.xyz(self.s_upper) + [0.0, self.course_spacing, 0.0]
+        h, _ = separation(up, self.tangents(self.s_upper), self.xyz(self.s_lower),
+                          self.tangents(self.s_lower), np.ones(self.s_upper.size))
+        return np.sign(h)
 
     def starts(self, m: int, n: int) -> np.ndarray:
         """Natural loop starts (m, n, 3): the lattice at z = 0."""

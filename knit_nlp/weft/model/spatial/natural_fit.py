@@ -339,13 +339,15 @@ def _clean(shape: Natural3D, core: float) -> bool:
     return natural_check(shape, core).ok
 
 
-def natural_check(shape: Natural3D, core: float):
+def natural_check(shape: Natural3D, core: float, reference: Natural3D | None = None):
     """The independent all-pairs check (``proximity.check_3d``) of four courses of four
-    natural loops, sampled as the check samples (4 per radius, at least 241 per loop)."""
+    loops of ``shape`` on its lattice, sampled as the check samples (4 per radius, at least 241
+    per loop), the designed crossings read on ``reference``'s (default: ``shape``'s own)."""
     S = max(241, int(np.ceil(4 * shape.length / shape.radius)))
     lines = shape.xyz(np.linspace(0.0, shape.length, S))[None, None] + \
         shape.starts(4, 4)[:, :, None, :]
-    return check_3d(lines, natural_lines(shape, 4, S), shape.length, shape.radius, core)
+    return check_3d(lines, natural_lines(reference or shape, 4, S), shape.length, shape.radius,
+                    core)
 
 
 def _verify(shape: Natural3D, core: float) -> None:

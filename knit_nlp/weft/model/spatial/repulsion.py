@@ -106,8 +106,9 @@ class Neighbours:
 
 
 def natural_neighbours(shape: Natural3D, shell: SoftShell, courses: int, wales: int,
-                       samples: int | None = None) -> Neighbours:
-    """The neighbour list of a fabric of natural 3-D loops (module docstring)."""
+                       samples: int | None = None, reach: float = REACH) -> Neighbours:
+    """The neighbour list of a fabric of natural 3-D loops (module docstring): pairs naturally
+    closer than ``reach``·2r."""
     L, r = shape.length, shape.radius
     samples = samples or samples_for(L, shell.core_radius, shell.radius)
     s = sample_s(L, samples)
@@ -120,7 +121,7 @@ def natural_neighbours(shape: Natural3D, shell: SoftShell, courses: int, wales: 
             continue
         shift = np.array([dj * lattice[0], di * lattice[1], 0.0])
         d0 = np.linalg.norm(x[:, None] - (x[None] + shift), axis=-1)     # (qa, qb)
-        keep = d0 < REACH * 2 * r
+        keep = d0 < reach * 2 * r
         if di == 0:
             keep &= np.abs(dj * L + s[None] - s[:, None]) >= EXCLUSION * np.pi * r
             if dj == 0:
