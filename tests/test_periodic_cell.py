@@ -1,5 +1,5 @@
-"""The 3-D model's periodic cell (``scripts/periodic_cell.py``; docs/real_fabric.md, "A periodic
-cell"): the natural cell carries no force, the force through a cell is the energy's derivative
+"""The 3-D model's periodic cell (``knit_nlp.weft.model.spatial.periodic``, and
+``scripts/periodic_cell.py``'s side of the metric; docs/real_fabric.md, "A periodic cell"): the natural cell carries no force, the force through a cell is the energy's derivative
 along the pull (the envelope theorem, against differences of the energy), a pull contracts the
 cell across it and leaves the yarns apart, and a straight bending reference relaxes to a
 prestressed cell at zero force."""
@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 from knit_nlp.tomlio import load_toml
+from knit_nlp.weft.model.spatial import periodic as pc
 from knit_nlp.weft.model.problem import parse_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
-import periodic_cell as pc  # noqa: E402
+import periodic_cell as script  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -23,37 +24,61 @@ def yarn():
     doc = {k: spec[k] for k in ("loop", "material", "yarn", "units")}
     doc["fabric"] = {"courses": 2, "wales": 2}
     pr = parse_problem(doc, "acrylic_3d_source.toml")
-    return pr.yarn.natural3d, pr.yarn.shell(), pr.R_f
+    return pr.yarn.natural3d, pr.yarn.shell()
+
+
+R_F = 0.045                                  # N mm² (acrylic_3d_source)
 
 
 @pytest.fixture(scope="module")
 def course_cell(yarn):
-    return pc.build(*yarn, "courses", samples=48)
+    return pc.build_cell(*yarn, "courses", samples=48)
+
+
+def _lattice(cell) -> np.ndarray:
+    return np.array([cell.shape.wale_spacing, cell.shape.course_spacing])
 
 
 def test_the_natural_cell_carries_no_force(course_cell) -> None:
-    rest = pc.solve(course_cell, course_cell.spacing0, pc.natural_x(course_cell.shape))
-    assert rest["success"]
-    pulled = pc.solve(course_cell, 1.1 * course_cell.spacing0, rest["x"])
-    assert abs(rest["F"]) < 2e-3 * pulled["F"]          # measured 9.9e-6 against 9.9e-3 N
-    assert abs(rest["U"]) < 1e-6                         # N mm; 2.4e-8
-    np.testing.assert_allclose(rest["x"][-2:], course_cell.x0_lattice, atol=1e-4)   # 8e-6 mm
+    rest = pc.solve_cell(course_cell, course_cell.spacing0, R_F,
+                         pc.natural_state(course_cell.shape))
+    assert rest.success
+    pulled = pc.solve_cell(course_cell, 1.1 * course_cell.spacing0, R_F, rest.x)
+    assert abs(rest.F) < 2e-3 * pulled.F                 # measured 9.9e-6 against 9.9e-3 N
+    assert abs(rest.U) < 1e-6                            # N mm; 2.4e-8
+    np.testing.assert_allclose(rest.x[-2:], _lattice(course_cell), atol=1e-4)   # 8e-6 mm
 
 
 def test_the_force_through_a_cell_is_the_energy_s_derivative(course_cell) -> None:
-    x = pc.solve(course_cell, 1.1 * course_cell.spacing0, pc.natural_x(course_cell.shape))["x"]
+    s0 = course_cell.spacing0
+    x = pc.solve_cell(course_cell, 1.1 * s0, R_F, pc.natural_state(course_cell.shape)).x
     h = 0.002
-    at = {e: pc.solve(course_cell, (1 + e) * course_cell.spacing0, x) for e in (0.1 - h, 0.1,
-                                                                                  0.1 + h)}
-    assert all(r["success"] for r in at.values())
-    dU = (at[0.1 + h]["U"] - at[0.1 - h]["U"]) / (2 * h * course_cell.spacing0)
-    assert at[0.1]["F"] == pytest.approx(dU, rel=1e-3)
-    assert at[0.1]["F"] > 0                               # a pull pulls
+    at = {e: pc.solve_cell(course_cell, (1 + e) * s0, R_F, x) for e in (0.1 - h, 0.1, 0.1 + h)}
+    assert all(r.success for r in at.values())
+    dU = (at[0.1 + h].U - at[0.1 - h].U) / (2 * h * s0)
+    assert at[0.1].F == pytest.approx(dU, rel=1e-3)
+    assert at[0.1].F > 0                                  # a pull pulls
+
+
+def test_the_energy_is_linear_in_R_f_and_in_k_and_k_is_the_built_law_s(yarn, course_cell) -> None:
+    """U = R_f·B + (k/k₀)·C (S4, S7, R1: the contact laws are linear in k): at a fixed state,
+    equal steps in R_f, and in k, change U by equal amounts; at k = k₀, the built law's, the
+    parameter changes nothing; bending and contacts both store energy in a pull."""
+    x = pc.solve_cell(course_cell, 1.1 * course_cell.spacing0, R_F,
+                      pc.natural_state(course_cell.shape)).x
+    k0 = yarn[1].rigidity
+    assert course_cell.rigidity == k0
+
+    def U(R_f, k):
+        return float(course_cell.energy(x, [0.0, R_f, k]))
+    assert U(2 * R_F, k0) - U(R_F, k0) == pytest.approx(U(R_F, k0) - U(0.0, k0), rel=1e-12)
+    assert U(R_F, 2 * k0) - U(R_F, k0) == pytest.approx(U(R_F, k0) - U(R_F, 0.0), rel=1e-12)
+    assert U(R_F, k0) - U(0.0, k0) > 0 and U(R_F, k0) - U(R_F, 0.0) > 0
 
 
 def test_a_pull_contracts_the_cell_across_it_and_keeps_the_yarns_apart(course_cell) -> None:
-    nodes = pc.pull(course_cell, np.array([0.05, 0.1]), pc.natural_x(course_cell.shape),
-                    say=lambda line: None)
+    nodes = script.pull(course_cell, R_F, np.array([0.05, 0.1]),
+                        pc.natural_state(course_cell.shape), say=lambda line: None)
     assert [n["strain"] for n in nodes] == [0.05, 0.1]
     assert nodes[0]["lateral"] < 0 and nodes[1]["lateral"] < nodes[0]["lateral"]
     assert all(n["clean"] for n in nodes)
@@ -61,20 +86,20 @@ def test_a_pull_contracts_the_cell_across_it_and_keeps_the_yarns_apart(course_ce
 
 
 def test_a_straight_bending_reference_relaxes_to_a_prestressed_cell(yarn) -> None:
-    cell = pc.build(*yarn, "courses", samples=48, straight=True)
-    rest = pc.solve(cell, cell.spacing0, pc.natural_x(cell.shape), free=True)
-    assert rest["success"]
-    assert rest["U"] > 0.1                                # N mm: bent loops store energy
-    assert not np.allclose(rest["x"][-2:], cell.x0_lattice, atol=0.05)   # it moved
-    held = pc.solve(cell, rest["x"][-2], rest["x"])      # the pulled spacing held there
-    pulled = pc.solve(cell, 1.1 * rest["x"][-2], rest["x"])
-    assert held["success"] and pulled["success"]
-    assert abs(held["F"]) < 1e-3 * pulled["F"]            # relaxed: no force at its own spacing
+    cell = pc.build_cell(*yarn, "courses", samples=48, straight=True)
+    rest = pc.solve_cell(cell, cell.spacing0, R_F, pc.natural_state(cell.shape), free=True)
+    assert rest.success
+    assert rest.U > 0.1                                   # N mm: bent loops store energy
+    assert not np.allclose(rest.x[-2:], _lattice(cell), atol=0.05)   # it moved
+    held = pc.solve_cell(cell, rest.x[-2], R_F, rest.x)   # the pulled spacing held there
+    pulled = pc.solve_cell(cell, 1.1 * rest.x[-2], R_F, rest.x)
+    assert held.success and pulled.success
+    assert abs(held.F) < 1e-3 * pulled.F                  # relaxed: no force at its own spacing
 
 
 def test_the_cell_s_side_of_the_metric_reads_its_curve_where_it_first_reaches_each_force() -> None:
     e = np.array([0.0, 0.1, 0.2, 0.3])
     F = np.array([0.0, 2.0, 1.5, 6.0])            # not monotone: the first crossing counts
-    got = pc.at_forces(e, F, e, (1.0, 2.0, 4.0, 7.0))
+    got = script.at_forces(e, F, e, (1.0, 2.0, 4.0, 7.0))
     np.testing.assert_allclose(got[:3], [0.05, 0.1, 0.2 + 0.1 * 2.5 / 4.5], rtol=1e-12)
     assert np.isnan(got[3])                       # never reached: no strain, no RMS

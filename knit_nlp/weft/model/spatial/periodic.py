@@ -1,0 +1,218 @@
+"""The 3-D weft model's loop as a periodic cell: one loop repeated on its lattice (w, c), a
+fabric with no edges (docs/real_fabric.md, "A periodic cell").
+
+The cell's unknowns are x = (a, b, σ_u (n), σ_l (n), w, c): the loop's θ and φ coefficients,
+the n persistent contacts' material points on the loop and on the loop one course up (the
+natural shape's: two wraps for a yarn with a core, four touching crossings without one,
+``natural_fit``), and the lattice.
+Its rows: the loop closes on the lattice (x(L) − x(0) = (w, 0, 0)); θ, θ′, φ, φ′ periodic
+(N2); each wrap's pair of points is a pair of closest points (S6); and the pull fixes the
+spacing along it, w (courses) or c (wales); the other spacing is free (a uniaxial pull: no
+lateral force). Its energy per cell (p = (pulled spacing, R_f, k)):
+
+    U = R_f · B(a, b)                     (S4, bent from the natural loop, or with
+                                           ``straight`` from a straight yarn)
+        + Σ over the n contacts E(h′, sin α)         (S5-S7, C3: the model's persistent
+                                                      contacts with the loop one course up)
+        + Σ over the other pairs w_s² v(d′)           (R1, C3)
+
+Both contact sums are linear in the law's rigidity k (compression.py), which is a parameter:
+the NLP at k is the NLP built at k, number for number. (Solved instead at R_f·k₀/k with
+the built k₀ and its forces times k/k₀, the same equilibrium in exact arithmetic, IPOPT took
+another path from the natural loop: from it the acrylic's cell at k = 0.0192 N/mm³, 5 %
+strain, came out at U 0.00097 against 0.00083 N·mm, a second local minimum; from the other's
+answer, the same to 1e-9. The cell's equilibria are not unique.)
+
+The other pairs are the model's own neighbour list (``repulsion.natural_neighbours``) read
+from one loop of a 3 × 5 fabric to its images within two courses and two wales, naturally
+closer than ``reach``·2r. The force through one cell is the pull row's multiplier,
+F = dU/d(spacing) (the envelope theorem); per width it is F / c₀ (courses) or F / w₀ (wales).
+The check of a state is the model's own all-pairs check of 4 × 4 loops of the periodic
+fabric, the designed crossings read on the natural fabric (``natural_fit.natural_check``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import casadi as ca
+import numpy as np
+
+from ....ipopt import ipopt_options, succeeded
+from ..basis import continuity_rows, n_coeffs
+from ..compression import SoftShell
+from .crossing_contact import crossing_terms
+from .curve3d import bending3d, loop_displacements3d, segment
+from .natural3d import Natural3D
+from .natural_fit import natural_check
+from .proximity import ProximityReport
+from .repulsion import natural_neighbours, sample_s
+
+DIRECTIONS = ("courses", "wales")
+GAUSS = 16                      # Gauss nodes of a wrap's segment to σ
+SAMPLES = 80                    # other-contact samples per loop (48, 64, 80: course F(10 %)
+                                # 0.329, 0.334, 0.335 N; docs/real_fabric.md)
+REACH = 2.5                     # other pairs listed: naturally closer than REACH · 2r
+MAX_ITER = 500
+TOL = 1e-10
+MIN_SPACING = 0.3               # a spacing's lower bound, times its natural value
+
+
+@dataclass
+class PeriodicCell:
+    """The cell's NLP along ``direction`` (module docstring): ``solver`` IPOPT with
+    p = (pulled spacing, R_f, k), ``energy`` U(x, p); ``shape`` the reference lattice the
+    strains are read from (the natural loop's, or a relaxed cell's), ``natural`` the natural
+    fabric the check reads the designed crossings on."""
+
+    shape: Natural3D
+    natural: Natural3D
+    core: float                  # R_c
+    direction: str
+    solver: ca.Function
+    energy: ca.Function
+    rows: int
+    pairs: int
+    rigidity: float              # the law's k the cell was built with (the default k)
+
+    @property
+    def spacing0(self) -> float:
+        """The reference spacing along the pull."""
+        return self.shape.wale_spacing if self.direction == "courses" else self.shape.course_spacing
+
+    @property
+    def across0(self) -> float:
+        """The reference spacing across the pull (the width one cell carries)."""
+        return self.shape.course_spacing if self.direction == "courses" else self.shape.wale_spacing
+
+    def across(self, x: np.ndarray) -> float:
+        """The spacing across the pull at state x."""
+        return float(x[-1] if self.direction == "courses" else x[-2])
+
+    def along(self, x: np.ndarray) -> float:
+        """The spacing along the pull at state x."""
+        return float(x[-2] if self.direction == "courses" else x[-1])
+
+
+@dataclass(frozen=True)
+class CellSolution:
+    """One solve of the cell: state x, energy U (N·mm), force through one cell F (N)."""
+
+    x: np.ndarray
+    U: float
+    F: float
+    success: bool
+    status: str
+    iterations: int
+
+
+def cell_pairs(shape: Natural3D, law: SoftShell, samples: int = SAMPLES,
+               reach: float = REACH) -> tuple[np.ndarray, ...]:
+    """The other contacts' pairs of the cell (``repulsion.natural_neighbours``: one piece of
+    yarn and the wraps' windows left out, each pair's thinning scale, C3) read from one loop of
+    a 3 × 5 fabric, which holds every lattice offset of the list, to its images: sample
+    coordinates s, sample k on the loop, m on its image at (dj·w, di·c), di, dj and the scale.
+    The model lists pairs naturally closer than 1.25·2r and its rounds add those that come
+    close; the cell has no rounds, so its list reaches ``reach``·2r (the law is zero beyond
+    touch: a listed pair that stays apart costs only its evaluation)."""
+    wales, loop = 5, 2                   # loop (course 1, wale 3); kb − ka = di·wales + dj
+    nb = natural_neighbours(shape, law, 3, wales, samples, reach)
+    sel = nb.ka == loop
+    DI, DJ = np.divmod(nb.kb[sel] - loop + 2, wales)
+    return sample_s(shape.length, samples), nb.qa[sel], nb.qb[sel], DI, DJ - 2, nb.scale[sel]
+
+
+def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = SAMPLES,
+               straight: bool = False, reach: float = REACH, max_iter: int = MAX_ITER,
+               max_time: float | None = None) -> PeriodicCell:
+    """The cell's NLP (module docstring) pulled along ``direction``; ``max_iter`` and
+    ``max_time`` (s) bound each solve."""
+    if direction not in DIRECTIONS:
+        raise ValueError(f"direction must be one of {DIRECTIONS}, not {direction!r}")
+    L, t, q = shape.length, shape.harmonics, shape.modes
+    nc, nq = n_coeffs(t), n_coeffs(q)
+    n = len(shape.s_upper)
+    xs = ca.MX.sym("x", nc + nq + 2 * n + 2)
+    p = ca.MX.sym("p", 3)                       # (pulled spacing, R_f, k)
+    contact = 0.0
+    a, b = xs[:nc], xs[nc:nc + nq]
+    su, sl = xs[nc + nq:nc + nq + n], xs[nc + nq + n:nc + nq + 2 * n]
+    w, c = xs[-2], xs[-1]
+    a0 = np.zeros(nc) if straight else shape.coeffs
+    b0 = np.zeros(nq) if straight else shape.elevation
+    energy = bending3d(L, t, q, 8)(a, b, ca.DM(a0), ca.DM(b0), p[1])
+    seg, terms = segment(L, t, q, GAUSS), crossing_terms(law)
+    shift = ca.vertcat(0, c, 0)
+    rows = [seg(a, b, 0.0, L)[0] - ca.vertcat(w, 0, 0)]                         # closure
+    for deg, coef in ((q, b), (t, a)):                                          # N2
+        E, S = continuity_rows(L, deg)
+        rows.append(ca.mtimes(ca.DM(E - S), coef))
+    signs, scales = shape.crossing_signs(), law.thinning(shape.h0)
+    for k in range(n):                                                          # S5-S7
+        pu, tu = seg(a, b, 0.0, su[k])
+        pl, tl = seg(a, b, 0.0, sl[k])
+        e, r, *_ = terms(pu + shift, tu, pl, tl, signs[k], scales[k])
+        contact += e
+        rows.append(r)
+    s, K, M, DI, DJ, scale = cell_pairs(shape, law, samples, reach)             # R1
+    G = loop_displacements3d(L, t, q, s, 8)(a, b)
+    off = ca.vertcat(ca.DM(DJ).T * w, ca.DM(DI).T * c, ca.DM.zeros(1, K.size))
+    diff = G[:, M.tolist()] - G[:, K.tolist()] + off
+    d = ca.sqrt(ca.sum1(diff ** 2)).T
+    contact += (L / samples) ** 2 * ca.sum1(law.casadi_energy(law.seen(d, ca.DM(scale))))
+    energy += p[2] / law.rigidity * contact                       # linear in k
+    rows.append((w if direction == "courses" else c) - p[0])                    # the pull
+    g = ca.vertcat(*rows)
+    opts = ipopt_options(TOL, max_iter, **({} if max_time is None else
+                                           {"max_wall_time": float(max_time)}))
+    opts["show_eval_warnings"] = False                         # NaN: a step into a core
+    solver = ca.nlpsol("periodic_cell", "ipopt", {"x": xs, "p": p, "f": energy, "g": g}, opts)
+    return PeriodicCell(shape, shape, law.core_radius, direction, solver,
+                        ca.Function("U", [xs, p], [energy]), g.numel(), int(K.size),
+                        law.rigidity)
+
+
+def natural_state(shape: Natural3D) -> np.ndarray:
+    """The cell's x at the natural loop."""
+    return np.concatenate([shape.coeffs, shape.elevation, shape.s_upper, shape.s_lower,
+                           [shape.wale_spacing, shape.course_spacing]])
+
+
+def solve_cell(cell: PeriodicCell, spacing: float, R_f: float, x0: np.ndarray,
+               free: bool = False, rigidity: float | None = None) -> CellSolution:
+    """The cell at the pulled ``spacing`` (``free``: both spacings free, the pull's row
+    dropped by loose bounds) from x0, with bending modulus R_f and contact rigidity
+    ``rigidity`` (default: the built law's); F = dU/d(spacing), the pull row's multiplier."""
+    k = cell.rigidity if rigidity is None else rigidity
+    n = x0.size
+    lbx, ubx = np.full(n, -np.inf), np.full(n, np.inf)
+    n = len(cell.shape.s_upper)
+    lbx[-2 - 2 * n:-2], ubx[-2 - 2 * n:-2] = 0.0, cell.shape.length
+    lbx[-2:] = MIN_SPACING * np.array([cell.natural.wale_spacing, cell.natural.course_spacing])
+    lbg, ubg = np.zeros(cell.rows), np.zeros(cell.rows)
+    if free:
+        lbg[-1], ubg[-1] = -np.inf, np.inf
+    sol = cell.solver(x0=x0, p=[spacing, R_f, k], lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    st = cell.solver.stats()
+    return CellSolution(np.asarray(sol["x"]).ravel(), float(sol["f"]),
+                        -float(sol["lam_g"][-1]), succeeded(st["return_status"]),
+                        st["return_status"], int(st["iter_count"]))
+
+
+def cell_shape(cell: PeriodicCell, x: np.ndarray) -> Natural3D:
+    """The loop and lattice of state x as a shape (the check draws its fabric)."""
+    sh = cell.shape
+    nc, nq = n_coeffs(sh.harmonics), n_coeffs(sh.modes)
+    return replace(sh, coeffs=x[:nc], elevation=x[nc:nc + nq], wale_spacing=float(x[-2]),
+                   course_spacing=float(x[-1]))
+
+
+def check_cell(cell: PeriodicCell, x: np.ndarray) -> ProximityReport:
+    """The independent all-pairs check of 4 × 4 loops of the periodic fabric at x, the designed
+    crossings read on the natural fabric: no pair of pieces inside the hard core, no crossing
+    flipped."""
+    return natural_check(cell_shape(cell, x), cell.core, reference=cell.natural)
+
+
+def relaxed(cell: PeriodicCell, x: np.ndarray) -> None:
+    """Make state x's lattice the cell's reference (a straight yarn's relaxed cell)."""
+    cell.shape = replace(cell.shape, wale_spacing=float(x[-2]), course_spacing=float(x[-1]))
