@@ -89,7 +89,7 @@ def test_strain_sensitivities_at_fixed_force_agree_with_finite_differences(monke
     differences through the interpolated curves, on a curve fine enough (strain steps 0.01)
     for the interpolation to be exact to 1e-3."""
     from knit_nlp.weft.inverse.calibration import curve
-    monkeypatch.setattr(curve, "MAX_STRAIN_STEP", 0.01)
+    monkeypatch.setattr(curve.CurveModel, "max_strain_step", 0.01)
     model = _model("courses")
     c = model.curve(SYNTH_TRUTH, goal=1e9, strain_limit=0.3)
     forces = np.linspace(0.2, 0.8, 4) * c.force[-1]

@@ -23,7 +23,7 @@ from problem_texts import bend
 from test_inverse_control import FABRIC
 
 # the module (the package exports its function of the same name)
-calibrate_module = importlib.import_module("knit_nlp.weft.inverse.calibration.calibrate")
+curve_module = importlib.import_module("knit_nlp.weft.inverse.calibration.curve")   # the check's caller
 
 BEND = bend()
 
@@ -94,7 +94,7 @@ def test_calibrate_checks_each_test_at_its_largest_load(tmp_path, capsys, titles
     def spy(problem, coeffs, starts):
         seen.append(_stretch(problem, coeffs, starts))
         return own_check(problem, coeffs, starts)
-    monkeypatch.setattr(calibrate_module, "own_check", spy)
+    monkeypatch.setattr(curve_module, "own_check", spy)
     width = synthetic_columns(tmp_path / "synthetic.csv", rows=400)
     spec = synthetic_spec(tmp_path, width, "[]", SYNTH_TRUTH, tables="",
                           extra="[calibrate.targets]\nfit_axial = 0.003\n")
@@ -129,7 +129,7 @@ def test_calibrate_finds_the_first_node_the_check_calls_not_clean(tmp_path, caps
         ok = stretch < limit[0] and not (only_last[0] and len(seen) == 1)
         return None, {**block, "ok": ok, "verdict": f"{'clean' if ok else 'NOT CLEAN'} (test)"}
     limit, only_last = [np.inf], [False]
-    monkeypatch.setattr(calibrate_module, "own_check", judge)
+    monkeypatch.setattr(curve_module, "own_check", judge)
     width = synthetic_columns(tmp_path / "synthetic.csv", rows=400)
     spec = synthetic_spec(tmp_path, width, "[]", SYNTH_TRUTH, tables="")
     assert main(["calibrate", str(spec), "--out", str(tmp_path / "first")]) in (0, 1)

@@ -18,13 +18,12 @@ from typing import Callable
 import numpy as np
 
 from ...model.params import MATERIAL
-from ...model.spatial.state import spatial_samples
-from ...output.check import own_check, spatial_own_check
 from .breaks import where_it_breaks
 from .checks import HALF, STIFFENING, outcome_checks
-from .curve import (MAX_STRAIN, Curve, SpecimenModel, fd_derivatives, implicit_derivatives,
+from .cell import CellModel, build_cell_specimen
+from .curve import (MAX_STRAIN, Curve, CurveModel, SpecimenModel, fd_derivatives, implicit_derivatives,
                     strains_at)
-from .fit import MAX_EVALUATIONS, PENALTY, FitOutcome, fit_log
+from .fit import MAX_EVALUATIONS, PENALTY, SCAN_FACTORS, FitOutcome, fit_log
 from .measured import MeasuredTest
 from .metric import levels, metric
 from .result import CalibrationResult, ModelCurve, TestOutcome
@@ -55,9 +54,15 @@ class TestModel:
     def __init__(self, spec: CalibrationSpec, k: int) -> None:
         self.test: TestSpec = spec.tests[k]
         self.clamp_width = spec.clamp_width
-        self.specimen = build_specimen(spec.doc, str(spec.source), self.test.direction,
-                                       self.test.courses, self.test.wales, spec.test_name(k))
-        self.model = SpecimenModel(self.specimen)
+        if spec.specimen == "periodic":
+            self.specimen, cell = build_cell_specimen(spec.base, self.test.direction,
+                                                      spec.cell_samples)
+            self.model: CurveModel = CellModel(self.specimen, cell)
+        else:
+            self.specimen = build_specimen(spec.doc, str(spec.source), self.test.direction,
+                                           self.test.courses, self.test.wales,
+                                           spec.test_name(k))
+            self.model = SpecimenModel(self.specimen)
         # the contact rigidity the 3-D NLP was built with (``energy_scale``)
         self.rigidity = spec.values.get("contact_rigidity") if spec.spatial else None
         self._cache: dict[tuple[float, ...], Curve] = {}
@@ -85,8 +90,10 @@ class TestModel:
         U = R_f·B(x) + k·C(x) [+ k_a, k_b springs] (S4, S7), so at the clamps' positions the
         equilibrium at (R_f, k_a, k_b, k) is the one at (R_f/λ, k_a/λ, k_b/λ, k₀) with every
         force times λ. A fitted contact rigidity therefore re-solves the NLP built at k₀ with
-        the material divided by λ and scales its forces (tested against an NLP built at k)."""
-        if self.rigidity is None or values is None:
+        the material divided by λ and scales its forces (tested against an NLP built at k).
+        A model whose NLP takes k as a parameter (``takes_rigidity``: the periodic cell,
+        cell.py) is given k itself, λ = 1."""
+        if self.rigidity is None or values is None or self.model.takes_rigidity:
             return 1.0
         return values["contact_rigidity"] / self.rigidity
 
@@ -96,9 +103,13 @@ class TestModel:
         return self.width() / self.specimen.pitch_width * self.energy_scale(values)
 
     def material(self, values: dict[str, float]) -> dict[str, float]:
-        """The NLP's material parameters at ``values`` (divided by λ, ``energy_scale``)."""
+        """The NLP's material parameters at ``values`` (divided by λ, ``energy_scale``; with
+        the contact rigidity for a model that takes it)."""
         lam = self.energy_scale(values)
-        return {k: values[k] / lam for k in MATERIAL}
+        out = {k: values[k] / lam for k in MATERIAL}
+        if self.model.takes_rigidity and self.rigidity is not None:
+            out["contact_rigidity"] = values["contact_rigidity"]
+        return out
 
     def curve(self, values: dict[str, float]) -> Curve:
         material = self.material(values)
@@ -194,7 +205,8 @@ class Calibration:
                 parts.append(np.nan_to_num(model[None, :] - data, nan=PENALTY).ravel())
         r = np.concatenate(parts)
         self.evaluations += 1
-        self.progress(f"fit: evaluation {self.evaluations} (at most {MAX_EVALUATIONS}), rms "
+        most = MAX_EVALUATIONS + (len(SCAN_FACTORS) if self.spec.scan else 0)
+        self.progress(f"fit: evaluation {self.evaluations} (at most {most}), rms "
                       f"strain residual {np.sqrt(np.mean(r ** 2)):.4g}, "
                       f"{time.perf_counter() - self.t0:.0f} s")
         return r
@@ -217,7 +229,7 @@ class Calibration:
         if not self.names:
             return None
         initial = np.array([self.spec.values[n] for n in self.names])
-        return fit_log(self.names, initial, self.residual, self.jacobian)
+        return fit_log(self.names, initial, self.residual, self.jacobian, self.spec.scan)
 
     def outcome(self, tm: TestModel, values: dict[str, float],
                 cov_log: np.ndarray | None) -> TestOutcome:
@@ -238,7 +250,11 @@ class Calibration:
             se_lat = np.sqrt(np.maximum(np.einsum("fi,ij,fj->f", dlat, cov_log, dlat), 0.0))
         scale = tm.scale(values)
         top = c.force[-1] * scale if len(c.force) else 0.0
-        sample = np.linspace(0.0, top, CURVE_SAMPLES)
+        # drawn where the data are (plot.py: to the largest measured or metric force), and on
+        # to the last node (a wale cell jammed at 6,932 N left one sample below 30 N)
+        drawn = min(top, max(tm.measured.max_force, self.spec.forces[-1]) * 1.02)
+        sample = np.union1d(np.linspace(0.0, drawn, CURVE_SAMPLES),
+                            np.linspace(0.0, top, CURVE_SAMPLES))
         s_ax, s_lat = strains_at(c, tm.specimen, sample / scale) if len(c.force) > 1 else (
             np.zeros(0), np.zeros(0))
         curve = ModelCurve(c.force * scale, c.u / tm.specimen.gauge,
@@ -265,7 +281,7 @@ def final_check(tm: TestModel, c: Curve, curve: ModelCurve) -> dict:
     38-minute run with an IndexError here)."""
     if not c.xs:
         return {}
-    block = _node_check(tm, c.xs[-1])
+    block = tm.model.check(c.xs[-1])
     out = {**block, "at": {"force_N": float(curve.force[-1]),
                            "axial_strain": float(curve.axial[-1]),
                            "node": "the model curve's last (largest load); the others are "
@@ -275,22 +291,13 @@ def final_check(tm: TestModel, c: Curve, curve: ModelCurve) -> dict:
     return out
 
 
-def _node_check(tm: TestModel, x: np.ndarray) -> dict:
-    """The own check's block of one curve node's answer x."""
-    wnlp = tm.model.eq.wnlp
-    if tm.model.spatial:
-        pr = tm.specimen.problem
-        return spatial_own_check(pr, wnlp.centrelines3d(x, spatial_samples(pr)))
-    return own_check(tm.specimen.problem, wnlp.coefficients(x), wnlp.starts(x))[1]
-
-
 def _first_not_clean(tm: TestModel, c: Curve, curve: ModelCurve, last: dict) -> dict:
     """The first node of the curve, from the unloaded one, whose answer the own check does not
     call clean (``last``, the last node's block, is not, so there is one): its index, force,
     axial strain and verdict."""
     k, block = len(c.xs) - 1, last
     for node, x in enumerate(c.xs[:-1]):
-        seen = _node_check(tm, x)
+        seen = tm.model.check(x)
         if not seen["ok"]:
             k, block = node, seen
             break

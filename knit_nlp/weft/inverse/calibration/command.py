@@ -54,6 +54,7 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
             err = "undetermined" if se is None else f"± {se:.3g}"
             start = "" if measured else f"; from {row['initial']:.4g}"
             lines.append(f"  {name} = {row['value']:.6g} {err} (fitted{start}{measured})")
+            lines += _scan_lines(result)
         else:
             lines.append(f"  {name} = {row['value']:.6g} (held{', measured' if measured else ''})")
     given = result.given()
@@ -63,10 +64,9 @@ def summary(result: CalibrationResult, paths: list[Path]) -> str:
         m = t.metric
         lat = "" if m.rms_lateral is None else f", lateral {m.rms_lateral:.4f}"
         axial = "n/a" if m.rms_axial is None else f"{m.rms_axial:.4f}"
-        sp = t.specimen.problem
         state = "" if t.complete else f"  [model curve incomplete: {t.reason}]"
-        lines.append(f"  {t.test.file} ({t.test.use}, {t.test.direction}, {sp.courses} x "
-                     f"{sp.wales} loops): rms strain error axial {axial}{lat}{state}")
+        lines.append(f"  {t.test.file} ({t.test.use}, {t.test.direction}, "
+                     f"{t.specimen.label}): rms strain error axial {axial}{lat}{state}")
         lines.append(f"    checks: {describe(t.checks)}")
         lines.append(f"    {t.check_line()}")
     for key, ratio in result.checks().items():
@@ -113,7 +113,7 @@ def figures_lines(result: CalibrationResult) -> list[str]:
                 continue
             c, e = f["checks"]["model"], f["rms_strain_error"]
             out.append(f"    {axis} {fig['geometry']:>6} {fig['name']} ({f['use']}, "
-                       f"{f['courses']} x {f['wales']}): {show(e['axial'], '.4f')}, "
+                       f"{_size(f)}): {show(e['axial'], '.4f')}, "
                        f"{show(e['lateral'], '.4f')}; {show(c['force_N']['0.1'])}, "
                        f"{show(c['force_N']['0.3'])}; {show(c['stiffening'])}")
         m = t.checks["measured"]
@@ -125,3 +125,21 @@ def figures_lines(result: CalibrationResult) -> list[str]:
             f"{g} {show(r['model'])}" for g, r in ratios)
             + f" (measured {show(ratios[0][1]['measured'])})")
     return out
+
+
+def _size(figure: dict) -> str:
+    """A figures row's specimen: "3 x 5" (loops) or "periodic cell"."""
+    if figure.get("specimen") == "periodic":
+        return "periodic cell"
+    return f"{figure['courses']} x {figure['wales']}"
+
+
+def _scan_lines(result: CalibrationResult) -> list[str]:
+    """The scan of a single fitted value's start (``[calibrate] scan``): where the least
+    squares started."""
+    tried = result.fit.scan if result.fit is not None else []
+    if not tried:
+        return []
+    best = min(tried, key=lambda t: t[1])
+    return [f"    start scanned at {len(tried)} values {tried[0][0]:.4g} to {tried[-1][0]:.4g}: "
+            f"best rms strain residual {best[1]:.4g} at {best[0]:.4g}"]

@@ -34,6 +34,8 @@ from scipy.sparse.linalg import splu
 from ..forward import CURVE_KEEP, equilibrium_for
 from ..points import point_function, point_jacobian
 from ...model.params import WeftParams
+from ...model.spatial.state import spatial_samples
+from ...output.check import own_check, spatial_own_check
 from ....progress import no_path
 from .specimen import PULLED, Specimen
 
@@ -45,6 +47,12 @@ MIN_STRAIN_STEP = 1e-4
 MAX_STRAIN_STEP = 0.1
 MAX_STRAIN = 3.0            # a jersey loop (ω = 2) pulled straight along the course: L/w − 1 = 3.5
 MAX_HALVINGS = 6
+# A curve that runs on past its goal force (to the strain the checks read) stops where its force
+# passes JAMMED times the goal: the loops are jammed against their yarns' cores. (The periodic
+# cell's wale pull at k = 0.048 N/mm³ passed 353 N per cell at 27.6 % strain, the goal 0.9,
+# then crept on in successful micro-steps at 1e4-1e8 N between failed 9 s ones: 5 minutes for
+# one curve, measured.)
+JAMMED = 100.0
 KKT_RESIDUAL = 1e-8        # relative residual above which a KKT solve is refused
 # Finite differences: central, with a relative step of 1e-3. The step must move the KKT
 # residual well above IPOPT's tolerance (1e-8), or the warm-started solve returns the base point
@@ -68,7 +76,126 @@ class Curve:
     iterations: int = 0
 
 
-class SpecimenModel:
+class CurveModel:
+    """A test's curves by warm-started steps of the pulled clamp (module docstring). A model
+    gives ``specimen`` (gauge, lateral width), ``params(material, u)``, ``_solve(p, x0, curve,
+    p0)`` (a solve with ``success``, ``status``, ``x``, ``iterations``), ``read(rep)`` (the
+    force along the pull and the lateral distance of a solve), ``multipliers(rep)`` and
+    ``check(x)`` (the own check's block of a node's answer)."""
+
+    specimen: Any
+    max_strain_step = MAX_STRAIN_STEP
+    takes_rigidity = False          # its NLP takes the contact rigidity as a parameter
+
+    def params(self, material: dict[str, float], u: float) -> Any:
+        raise NotImplementedError
+
+    def _solve(self, p: Any, x0: np.ndarray | None, curve: Curve, p0: Any = None) -> Any:
+        raise NotImplementedError
+
+    def read(self, rep: Any) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def multipliers(self, rep: Any) -> np.ndarray:
+        raise NotImplementedError
+
+    def check(self, x: np.ndarray) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def _record(self, c: Curve, us: list, fs: list, lats: list, u: float, rep: Any) -> None:
+        f, lat = self.read(rep)
+        us.append(float(u))
+        fs.append(f)
+        lats.append(lat)
+        c.xs.append(rep.x)
+        c.lams.append(self.multipliers(rep))
+
+    def curve(self, material: dict[str, float], goal: float,
+              strain_limit: float = MAX_STRAIN, min_strain: float = 0.0) -> Curve:
+        """Pull until the force passes ``goal`` (model force units) and the axial strain
+        ``min_strain``, or until the axial strain ``strain_limit``."""
+        L0 = self.specimen.gauge
+        c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
+        rep = self._solve(self.params(material, 0.0), None, c)
+        if not rep.success:
+            c.complete, c.reason = False, f"the unloaded specimen did not solve ({rep.status})"
+            return c
+        us, fs, lats = [], [], []
+        self._record(c, us, fs, lats, 0.0, rep)
+        fs[0] = 0.0                         # the unloaded specimen: no force by definition
+        step = FIRST_STRAIN * L0
+        while fs[-1] < goal or us[-1] < min_strain * L0:
+            remaining = strain_limit * L0 - us[-1]
+            if remaining < MIN_STRAIN_STEP * L0 or len(us) > 10 * NODES:
+                c.complete, c.reason = False, (f"stopped at axial strain {us[-1] / L0:.3g} "
+                                               "(the strain limit) short of the goal force")
+                break
+            if remaining - step < MIN_STRAIN_STEP * L0:     # no sliver of a last step
+                step = remaining
+            p_last = self.params(material, us[-1])
+            for _ in range(MAX_HALVINGS + 1):
+                u = us[-1] + step
+                rep = self._solve(self.params(material, u), c.xs[-1], c, p_last)
+                if rep.success:
+                    break
+                step /= 2
+            else:
+                c.complete, c.reason = False, (f"no equilibrium past strain {us[-1] / L0:.3g} "
+                                               f"({rep.status})")
+                break
+            f = self.read(rep)[0]
+            if not f > fs[-1]:
+                c.complete, c.reason = False, (f"the model's force stops rising at axial "
+                                               f"strain {u / L0:.3g}")
+                break
+            stiffness = (f - fs[-1]) / step
+            self._record(c, us, fs, lats, u, rep)
+            if f > JAMMED * goal:
+                c.reason = (f"the model jams: {f / goal:.3g} times the goal force at axial "
+                            f"strain {u / L0:.3g}")
+                break
+            aim = goal / NODES / stiffness if f < goal else min_strain * L0 / NODES
+            step = float(np.clip(aim, MIN_STRAIN_STEP * L0,
+                                 min(self.max_strain_step * L0, 3 * step)))
+        if fs[-1] >= goal:          # stopped on the way to min_strain: the goal was reached
+            c.complete, c.reason = True, ""
+        c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
+        return c
+
+    def pull_to(self, material: dict[str, float], strains: np.ndarray,
+                report: Callable[[float, Any], None] | None = None) -> Curve:
+        """The curve at given axial strains (negative: pushed together), in order, each solve
+        warm-started from the last; a failed step is halved (``MAX_HALVINGS``) through
+        intermediate strains, which are not recorded. Stops at the first strain it cannot reach
+        (``reason``). ``report(strain, solution)`` is called at every recorded node."""
+        L0 = self.specimen.gauge
+        c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
+        rep = self._solve(self.params(material, 0.0), None, c)
+        us, fs, lats = [], [], []
+        self._record(c, us, fs, lats, 0.0, rep)
+        fs[0] = 0.0
+        for target in np.asarray(strains, dtype=float) * L0:
+            u, x, step, halvings = us[-1], c.xs[-1], target - us[-1], 0
+            while u != target and halvings <= MAX_HALVINGS:
+                nxt = target if abs(target - u) <= abs(step) else u + step
+                rep = self._solve(self.params(material, nxt), x, c, self.params(material, u))
+                if rep.success:
+                    u, x = nxt, rep.x
+                else:
+                    halvings, step = halvings + 1, step / 2
+            if u != target:
+                c.complete, c.reason = False, (f"no equilibrium past strain {u / L0:.3g} "
+                                               f"({rep.status})")
+                break
+            self._record(c, us, fs, lats, target, rep)
+            if report is not None:
+                report(target / L0, rep)
+        c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
+        return c
+
+
+
+class SpecimenModel(CurveModel):
     """A specimen's forward NLP, built once, and its curves."""
 
     def __init__(self, specimen: Specimen) -> None:
@@ -105,6 +232,20 @@ class SpecimenModel:
         rows = 2 * np.arange(P.shape[1]) + other            # vec(P) is column-major
         return float(P[other] @ w), w @ J[rows]
 
+    def read(self, rep: Any) -> tuple[float, float]:
+        return float(self.force(rep.lam_g)), self.lateral(rep.x)[0]
+
+    def multipliers(self, rep: Any) -> np.ndarray:
+        return rep.lam_g
+
+    def check(self, x: np.ndarray) -> dict[str, Any]:
+        """The own check's block of answer x (``output.check.own_check``; in 3-D
+        ``spatial_own_check``: all pairs of yarn pieces)."""
+        pr, wnlp = self.specimen.problem, self.eq.wnlp
+        if self.spatial:
+            return spatial_own_check(pr, wnlp.centrelines3d(x, spatial_samples(pr)))
+        return own_check(pr, wnlp.coefficients(x), wnlp.starts(x))[1]
+
     def _solve(self, p: np.ndarray, x0: np.ndarray | None, curve: Curve,
                p0: np.ndarray | None = None):
         """The equilibrium at p from x0; with ``p0`` (x0's parameters, x0 solved there) a
@@ -132,90 +273,6 @@ class SpecimenModel:
         no_path()              # one solve: not a share of the unloaded solve's load steps
         solver.begin_path(x0)  # lagged friction (if any): from the last node, halved or not
         return self.eq.solution(solver.once(p, x0), p)
-
-    def curve(self, material: dict[str, float], goal: float,
-              strain_limit: float = MAX_STRAIN, min_strain: float = 0.0) -> Curve:
-        """Pull until the force passes ``goal`` (model force units) and the axial strain
-        ``min_strain``, or until the axial strain ``strain_limit``."""
-        L0 = self.specimen.gauge
-        c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
-        rep = self._solve(self.params(material, 0.0), None, c)
-        if not rep.success:
-            c.complete, c.reason = False, f"the unloaded specimen did not solve ({rep.status})"
-            return c
-        us, fs, lats = [0.0], [0.0], [self.lateral(rep.x)[0]]
-        c.xs, c.lams = [rep.x], [rep.lam_g]
-        step = FIRST_STRAIN * L0
-        while fs[-1] < goal or us[-1] < min_strain * L0:
-            remaining = strain_limit * L0 - us[-1]
-            if remaining < MIN_STRAIN_STEP * L0 or len(us) > 10 * NODES:
-                c.complete, c.reason = False, (f"stopped at axial strain {us[-1] / L0:.3g} "
-                                               "(the strain limit) short of the goal force")
-                break
-            if remaining - step < MIN_STRAIN_STEP * L0:     # no sliver of a last step
-                step = remaining
-            p_last = self.params(material, us[-1])
-            for _ in range(MAX_HALVINGS + 1):
-                u = us[-1] + step
-                rep = self._solve(self.params(material, u), c.xs[-1], c, p_last)
-                if rep.success:
-                    break
-                step /= 2
-            else:
-                c.complete, c.reason = False, (f"no equilibrium past strain {us[-1] / L0:.3g} "
-                                               f"({rep.status})")
-                break
-            f = float(self.force(rep.lam_g))
-            if not f > fs[-1]:
-                c.complete, c.reason = False, (f"the model's force stops rising at axial "
-                                               f"strain {u / L0:.3g}")
-                break
-            stiffness = (f - fs[-1]) / step
-            us.append(u)
-            fs.append(f)
-            lats.append(self.lateral(rep.x)[0])
-            c.xs.append(rep.x)
-            c.lams.append(rep.lam_g)
-            aim = goal / NODES / stiffness if f < goal else min_strain * L0 / NODES
-            step = float(np.clip(aim, MIN_STRAIN_STEP * L0, min(MAX_STRAIN_STEP * L0, 3 * step)))
-        if fs[-1] >= goal:          # stopped on the way to min_strain: the goal was reached
-            c.complete, c.reason = True, ""
-        c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
-        return c
-
-    def pull_to(self, material: dict[str, float], strains: np.ndarray,
-                report: Callable[[float, Any], None] | None = None) -> Curve:
-        """The curve at given axial strains (negative: pushed together), in order, each solve
-        warm-started from the last; a failed step is halved (``MAX_HALVINGS``) through
-        intermediate strains, which are not recorded. Stops at the first strain it cannot reach
-        (``reason``). ``report(strain, solution)`` is called at every recorded node."""
-        L0 = self.specimen.gauge
-        c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
-        rep = self._solve(self.params(material, 0.0), None, c)
-        us, fs, lats = [0.0], [0.0], [self.lateral(rep.x)[0]]
-        c.xs, c.lams = [rep.x], [rep.lam_g]
-        for target in np.asarray(strains, dtype=float) * L0:
-            u, x, step, halvings = us[-1], c.xs[-1], target - us[-1], 0
-            while u != target and halvings <= MAX_HALVINGS:
-                nxt = target if abs(target - u) <= abs(step) else u + step
-                rep = self._solve(self.params(material, nxt), x, c, self.params(material, u))
-                if rep.success:
-                    u, x = nxt, rep.x
-                else:
-                    halvings, step = halvings + 1, step / 2
-            if u != target:
-                c.complete, c.reason = False, (f"no equilibrium past strain {u / L0:.3g} "
-                                               f"({rep.status})")
-                break
-            us.append(float(target))
-            fs.append(float(self.force(rep.lam_g)))
-            lats.append(self.lateral(rep.x)[0])
-            c.xs.append(rep.x)
-            c.lams.append(rep.lam_g)
-            if report is not None:
-                report(target / L0, rep)
-        c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
-        return c
 
     def on_grid(self, material: dict[str, float], base: Curve) -> Curve:
         """The curve at other material values on ``base``'s clamp positions, each solve

@@ -54,9 +54,8 @@ def _panel(ax, t: Any, other: Any = None, other_name: str = "") -> None:
     lat = "" if rms.rms_lateral is None else f", lateral {rms.rms_lateral:.3f}"
     axial = "n/a" if rms.rms_axial is None else f"{rms.rms_axial:.3f}"
     state = "" if t.complete else f"\nmodel curve stops: {t.reason}"      # wrapped, not cut
-    sp = t.specimen.problem
     ax.set_title(f"{t.test.file}: pulled along the {t.test.direction} ({t.test.use})\n"
-                 f"model {sp.courses} courses x {sp.wales} wales; rms strain error axial "
+                 f"model: {t.specimen.label}; rms strain error axial "
                  f"{axial}{lat}{state}\n{_checks_line(t.checks)}\n{_other_line(other, other_name)}"
                  f"{t.verdict()}\n{t.check_line()}", fontsize=8, wrap=True)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2)

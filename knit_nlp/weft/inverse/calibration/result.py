@@ -39,7 +39,7 @@ class ModelCurve:
     force: np.ndarray              # N, at the solved nodes
     axial: np.ndarray
     lateral: np.ndarray
-    sample_force: np.ndarray       # N, evenly spaced from 0 to the last node
+    sample_force: np.ndarray       # N, evenly spaced from 0 to the data's end and to the last node
     sample_axial: np.ndarray
     sample_lateral: np.ndarray
 
@@ -113,8 +113,8 @@ class TestOutcome:
                "rms_strain_error": {
                    "axial": self.metric.rms_axial, "lateral": self.metric.rms_lateral},
                "metric": self.metric.to_json(),
-               "specimen": {"courses": sp.problem.courses, "wales": sp.problem.wales,
-                            "aspect_measured": t.aspect if t.aspect_source != "fabric" else None,
+               "specimen": {"kind": sp.kind, "courses": sp.courses, "wales": sp.wales,
+                            "aspect_measured": t.aspect if t.aspect_source in ("pins", "spec") else None,
                             "aspect_source": t.aspect_source, "aspect_model": sp.aspect,
                             "gauge": sp.gauge, "pitch_width": sp.pitch_width,
                             "width": self.width, "width_clamps": t.width_clamps},
@@ -219,8 +219,8 @@ class CalibrationResult:
                 "values": {k: v["value"] for k, v in self.parameters().items()},
                 "fitted": list(self.spec.fit),
                 "tests": [{"file": t.test.file, "use": t.test.use, "direction": t.test.direction,
-                           "courses": t.specimen.problem.courses,
-                           "wales": t.specimen.problem.wales,
+                           "specimen": t.specimen.kind,
+                           "courses": t.specimen.courses, "wales": t.specimen.wales,
                            "rms_strain_error": {"axial": t.metric.rms_axial,
                                                 "lateral": t.metric.rms_lateral},
                            "complete": t.complete, "checks": t.checks} for t in self.tests],
@@ -265,6 +265,8 @@ class CalibrationResult:
                "checks": self.checks(),
                "targets": self.spec.targets,
                "warnings": self.fit.warnings if self.fit is not None else [],
+               "scan": [{"value": v, "rms_strain_residual": r} for v, r in self.fit.scan]
+               if self.fit is not None else [],
                "timings": self.timings}
         if self.breaks is not None:
             out["breaks"] = self.breaks.to_json()

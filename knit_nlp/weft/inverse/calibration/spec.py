@@ -50,6 +50,12 @@ LENGTH_SCALE_GONE = ("length_scale (mm per clamp width) is not fitted any more: 
                      "specimen's size, which the source gives (" + CLAMP_SOURCE + " mm), not a "
                      "material value; remove it and write clamp_width_mm = 35.5 (the default) "
                      "under [calibrate]")
+# A test's model (``[calibrate] specimen``): the specimen between two rigid clamps with free
+# edges (specimen.py), or the 3-D model's loop as a periodic cell, a fabric with no edges
+# (cell.py).
+SPECIMENS = ("clamped", "periodic")
+CELL_SAMPLES = 80           # model.spatial.periodic.SAMPLES (48, 64, 80: course F(10 %) 0.329,
+                            # 0.334, 0.335 N; docs/real_fabric.md)
 USES = ("fit", "predict")
 STRAINS = ("axial", "lateral")
 OWN_TABLES = ("test", "calibrate")
@@ -80,7 +86,7 @@ class TestSpec:
     measured: MeasuredTest
     width: float | None                    # specimen width (length units), if given
     aspect: float                          # gauge / width used for the loop counts
-    aspect_source: str                     # "pins", "spec"
+    aspect_source: str                     # "pins", "spec", "fabric", "none" (periodic)
     courses: int
     wales: int
     table: str
@@ -114,6 +120,9 @@ class CalibrationSpec:
     targets: dict[str, dict[str, float]]   # by use, by strain: the largest RMS error allowed
     beside: Path | None = None             # a spec whose model's figures are shown beside
     breaks: bool = False                   # also the table of where the model breaks (breaks.py)
+    specimen: str = "clamped"              # SPECIMENS: clamped specimens or a periodic cell
+    scan: bool = False                     # a single fitted value's start scanned (fit.py)
+    cell_samples: int = CELL_SAMPLES       # a periodic cell's other-contact samples per loop
 
     @property
     def spatial(self) -> bool:
@@ -186,11 +195,20 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
         raise cal.error("sensitivities", f"{quoted(sens)} is not offered for the 3-D model "
                         "(its KKT sensitivities are not taken through the calibration yet); "
                         "write \"curve_differences\" or leave it out")
+    specimen = _specimen(cal, base, fixed is not None)
+    cell_samples = cal.integer("cell_samples", CELL_SAMPLES, minimum=24, maximum=200)
+    if cal.has("cell_samples") and specimen != "periodic":
+        raise cal.error("cell_samples", "samples a periodic cell's contacts: remove it, or "
+                        "write specimen = \"periodic\"")
     beside = _beside(cal, source)
     breaks = cal.boolean("breaks", False)
+    scan = cal.boolean("scan", False)
+    if scan and len(fit) != 1:
+        raise cal.error("scan", f"scans the start of a single fitted value; this spec fits "
+                        f"{len(fit)}: fit one value, or remove scan")
     targets = _targets(cal.table("targets"))
     cal.finish()
-    tests = tuple(_read_test(t, source, base, fixed, min_loops, forces)
+    tests = tuple(_read_test(t, source, base, fixed, min_loops, forces, specimen == "periodic")
                   for t in top.tables("test"))
     if not tests:
         raise top.error("test", "a calibration needs at least one [[test]] table")
@@ -207,7 +225,7 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
     name = top.stem("name")
     return CalibrationSpec(name, top.string("description", ""), source, shared, base, tests,
                            fit, values, clamp_width, forces, strains, min_loops, sens, targets,
-                           beside, breaks)
+                           beside, breaks, specimen, scan, cell_samples)
 
 
 def spec_values(base: WeftProblem) -> dict[str, float]:
@@ -226,6 +244,26 @@ def fittable(base: WeftProblem) -> tuple[str, ...]:
     if yarn is None or not yarn.spatial:
         return FITTABLE
     return (*SPATIAL_FITTABLE, *(("k_a", "k_b") if yarn.crossing_springs else ()))
+
+
+def _specimen(cal: Table, base: WeftProblem, sized: bool) -> str:
+    """``[calibrate] specimen``: "clamped" (default) or "periodic", the 3-D model's periodic
+    cell, which has no size, no crossing springs and no friction (cell.py)."""
+    kind = cal.string("specimen", "clamped", choices=SPECIMENS)
+    if kind != "periodic":
+        return kind
+    yarn = base.yarn
+    if yarn is None or not yarn.spatial:
+        raise cal.error("specimen", "the periodic cell is the 3-D model's: set [yarn] geometry "
+                        "= \"3d\", or write specimen = \"clamped\"")
+    why = ("[yarn] crossing_springs = true (the cell has no crossing springs)"
+           if yarn.crossing_springs else "[yarn] friction > 0 (the cell has no friction)"
+           if yarn.friction > 0 else "[fabric] (a periodic cell has no size)" if sized else
+           "min_loops (a periodic cell has no size)" if cal.has("min_loops") else None)
+    if why is not None:
+        raise cal.error("specimen", f"a periodic cell cannot take {why}: remove it, or write "
+                        "specimen = \"clamped\"")
+    return kind
 
 
 def _beside(cal: Table, source: Path) -> Path | None:
@@ -268,7 +306,9 @@ def _fabric(top: Table) -> tuple[int, int]:
 
 
 def _read_test(tab: Table, source: Path, base: WeftProblem, fixed: tuple[int, int] | None,
-               min_loops: int, forces: tuple[float, ...]) -> TestSpec:
+               min_loops: int, forces: tuple[float, ...], periodic: bool = False) -> TestSpec:
+    """One ``[[test]]`` table and its file; a clamped specimen's loop counts from its aspect
+    ratio (a periodic cell has none: 0 x 0)."""
     tab.allow("file", "format", "direction", "use", "width", "aspect")
     file = tab.string("file")
     fmt = tab.string("format", choices=FORMATS)
@@ -287,12 +327,16 @@ def _read_test(tab: Table, source: Path, base: WeftProblem, fixed: tuple[int, in
         source_name = "spec"
     elif measured.aspect is not None:
         aspect, source_name = measured.aspect, "pins"
+    elif periodic:
+        source_name = "none"
     elif fixed is None:
         raise tab.error("aspect", f"{quoted(file)} has no pin positions: give aspect = gauge "
                         "length / width, or the specimen's [fabric]")
     else:
         source_name = "fabric"
-    if fixed is not None:
+    if periodic:
+        m, n = 0, 0
+    elif fixed is not None:
         m, n = fixed
     else:
         m, n = loop_counts(base, direction, aspect, min_loops)

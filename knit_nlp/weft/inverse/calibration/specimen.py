@@ -39,6 +39,19 @@ class Specimen:
     pitch_width: float             # courses · c (x pull) or wales · w (y pull)
     lateral_points: tuple[tuple[tuple[tuple[int, int], float], ...], ...]   # (low edge, high edge)
     lateral_width: float           # natural distance between the free edges' points
+    kind: str = "clamped"
+
+    @property
+    def courses(self) -> int:
+        return self.problem.courses
+
+    @property
+    def wales(self) -> int:
+        return self.problem.wales
+
+    @property
+    def label(self) -> str:
+        return f"{self.courses} x {self.wales} loops between rigid clamps"
 
     @property
     def axis(self) -> int:

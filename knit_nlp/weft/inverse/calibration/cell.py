@@ -1,0 +1,119 @@
+"""A test's specimen as the 3-D model's periodic cell (``[calibrate] specimen = "periodic"``):
+one loop repeated on its lattice, a fabric with no edges (``model.spatial.periodic``;
+docs/real_fabric.md, "A periodic cell").
+
+The measured specimens are 66.56 and 95.87 mm wide, tens of loops across; the free-edged model
+specimens that ``calibrate`` solves within its time (3 loops across) are mostly edge. The cell is the other limit: no edges at all. Read as a
+specimen (``CellSpecimen``, the same reading as ``specimen.Specimen``):
+
+* the pull's travel u is the change of the lattice spacing along it, so the axial strain is
+  u / gauge with gauge = the natural spacing along the pull (w₀ along the courses, c₀ along
+  the wales);
+* the force is the one through one cell (the pull row's multiplier, dU/d(spacing)), so the
+  pitch width is the natural spacing across (c₀, or w₀): real force = F · W / pitch width, W
+  the test's real width, as for the clamped specimens;
+* the lateral strain is the change of the spacing across the pull over its natural value.
+
+A curve is the same warm-started stepping as a clamped specimen's (``curve.CurveModel``); the
+first node starts from the natural loop. The contact rigidity is a parameter of the cell's NLP
+(``takes_rigidity``), not the clamped specimens' energy scale: the cell's equilibria are not
+unique, and the scaled NLP's IPOPT path found another (``model.spatial.periodic``). Each node's check is the
+model's own all-pairs check of 4 × 4 loops of the periodic fabric (``periodic.check_cell``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...model.problem import WeftProblem
+from ...model.spatial.periodic import (SAMPLES, PeriodicCell, build_cell, check_cell,
+                                       natural_state, solve_cell)
+from .curve import Curve, CurveModel
+from .specimen import DIRECTIONS
+
+
+
+@dataclass(frozen=True)
+class CellSpecimen:
+    """A test's periodic cell read as a specimen (module docstring)."""
+
+    problem: WeftProblem
+    direction: str
+    gauge: float                  # natural spacing along the pull
+    pitch_width: float            # natural spacing across it: the width one cell carries
+    lateral_width: float          # the same spacing: the lateral strain's reference
+    kind: str = "periodic"
+
+    @property
+    def axis(self) -> int:
+        return DIRECTIONS.index(self.direction)
+
+    @property
+    def aspect(self) -> float:
+        return self.gauge / self.pitch_width
+
+    @property
+    def courses(self) -> None:
+        return None
+
+    @property
+    def wales(self) -> None:
+        return None
+
+    @property
+    def label(self) -> str:
+        return "a periodic cell (one loop, no edges)"
+
+
+def build_cell_specimen(problem: WeftProblem, direction: str, samples: int = SAMPLES
+                        ) -> tuple[CellSpecimen, PeriodicCell]:
+    """The cell of ``problem``'s 3-D yarn (its natural loop and compression law) pulled along
+    ``direction``, and its specimen reading; ``[solver] max_iter`` and ``max_time`` bound each
+    curve step, as a clamped specimen's."""
+    yarn, opts = problem.yarn, problem.solver
+    cell = build_cell(yarn.natural3d, yarn.shell(), direction, samples,
+                      max_iter=opts.max_iter, max_time=opts.max_time)
+    return CellSpecimen(problem, direction, cell.spacing0, cell.across0, cell.across0), cell
+
+
+class CellModel(CurveModel):
+    """A test's periodic cell and its curves (``curve.CurveModel``: params are (pulled
+    spacing, R_f))."""
+
+    spatial = True
+    takes_rigidity = True
+    # The cell is soft until its loops jam, then stiffens 7-20 times (docs/real_fabric.md):
+    # steps aimed at even force increments grew to curve.MAX_STRAIN_STEP (10 % strain) on the
+    # soft part and the jam fell between two nodes (measured, acrylic_3d_source's law: k x
+    # 1.02-1.1 gave curves of 9 nodes ending at 617-4150 N, and the fit's residual jumped
+    # between 0.118 and 0.148 in that range). Steps of at most 2.5 % put nodes on the jam.
+    max_strain_step = 0.025
+
+    def __init__(self, specimen: CellSpecimen, cell: PeriodicCell) -> None:
+        self.specimen, self.cell = specimen, cell
+        self.build_s = 0.0
+
+    def params(self, material: dict[str, float], u: float) -> tuple[float, float, float]:
+        k = material.get("contact_rigidity", self.cell.rigidity)
+        return self.specimen.gauge + float(u), float(material["R_f"]), float(k)
+
+    def _solve(self, p: tuple[float, float], x0: np.ndarray | None, curve: Curve,
+               p0: Any = None) -> Any:
+        start = natural_state(self.cell.natural) if x0 is None else x0
+        rep = solve_cell(self.cell, p[0], p[1], start, rigidity=p[2])
+        curve.solves += 1
+        curve.iterations += rep.iterations
+        return rep
+
+    def read(self, rep: Any) -> tuple[float, float]:
+        return rep.F, self.cell.across(rep.x)
+
+    def multipliers(self, rep: Any) -> np.ndarray:
+        return np.array([rep.F])
+
+    def check(self, x: np.ndarray) -> dict[str, Any]:
+        block = check_cell(self.cell, x).block(self.specimen.problem.units.length)
+        block["fabric"] = "4 x 4 loops of the periodic cell"
+        return block
