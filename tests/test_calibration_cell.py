@@ -139,3 +139,16 @@ def test_a_scan_starts_the_least_squares_at_its_best_factor():
     scanned = fit_log(["k"], np.array([1.0]), residual, jacobian, scan=True)
     assert [v for v, _ in scanned.scan] == pytest.approx([2.0 ** e for e in range(-3, 7)])
     assert np.log2(scanned.values[0]) == pytest.approx(5.0, abs=1e-3)
+
+
+def test_the_shipped_cell_specs_hold_every_measured_value_and_fit_only_k():
+    """``acrylic_3d_cell_x`` fits the contact rigidity on the course pull and predicts the wale
+    pull; ``acrylic_3d_cell_xy`` fits it on both (issue 40 item 3): both as a periodic cell at
+    the source's clamp width, with the yarn's measured values held."""
+    x, xy = load_spec("real_fabric/acrylic_3d_cell_x"), load_spec("real_fabric/acrylic_3d_cell_xy")
+    for spec in (x, xy):
+        assert spec.specimen == "periodic" and spec.scan and spec.fit == ("contact_rigidity",)
+        assert spec.clamp_width == 35.5 and spec.values["R_f"] == 0.045
+        assert spec.values["radius"] == 0.74 and spec.base.L == 11.28
+    assert [(t.direction, t.use) for t in x.tests] == [("courses", "fit"), ("wales", "predict")]
+    assert [t.use for t in xy.tests] == ["fit", "fit"]

@@ -31,12 +31,12 @@ from ...model.problem import WeftProblem
 from ...model.spatial.periodic import (SAMPLES, PeriodicCell, build_cell, check_cell,
                                        natural_state, solve_cell)
 from .curve import Curve, CurveModel
-from .specimen import DIRECTIONS
+from .specimen import PullReading
 
 
 
 @dataclass(frozen=True)
-class CellSpecimen:
+class CellSpecimen(PullReading):
     """A test's periodic cell read as a specimen (module docstring)."""
 
     problem: WeftProblem
@@ -45,14 +45,6 @@ class CellSpecimen:
     pitch_width: float            # natural spacing across it: the width one cell carries
     lateral_width: float          # the same spacing: the lateral strain's reference
     kind: str = "periodic"
-
-    @property
-    def axis(self) -> int:
-        return DIRECTIONS.index(self.direction)
-
-    @property
-    def aspect(self) -> float:
-        return self.gauge / self.pitch_width
 
     @property
     def courses(self) -> None:

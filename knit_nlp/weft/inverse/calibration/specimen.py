@@ -29,8 +29,26 @@ MAX_LOOPS = 200                    # along the pull, from the aspect ratio
 PULLED = 2                         # the moving rigid clamp's number
 
 
+class PullReading:
+    """What every test's model reads alike (a clamped ``Specimen``, a periodic
+    ``cell.CellSpecimen``): the pull's axis and the natural aspect ratio."""
+
+    direction: str
+    gauge: float
+    pitch_width: float
+
+    @property
+    def axis(self) -> int:
+        """0: the pull is along x; 1: along y."""
+        return DIRECTIONS.index(self.direction)
+
+    @property
+    def aspect(self) -> float:
+        return self.gauge / self.pitch_width
+
+
 @dataclass(frozen=True)
-class Specimen:
+class Specimen(PullReading):
     """A built test: its weft problem and how to read stress and strains from a solution."""
 
     problem: WeftProblem
@@ -52,15 +70,6 @@ class Specimen:
     @property
     def label(self) -> str:
         return f"{self.courses} x {self.wales} loops between rigid clamps"
-
-    @property
-    def axis(self) -> int:
-        """0: the pull is along x; 1: along y."""
-        return DIRECTIONS.index(self.direction)
-
-    @property
-    def aspect(self) -> float:
-        return self.gauge / self.pitch_width
 
     def translation(self, u: float) -> list[float]:
         """The pulled clamp's motion (tx, ty, rotation) for a pull of ``u``."""
