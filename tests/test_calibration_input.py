@@ -255,7 +255,7 @@ VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10 ** 12, 10 ** 12),
                                     "implicit", "finite_differences", "periodic", "clamped"]))
 KEYS = st.sampled_from([("calibrate", k) for k in ("fit", "clamp_width_mm", "forces", "strains",
                                                     "min_loops", "sensitivities", "specimen",
-                                                    "scan", "extra")]
+                                                    "scan", "cell_samples", "extra")]
                        + [("test", k) for k in ("file", "format", "direction", "use", "width",
                                                 "aspect", "extra")]
                        + [("fabric", k) for k in ("courses", "wales")])
