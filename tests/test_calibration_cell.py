@@ -152,3 +152,37 @@ def test_the_shipped_cell_specs_hold_every_measured_value_and_fit_only_k():
         assert spec.values["radius"] == 0.74 and spec.base.L == 11.28
     assert [(t.direction, t.use) for t in x.tests] == [("courses", "fit"), ("wales", "predict")]
     assert [t.use for t in xy.tests] == ["fit", "fit"]
+
+
+def test_a_curve_past_its_goal_stops_where_the_model_jams():
+    """The stepper (``curve.CurveModel``) runs on past the goal force to the strain the checks
+    read, but stops where the force passes ``JAMMED`` times the goal: here a model whose force
+    u/(0.3 − u) diverges at u = 0.3 (gauge 1), goal 1, asked for strain 0.5. The curve ends
+    past 100 N, below u = 0.3, complete, and says it jammed."""
+    from types import SimpleNamespace
+
+    from knit_nlp.weft.inverse.calibration.curve import JAMMED, Curve, CurveModel
+
+    class Jamming(CurveModel):
+        specimen = SimpleNamespace(gauge=1.0)
+
+        def params(self, material, u):
+            return u
+
+        def _solve(self, p, x0, curve: Curve, p0=None):
+            curve.solves += 1
+            ok = p < 0.3
+            return SimpleNamespace(success=ok, status="ok" if ok else "jammed",
+                                   x=np.array([p]), iterations=1)
+
+        def read(self, rep):
+            u = float(rep.x[0])
+            return u / (0.3 - u), 0.0
+
+        def multipliers(self, rep):
+            return np.zeros(1)
+
+    c = Jamming().curve({}, goal=1.0, strain_limit=0.6, min_strain=0.5)
+    assert c.complete and "jams" in c.reason
+    assert JAMMED < c.force[-1] and c.u[-1] < 0.3
+    assert len(c.u) < 60 and c.solves < 200

@@ -6,8 +6,9 @@ and re-solved at every step from the previous step's solution. Steps aim at even
 increments (the secant stiffness of the last step sets the next), so the curve is resolved
 alike wherever its slope; a failed solve halves the step. The curve ends at the first node
 past the goal force (and past a smallest strain, if asked: beyond the goal force the steps aim
-at even strain increments up to it), or where the model's force stops rising, or at
-``MAX_STRAIN``.
+at even strain increments up to it, and stop where the force passes ``JAMMED`` times the goal),
+or where the model's force stops rising, or at ``MAX_STRAIN``. ``CurveModel`` steps; a
+clamped specimen (``SpecimenModel``) or a periodic cell (``cell.CellModel``) solves and reads.
 
 Strain at a force is read by monotone cubic (PCHIP) interpolation of the nodes. Sensitivities
 of those strains to the material values come either from the implicit-function theorem at each
@@ -158,7 +159,8 @@ class CurveModel:
             step = float(np.clip(aim, MIN_STRAIN_STEP * L0,
                                  min(self.max_strain_step * L0, 3 * step)))
         if fs[-1] >= goal:          # stopped on the way to min_strain: the goal was reached
-            c.complete, c.reason = True, ""
+            c.complete = True
+            c.reason = c.reason if fs[-1] > JAMMED * goal else ""     # (the jam is said)
         c.u, c.force, c.lateral = np.array(us), np.array(fs), np.array(lats)
         return c
 
