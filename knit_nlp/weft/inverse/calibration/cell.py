@@ -34,7 +34,6 @@ from .curve import Curve, CurveModel
 from .specimen import PullReading
 
 
-
 @dataclass(frozen=True)
 class CellSpecimen(PullReading):
     """A test's periodic cell read as a specimen (module docstring)."""
@@ -72,7 +71,7 @@ def build_cell_specimen(problem: WeftProblem, direction: str, samples: int = SAM
 
 class CellModel(CurveModel):
     """A test's periodic cell and its curves (``curve.CurveModel``: params are (pulled
-    spacing, R_f))."""
+    spacing, R_f, k))."""
 
     spatial = True
     takes_rigidity = True
@@ -91,7 +90,7 @@ class CellModel(CurveModel):
         k = material.get("contact_rigidity", self.cell.rigidity)
         return self.specimen.gauge + float(u), float(material["R_f"]), float(k)
 
-    def _solve(self, p: tuple[float, float], x0: np.ndarray | None, curve: Curve,
+    def _solve(self, p: tuple[float, float, float], x0: np.ndarray | None, curve: Curve,
                p0: Any = None) -> Any:
         start = natural_state(self.cell.natural) if x0 is None else x0
         rep = solve_cell(self.cell, p[0], p[1], start, rigidity=p[2])
