@@ -42,8 +42,12 @@ class CellSpecimen(PullReading):
     direction: str
     gauge: float                  # natural spacing along the pull
     pitch_width: float            # natural spacing across it: the width one cell carries
-    lateral_width: float          # the same spacing: the lateral strain's reference
     kind: str = "periodic"
+
+    @property
+    def lateral_width(self) -> float:
+        """The lateral strain's reference: the same natural spacing across the pull."""
+        return self.pitch_width
 
     @property
     def courses(self) -> None:
@@ -66,7 +70,7 @@ def build_cell_specimen(problem: WeftProblem, direction: str, samples: int = SAM
     yarn, opts = problem.yarn, problem.solver
     cell = build_cell(yarn.natural3d, yarn.shell(), direction, samples,
                       max_iter=opts.max_iter, max_time=opts.max_time)
-    return CellSpecimen(problem, direction, cell.spacing0, cell.across0, cell.across0), cell
+    return CellSpecimen(problem, direction, cell.spacing0, cell.across0), cell
 
 
 class CellModel(CurveModel):
@@ -84,7 +88,6 @@ class CellModel(CurveModel):
 
     def __init__(self, specimen: CellSpecimen, cell: PeriodicCell) -> None:
         self.specimen, self.cell = specimen, cell
-        self.build_s = 0.0
 
     def params(self, material: dict[str, float], u: float) -> tuple[float, float, float]:
         k = material.get("contact_rigidity", self.cell.rigidity)

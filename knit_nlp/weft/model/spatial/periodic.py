@@ -88,10 +88,6 @@ class PeriodicCell:
         """The spacing across the pull at state x."""
         return float(x[-1] if self.direction == "courses" else x[-2])
 
-    def along(self, x: np.ndarray) -> float:
-        """The spacing along the pull at state x."""
-        return float(x[-2] if self.direction == "courses" else x[-1])
-
 
 @dataclass(frozen=True)
 class CellSolution:
@@ -183,10 +179,9 @@ def solve_cell(cell: PeriodicCell, spacing: float, R_f: float, x0: np.ndarray,
     dropped by loose bounds) from x0, with bending modulus R_f and contact rigidity
     ``rigidity`` (default: the built law's); F = dU/d(spacing), the pull row's multiplier."""
     k = cell.rigidity if rigidity is None else rigidity
-    n = x0.size
-    lbx, ubx = np.full(n, -np.inf), np.full(n, np.inf)
-    n = len(cell.shape.s_upper)
-    lbx[-2 - 2 * n:-2], ubx[-2 - 2 * n:-2] = 0.0, cell.shape.length
+    lbx, ubx = np.full(x0.size, -np.inf), np.full(x0.size, np.inf)
+    sigmas = slice(-2 - 2 * len(cell.shape.s_upper), -2)       # the contacts' σ_u, σ_l
+    lbx[sigmas], ubx[sigmas] = 0.0, cell.shape.length
     lbx[-2:] = MIN_SPACING * np.array([cell.natural.wale_spacing, cell.natural.course_spacing])
     lbg, ubg = np.zeros(cell.rows), np.zeros(cell.rows)
     if free:
