@@ -9,12 +9,17 @@ specimen's real width times the width, the test file's width in clamps times 35.
 along the courses, 95.87 mm along the wales; docs/real_fabric.md). This script adds levers the
 calibration does not offer (a straight yarn's bending reference, k and R_f times a factor)
 and checks every node.
+With ``--held`` the spacing across the pull is held at its natural value (plane strain, the
+limit of clamps that keep a specimen's width) instead of free (uniaxial stress, the cell's
+reading in ``calibrate``). ``--friction-estimate MU`` prints what Coulomb friction μ at the
+wraps would add to the force (the cell has none): μ × each step's normal forces × its slides.
 With ``--straight`` the cell is first relaxed at zero force (w and c free) and the pull starts
 there, its force relative to that state's.
 
     python scripts/periodic_cell.py [--spec real_fabric/acrylic_3d_source] [--straight]
                                     [--to 0.6] [--step 0.025] [--samples 80] [--reach 2.5]
-                                    [--rigidity-factor K] [--bending-factor B]
+                                    [--rigidity-factor K] [--bending-factor B] [--held]
+                                    [--friction-estimate MU]
 
 Prints one line per strain node and, per direction, ``calibrate``'s checks of the curve at the
 test's real width (``calibration.checks``: F at 10 % and 30 %, the stiffness per width at 10 %,
@@ -43,24 +48,25 @@ from knit_nlp.weft.inverse.calibration.spec import CLAMP_WIDTH_MM  # noqa: E402
 from knit_nlp.weft.model.compression import SoftShell  # noqa: E402
 from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.model.spatial.periodic import (PeriodicCell, build_cell,  # noqa: E402
-                                                  check_cell, natural_state, relaxed,
-                                                  solve_cell)
+                                                  check_cell, contact_state, natural_state,
+                                                  relaxed, solve_cell)
 
 TESTS = {"courses": "acrylic_stockinette_x.csv", "wales": "acrylic_stockinette_y.csv"}
 
 
 def pull(cell: PeriodicCell, R_f: float, strains: np.ndarray, x0: np.ndarray,
-         say=print) -> list[dict]:
-    """The cell pulled through ``strains`` (each node from the last), the first from x0 at 0;
-    each node checked (:func:`check`)."""
-    out, x, base = [], x0, None
+         say=print, held: bool = False) -> list[dict]:
+    """The cell pulled through ``strains`` (each node from the last), the first from x0 at 0,
+    the spacing across free or ``held``; each node checked (:func:`check`)."""
+    out, x, last = [], x0, 0.0
     for e in strains:
-        sol = solve_cell(cell, (1 + e) * cell.spacing0, R_f, x)
+        sol = solve_cell(cell, (1 + e) * cell.spacing0, R_f, x, held=held)
         if not sol.success:
             say(f"  {cell.direction} {e:+.3f}: {sol.status} ({sol.iterations} it): stop")
             break
-        x = sol.x
-        rep = {"x": x, "U": sol.U, "F": sol.F, "iterations": sol.iterations}
+        rub = coulomb_per_pull(cell, x, sol.x, (e - last) * cell.spacing0)
+        x, last = sol.x, e
+        rep = {"x": x, "U": sol.U, "F": sol.F, "iterations": sol.iterations, "rub": rub}
         across = x[-1] if cell.direction == "courses" else x[-2]
         verdict = check_cell(cell, x)
         rep.update(strain=float(e), lateral=float(across / cell.across0 - 1), clean=verdict.ok)
@@ -69,6 +75,18 @@ def pull(cell: PeriodicCell, R_f: float, strains: np.ndarray, x0: np.ndarray,
             f"{rep['lateral']:+.4f}, U {rep['U']:.6g} N mm ({rep['iterations']} it); "
             f"{verdict.verdict()}")
     return out
+
+
+def coulomb_per_pull(cell: PeriodicCell, before: np.ndarray, after: np.ndarray,
+                     du: float) -> float:
+    """Σ_c N̄_c |Δ_c| / Δu of a frictionless step (friction.py F1, F4 with μ = 1, N̄ the
+    step's start's): the force along the pull that Coulomb friction of μ = 1 at the wraps would
+    add if the yarns slid as they do without it (with friction they slide less; on the clamped
+    specimens this estimate overstated the friction measured, docs/weft3d.md "Friction")."""
+    lag = contact_state(cell, before)
+    n = lag.normal.size
+    sig = after[-2 - 2 * n:-2]
+    return float(np.sum(lag.normal * lag.slides(sig[:n], sig[n:])) / du)
 
 
 def measured(direction: str) -> MeasuredTest:
@@ -135,6 +153,19 @@ def summary(direction: str, seconds: float, nodes: list[dict], spacing0: float, 
             f"{_show(c['rms_lateral'], '.4f')}")
 
 
+def friction_line(direction: str, nodes: list[dict], mu: float) -> str:
+    """What Coulomb friction μ at the wraps would add to the force (``coulomb_per_pull``), as
+    a share of the frictionless force, at the nodes nearest 5, 10, 30 and 45 % strain."""
+    parts = []
+    for e in (0.05, 0.1, 0.3, 0.45):
+        near = [n for n in nodes if abs(n["strain"] - e) < 1e-6]
+        if near and near[0]["F"] > 0:
+            parts.append(f"+{100 * mu * near[0]['rub'] / near[0]['F']:.1f} % at {100 * e:g} %")
+    return (f"{direction}: Coulomb friction mu = {mu:g} at the wraps would add about "
+            f"(estimated from the frictionless slides and normal forces): "
+            f"{', '.join(parts) or 'n/a'} of the force")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--spec", default="real_fabric/acrylic_3d_source",
@@ -150,6 +181,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--bending-factor", type=float, default=1.0, help="R_f times this")
     ap.add_argument("--reach", type=float, default=2.5,
                     help="the other pairs listed: naturally closer than REACH x 2r")
+    ap.add_argument("--friction-estimate", type=float, default=0.0, metavar="MU",
+                    help="estimate what Coulomb friction mu at the wraps would add (the cell "
+                         "has none): mu x the lagged normal force x the frictionless slide")
+    ap.add_argument("--held", action="store_true",
+                    help="hold the spacing across the pull (plane strain: clamps that keep the "
+                         "width) instead of leaving it free (uniaxial stress)")
     ap.add_argument("--directions", default="courses,wales")
     args = ap.parse_args(argv)
     spec = load_toml(ROOT / "problems" / f"{args.spec}.toml")
@@ -162,7 +199,8 @@ def main(argv: list[str] | None = None) -> int:
     R_f = pr.R_f * args.bending_factor
     print(f"{args.spec}: natural lattice w = {shape.wale_spacing:.4f} mm, c = "
           f"{shape.course_spacing:.4f} mm; bending from "
-          f"{'a straight yarn' if args.straight else 'the natural loop'}; k = {law.rigidity:g} "
+          f"{'a straight yarn' if args.straight else 'the natural loop'}; the spacing across "
+          f"{'held' if args.held else 'free'}; k = {law.rigidity:g} "
           f"N/mm^3, R_f = {R_f:g} N mm^2")
     strains = np.round(np.arange(args.step, args.to + 1e-9, args.step), 6)
     for direction in args.directions.split(","):
@@ -178,9 +216,11 @@ def main(argv: list[str] | None = None) -> int:
               f"{rest.U:.6g} N mm, lattice ({x0[-2]:.4f}, {x0[-1]:.4f}) mm")
         if args.straight:
             relaxed(cell, x0)
-        nodes = pull(cell, R_f, strains, x0)
+        nodes = pull(cell, R_f, strains, x0, held=args.held)
         c = compare(cell, nodes, rest.F if args.straight else 0.0, measured(direction))
         print(summary(direction, time.perf_counter() - t0, nodes, spacing0, c))
+        if args.friction_estimate > 0:
+            print(friction_line(direction, nodes, args.friction_estimate))
     return 0
 
 

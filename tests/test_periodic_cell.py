@@ -85,6 +85,47 @@ def test_a_pull_contracts_the_cell_across_it_and_keeps_the_yarns_apart(course_ce
     assert nodes[1]["F"] > nodes[0]["F"] > 0
 
 
+def test_holding_the_width_keeps_it_and_stores_more_energy_than_leaving_it_free(course_cell
+                                                                               ) -> None:
+    """``held`` (plane strain) fixes the spacing across the pull at its natural value; the
+    free cell (uniaxial stress) minimises the same energy over more states, so at each strain
+    it stores no more and, contracting, carries less force."""
+    s0, x = course_cell.spacing0, pc.natural_state(course_cell.shape)
+    for e in (0.05, 0.1):
+        held = pc.solve_cell(course_cell, (1 + e) * s0, R_F, x, held=True)
+        free = pc.solve_cell(course_cell, (1 + e) * s0, R_F, x)
+        assert held.success and free.success
+        assert course_cell.across(held.x) == course_cell.across0
+        assert course_cell.across(free.x) < course_cell.across0
+        assert held.U > free.U and held.F > free.F > 0
+        x = held.x
+
+
+def test_a_contact_s_normal_force_is_its_energy_s_derivative_along_the_separation(
+        course_cell) -> None:
+    """``contact_state`` (and through ``crossing_contact.normal_force`` the 3-D model's
+    crossings): N = a·F(h′) = −dE/dh with E = E(h′(h), α) (C1-C3), against central differences
+    of the energy; no force at the natural loop, where the wraps just touch; linear in k."""
+    from knit_nlp.weft.model.spatial.crossing_contact import separation
+    cell, law = course_cell, course_cell.law
+    nat = pc.contact_state(cell, pc.natural_state(cell.shape))
+    np.testing.assert_allclose(nat.sigma_upper, cell.shape.s_upper)
+    x = pc.solve_cell(cell, 1.2 * cell.spacing0, R_F, pc.natural_state(cell.shape)).x
+    state = pc.contact_state(cell, x)
+    assert np.all(state.normal > 0)                       # pulled 20 %: the wraps press
+    assert np.all(nat.normal < 1e-3 * state.normal.min())  # measured 1.2e-6 against N
+    cp = np.asarray(cell.closest(x))
+    h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T,
+                          cell.shape.crossing_signs())
+    a, d = law.thinning(cell.shape.h0), 1e-6
+
+    def E(hh):
+        return law.crossing_energy(law.seen(hh, a), sin_a)
+    np.testing.assert_allclose(state.normal, -(E(h + d) - E(h - d)) / (2 * d), rtol=1e-5)
+    np.testing.assert_allclose(pc.contact_state(cell, x, 2 * law.rigidity).normal,
+                               2 * state.normal, rtol=1e-12)
+
+
 def test_a_straight_bending_reference_relaxes_to_a_prestressed_cell(yarn) -> None:
     cell = pc.build_cell(*yarn, "courses", samples=48, straight=True)
     rest = pc.solve_cell(cell, cell.spacing0, R_F, pc.natural_state(cell.shape), free=True)

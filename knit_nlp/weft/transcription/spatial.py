@@ -51,7 +51,8 @@ from ..model.energy import spring_pair_energy
 from ..model.parametrisation import Full
 from ..model.params import WeftParams, param_layout
 from ..model.problem import WeftProblem
-from ..model.spatial.crossing_contact import crossing_terms, natural_scales, separation
+from ..model.spatial.crossing_contact import (crossing_terms, natural_scales, normal_force,
+                                              separation)
 from ..model.spatial.friction import (EPSILON, LAGGED_ROWS, Friction, FrictionPath, Lagged,
                                       friction_potential)
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
@@ -221,10 +222,9 @@ class SpatialNLP(Assembled):
         h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T, self.signs)
         shell = self.problem.yarn.shell()
         a = natural_scales(shell, self.shape.h0, h.size)
-        hc = shell.seen(h, a)
+        compression, force = normal_force(shell, h, sin_a, a)
         return {"sigma_upper": sig[0], "sigma_lower": sig[1], "h": h, "sin_angle": sin_a,
-                "compression": (hc - 2 * shell.radius) / a,
-                "force": np.where(hc < 2 * shell.radius, a * shell.crossing_force(hc, sin_a), 0.0)}
+                "compression": compression, "force": force}
 
     # -- lagged friction (model/spatial/friction.py) --------------------------------------
     def lagged_at(self, x: np.ndarray) -> Lagged:

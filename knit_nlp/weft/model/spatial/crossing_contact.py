@@ -62,3 +62,14 @@ def separation(pu: np.ndarray, tu: np.ndarray, pl: np.ndarray, tl: np.ndarray,
     n = np.cross(tu, tl)
     sin_a = np.linalg.norm(n, axis=1)
     return sign * np.einsum("ki,ki->k", pu - pl, n) / sin_a, sin_a
+
+
+def normal_force(shell: SoftShell, h: np.ndarray, sin_a: np.ndarray, scale: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(the compression h − d₀, the push a·F(h′, α)) of crossings at separation h (S6) with
+    scales a (C3): d₀ where the law starts (touch 2r, or the natural separation if closer),
+    F of eq. (C2) (``SoftShell.crossing_force``), 0 beyond touch."""
+    hc = shell.seen(h, scale)
+    with np.errstate(invalid="ignore"):
+        force = np.where(hc < 2 * shell.radius, scale * shell.crossing_force(hc, sin_a), 0.0)
+    return (hc - 2 * shell.radius) / scale, force

@@ -40,8 +40,9 @@ import numpy as np
 from ....ipopt import ipopt_options, succeeded
 from ..basis import continuity_rows, n_coeffs
 from ..compression import SoftShell
-from .crossing_contact import crossing_terms
+from .crossing_contact import crossing_terms, normal_force, separation
 from .curve3d import bending3d, loop_displacements3d, segment
+from .friction import Lagged
 from .natural3d import Natural3D
 from .natural_fit import natural_check
 from .proximity import ProximityReport
@@ -73,6 +74,8 @@ class PeriodicCell:
     rows: int
     pairs: int
     rigidity: float              # the law's k the cell was built with (the default k)
+    law: SoftShell
+    closest: ca.Function         # x -> the contacts' points and tangents (p_u, t_u, p_l, t_l)
 
     @property
     def spacing0(self) -> float:
@@ -143,12 +146,14 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
         E, S = continuity_rows(L, deg)
         rows.append(ca.mtimes(ca.DM(E - S), coef))
     signs, scales = shape.crossing_signs(), law.thinning(shape.h0)
+    closest = []
     for k in range(n):                                                          # S5-S7
         pu, tu = seg(a, b, 0.0, su[k])
         pl, tl = seg(a, b, 0.0, sl[k])
         e, r, *_ = terms(pu + shift, tu, pl, tl, signs[k], scales[k])
         contact += e
         rows.append(r)
+        closest.append(ca.vertcat(pu + shift, tu, pl, tl))
     s, K, M, DI, DJ, scale = cell_pairs(shape, law, samples, reach)             # R1
     G = loop_displacements3d(L, t, q, s, 8)(a, b)
     off = ca.vertcat(ca.DM(DJ).T * w, ca.DM(DI).T * c, ca.DM.zeros(1, K.size))
@@ -164,7 +169,7 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
     solver = ca.nlpsol("periodic_cell", "ipopt", {"x": xs, "p": p, "f": energy, "g": g}, opts)
     return PeriodicCell(shape, shape, law.core_radius, direction, solver,
                         ca.Function("U", [xs, p], [energy]), g.numel(), int(K.size),
-                        law.rigidity)
+                        law.rigidity, law, ca.Function("closest", [xs], [ca.horzcat(*closest)]))
 
 
 def natural_state(shape: Natural3D) -> np.ndarray:
@@ -173,16 +178,39 @@ def natural_state(shape: Natural3D) -> np.ndarray:
                            [shape.wale_spacing, shape.course_spacing]])
 
 
+def contact_state(cell: PeriodicCell, x: np.ndarray, rigidity: float | None = None) -> Lagged:
+    """The contacts at state x as friction would lag them (``friction.Lagged``, F1, F3): each
+    one's normal force a·F(h′, α) (C2, C3) at rigidity k (default: the built law's), its
+    material coordinates and the cosine between its tangents. The cell has no friction
+    (calibration refuses it); this is what its estimate reads (``scripts/periodic_cell.py
+    --friction-estimate``)."""
+    k = cell.rigidity if rigidity is None else rigidity
+    cp = np.asarray(cell.closest(x))                          # (12, n): p_u, t_u, p_l, t_l
+    n = len(cell.shape.s_upper)
+    h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T,
+                          cell.shape.crossing_signs())
+    force = normal_force(cell.law, h, sin_a, cell.law.thinning(cell.shape.h0))[1]
+    sig = x[-2 - 2 * n:-2]
+    return Lagged(np.abs(force) * k / cell.rigidity, sig[:n].copy(), sig[n:].copy(),
+                  np.einsum("ik,ik->k", cp[3:6], cp[9:12]))
+
+
 def solve_cell(cell: PeriodicCell, spacing: float, R_f: float, x0: np.ndarray,
-               free: bool = False, rigidity: float | None = None) -> CellSolution:
+               free: bool = False, rigidity: float | None = None,
+               held: bool = False) -> CellSolution:
     """The cell at the pulled ``spacing`` (``free``: both spacings free, the pull's row
     dropped by loose bounds) from x0, with bending modulus R_f and contact rigidity
-    ``rigidity`` (default: the built law's); F = dU/d(spacing), the pull row's multiplier."""
+    ``rigidity`` (default: the built law's); F = dU/d(spacing), the pull row's multiplier.
+    ``held``: the spacing across the pull held at its reference value (plane strain, the
+    limit of clamps that keep the specimen's width) instead of free (uniaxial stress)."""
     k = cell.rigidity if rigidity is None else rigidity
     lbx, ubx = np.full(x0.size, -np.inf), np.full(x0.size, np.inf)
     sigmas = slice(-2 - 2 * len(cell.shape.s_upper), -2)       # the contacts' σ_u, σ_l
     lbx[sigmas], ubx[sigmas] = 0.0, cell.shape.length
     lbx[-2:] = MIN_SPACING * np.array([cell.natural.wale_spacing, cell.natural.course_spacing])
+    if held:
+        across = -1 if cell.direction == "courses" else -2
+        lbx[across] = ubx[across] = cell.across0
     lbg, ubg = np.zeros(cell.rows), np.zeros(cell.rows)
     if free:
         lbg[-1], ubg[-1] = -np.inf, np.inf
