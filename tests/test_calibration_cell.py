@@ -20,6 +20,7 @@ from knit_nlp.weft.inverse.calibration.cell import CellModel, build_cell_specime
 from knit_nlp.weft.inverse.calibration.fit import fit_log
 from knit_nlp.weft.inverse.calibration.spec import load_spec, parse_spec
 from knit_nlp.weft.model.problem import parse_problem
+from knit_nlp.weft.model.spatial.periodic import solve_cell
 
 K_TRUE = 0.0012 * 16            # N/mm³: the synthetic test's contact rigidity
 YARN = {"geometry": "3d", "radius": 0.74, "core_radius": 0.325, "contact_exponent": 2.4,
@@ -73,6 +74,10 @@ def test_a_spec_a_periodic_cell_cannot_follow_is_refused_in_one_line(data):
              "periodic"),
             ({**planar, "calibrate": {**planar["calibrate"], "specimen": "clamped"}},
              "cell_samples", "periodic"),
+            ({**planar, "calibrate": {"fit": ["R_f"], "bending_reference": "straight"}},
+             "bending_reference", "periodic"),
+            ({**good, "calibrate": {**good["calibrate"], "bending_reference": "set"}},
+             "bending_reference", "straight"),
             ({**good, "calibrate": {**good["calibrate"], "fit": ["R_f", "contact_rigidity"],
                                     "scan": True}}, "scan", "single")):
         with pytest.raises(ProblemError) as err:
@@ -141,12 +146,44 @@ def test_a_scan_starts_the_least_squares_at_its_best_factor():
     assert np.log2(scanned.values[0]) == pytest.approx(5.0, abs=1e-3)
 
 
+def test_a_straight_yarn_s_cell_is_read_from_its_relaxed_lattice():
+    """``bending_reference = "straight"``: bent from a straight yarn the cell is prestressed and
+    relaxes at zero force to another lattice; the curve starts there (no force, no strain),
+    the pull sets the spacing along it to the relaxed one times 1 + strain, and force and
+    lateral strain are read per the relaxed spacing across, from the cell's own solves."""
+    pr = parse_problem({**DOC, "fabric": {"courses": 2, "wales": 2}}, "<cell>")
+    specimen, cell = build_cell_specimen(pr, "courses", SAMPLES, "straight")
+    model = CellModel(specimen, cell, "straight")
+    R_f, k = DOC["material"]["R_f"], K_TRUE
+    rest = model.rest(R_f, k)
+    along, across = model.lattice(R_f, k)
+    assert rest.success and rest.U > 0.05                  # N mm: the bent loop's prestress
+    assert abs(along / specimen.gauge - 1) > 0.005 and abs(across / specimen.pitch_width - 1) > 0.005
+    c = model.pull_to({"R_f": R_f, "contact_rigidity": k}, np.array([0.05, 0.1]))
+    assert c.complete and c.force[0] == 0.0
+    assert c.lateral[0] / specimen.lateral_width - 1 == pytest.approx(0.0, abs=1e-9)
+    assert c.u[1:] / specimen.gauge == pytest.approx([0.05, 0.1])
+    for node in (1, 2):
+        x = c.xs[node]
+        assert x[-2] == pytest.approx(along * (1 + c.u[node] / specimen.gauge), rel=1e-9)
+        direct = solve_cell(cell, x[-2], R_f, x, rigidity=k)        # the node, solved again
+        assert c.force[node] / specimen.pitch_width == pytest.approx(direct.F / across, rel=1e-6)
+        assert c.lateral[node] / specimen.lateral_width - 1 == pytest.approx(
+            cell.across(x) / across - 1, abs=1e-9)
+    assert 0 < c.force[1] < c.force[2]
+
+
 def test_the_shipped_cell_specs_hold_every_measured_value_and_fit_only_k():
     """``acrylic_3d_cell_x`` fits the contact rigidity on the course pull and predicts the wale
-    pull; ``acrylic_3d_cell_xy`` fits it on both (issue 40 item 3): both as a periodic cell at
-    the source's clamp width, with the yarn's measured values held."""
+    pull; ``acrylic_3d_cell_xy`` fits it on both (issue 40 item 3); ``acrylic_3d_cell_straight_x``
+    is ``_x`` bent from a straight yarn: all as a periodic cell at the source's clamp width,
+    with the yarn's measured values held."""
     x, xy = load_spec("real_fabric/acrylic_3d_cell_x"), load_spec("real_fabric/acrylic_3d_cell_xy")
-    for spec in (x, xy):
+    straight = load_spec("real_fabric/acrylic_3d_cell_straight_x")
+    assert [s.bending_reference for s in (x, xy, straight)] == ["natural", "natural", "straight"]
+    assert [(t.file, t.direction, t.use) for t in straight.tests] == [
+        (t.file, t.direction, t.use) for t in x.tests] and straight.values == x.values
+    for spec in (x, xy, straight):
         assert spec.specimen == "periodic" and spec.scan and spec.fit == ("contact_rigidity",)
         assert spec.clamp_width == 35.5 and spec.values["R_f"] == 0.045
         assert spec.values["radius"] == 0.74 and spec.base.L == 11.28

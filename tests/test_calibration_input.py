@@ -252,10 +252,12 @@ VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10 ** 12, 10 ** 12),
                    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
                    st.sampled_from(["k_a", "k_b", "R_f", "length_scale", "courses", "wales",
                                     "fit", "predict", "columns", "stitch_by_stitch", "x.csv",
-                                    "implicit", "finite_differences", "periodic", "clamped"]))
+                                    "implicit", "finite_differences", "periodic", "clamped",
+                                    "natural", "straight"]))
 KEYS = st.sampled_from([("calibrate", k) for k in ("fit", "clamp_width_mm", "forces", "strains",
                                                     "min_loops", "sensitivities", "specimen",
-                                                    "scan", "cell_samples", "extra")]
+                                                    "scan", "cell_samples", "bending_reference",
+                                                    "extra")]
                        + [("test", k) for k in ("file", "format", "direction", "use", "width",
                                                 "aspect", "extra")]
                        + [("fabric", k) for k in ("courses", "wales")])

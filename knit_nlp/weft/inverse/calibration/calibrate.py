@@ -56,8 +56,8 @@ class TestModel:
         self.clamp_width = spec.clamp_width
         if spec.specimen == "periodic":
             self.specimen, cell = build_cell_specimen(spec.base, self.test.direction,
-                                                      spec.cell_samples)
-            self.model: CurveModel = CellModel(self.specimen, cell)
+                                                      spec.cell_samples, spec.bending_reference)
+            self.model: CurveModel = CellModel(self.specimen, cell, spec.bending_reference)
         else:
             self.specimen = build_specimen(spec.doc, str(spec.source), self.test.direction,
                                            self.test.courses, self.test.wales,

@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 
 from ...model.problem import WeftProblem
-from ...model.spatial.periodic import (SAMPLES, PeriodicCell, build_cell, check_cell,
-                                       natural_state, solve_cell)
+from ...model.spatial.periodic import (SAMPLES, CellSolution, PeriodicCell, build_cell,
+                                       check_cell, natural_state, solve_cell)
 from .curve import Curve, CurveModel
 from .specimen import PullReading
 
@@ -43,6 +43,7 @@ class CellSpecimen(PullReading):
     gauge: float                  # natural spacing along the pull
     pitch_width: float            # natural spacing across it: the width one cell carries
     kind: str = "periodic"
+    reference: str = "natural"    # the bending reference: the natural loop, or a straight yarn
 
     @property
     def lateral_width(self) -> float:
@@ -59,18 +60,49 @@ class CellSpecimen(PullReading):
 
     @property
     def label(self) -> str:
-        return "a periodic cell (one loop, no edges)"
+        return ("a periodic cell (one loop, no edges)" if self.reference == "natural" else
+                "a periodic cell (one loop, no edges) bent from a straight yarn")
 
 
-def build_cell_specimen(problem: WeftProblem, direction: str, samples: int = SAMPLES
-                        ) -> tuple[CellSpecimen, PeriodicCell]:
+@dataclass(frozen=True)
+class CellNode:
+    """One solve of a curve's cell and the unloaded cell's lattice it is read from: its
+    spacings along and across the pull (the natural lattice, or the straight yarn's relaxed
+    one)."""
+
+    solution: CellSolution
+    along: float
+    across: float
+
+    @property
+    def x(self) -> np.ndarray:
+        return self.solution.x
+
+    @property
+    def success(self) -> bool:
+        return self.solution.success
+
+    @property
+    def status(self) -> str:
+        return self.solution.status
+
+    @property
+    def iterations(self) -> int:
+        return self.solution.iterations
+
+
+def build_cell_specimen(problem: WeftProblem, direction: str, samples: int = SAMPLES,
+                        reference: str = "natural") -> tuple[CellSpecimen, PeriodicCell]:
     """The cell of ``problem``'s 3-D yarn (its natural loop and compression law) pulled along
-    ``direction``, and its specimen reading; ``[solver] max_iter`` and ``max_time`` bound each
-    curve step, as a clamped specimen's."""
+    ``direction``, bent from the natural loop or (``reference = "straight"``) from a straight
+    yarn, and its specimen reading; ``[solver] max_iter`` and ``max_time`` bound each curve
+    step, as a clamped specimen's."""
     yarn, opts = problem.yarn, problem.solver
     cell = build_cell(yarn.natural3d, yarn.shell(), direction, samples,
-                      max_iter=opts.max_iter, max_time=opts.max_time)
-    return CellSpecimen(problem, direction, cell.spacing0, cell.across0), cell
+                      straight=reference == "straight", max_iter=opts.max_iter,
+                      max_time=opts.max_time)
+    return CellSpecimen(problem, direction, cell.spacing0, cell.across0,
+                        reference=reference), cell
 
 
 class CellModel(CurveModel):
@@ -86,26 +118,57 @@ class CellModel(CurveModel):
     # between 0.118 and 0.148 in that range). Steps of at most 2.5 % put nodes on the jam.
     max_strain_step = 0.025
 
-    def __init__(self, specimen: CellSpecimen, cell: PeriodicCell) -> None:
-        self.specimen, self.cell = specimen, cell
+    def __init__(self, specimen: CellSpecimen, cell: PeriodicCell,
+                 reference: str = "natural") -> None:
+        self.specimen, self.cell, self.reference = specimen, cell, reference
+        self._rests: dict[tuple[float, float], CellSolution] = {}
+
+    def rest(self, R_f: float, k: float) -> CellSolution:
+        """The unloaded cell at (R_f, k): bent from a straight yarn it is prestressed and
+        relaxes at zero force, both spacings free, from the natural loop (cached)."""
+        if (R_f, k) not in self._rests:
+            self._rests[(R_f, k)] = solve_cell(self.cell, self.specimen.gauge, R_f,
+                                               natural_state(self.cell.natural), free=True,
+                                               rigidity=k)
+        return self._rests[(R_f, k)]
+
+    def lattice(self, R_f: float, k: float) -> tuple[float, float]:
+        """The unloaded cell's spacings (along, across the pull) that strains are read from:
+        the natural lattice, or the straight yarn's relaxed one at (R_f, k)."""
+        if self.reference == "natural":
+            return self.specimen.gauge, self.specimen.pitch_width
+        x = self.rest(R_f, k).x
+        along = float(x[-2] if self.cell.direction == "courses" else x[-1])
+        return along, self.cell.across(x)
 
     def params(self, material: dict[str, float], u: float) -> tuple[float, float, float]:
-        k = material.get("contact_rigidity", self.cell.rigidity)
-        return self.specimen.gauge + float(u), float(material["R_f"]), float(k)
+        """(pulled spacing, R_f, k): the travel u is the gauge's share of the strain, u/gauge,
+        from the unloaded lattice (:meth:`lattice`)."""
+        k = float(material.get("contact_rigidity", self.cell.rigidity))
+        R_f = float(material["R_f"])
+        along = self.lattice(R_f, k)[0]
+        return along * (1.0 + float(u) / self.specimen.gauge), R_f, k
 
     def _solve(self, p: tuple[float, float, float], x0: np.ndarray | None, curve: Curve,
-               p0: Any = None) -> Any:
-        start = natural_state(self.cell.natural) if x0 is None else x0
-        rep = solve_cell(self.cell, p[0], p[1], start, rigidity=p[2])
+               p0: Any = None) -> CellNode:
+        if x0 is None and self.reference == "straight":
+            rep = self.rest(p[1], p[2])                   # the unloaded, relaxed cell
+        else:
+            start = natural_state(self.cell.natural) if x0 is None else x0
+            rep = solve_cell(self.cell, p[0], p[1], start, rigidity=p[2])
         curve.solves += 1
         curve.iterations += rep.iterations
-        return rep
+        return CellNode(rep, *self.lattice(p[1], p[2]))
 
-    def read(self, rep: Any) -> tuple[float, float]:
-        return rep.F, self.cell.across(rep.x)
+    def read(self, rep: CellNode) -> tuple[float, float]:
+        """(force through one cell, spacing across), both per the unloaded cell's spacing
+        across as the specimen's pitch width: the force at a real width W is then F·W over the
+        unloaded spacing, and the lateral strain the spacing's change over it."""
+        scale = self.specimen.pitch_width / rep.across
+        return rep.solution.F * scale, self.cell.across(rep.x) * scale
 
-    def multipliers(self, rep: Any) -> np.ndarray:
-        return np.array([rep.F])
+    def multipliers(self, rep: CellNode) -> np.ndarray:
+        return np.array([self.read(rep)[0]])
 
     def check(self, x: np.ndarray) -> dict[str, Any]:
         block = check_cell(self.cell, x).block(self.specimen.problem.units.length)

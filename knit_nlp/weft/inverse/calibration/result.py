@@ -117,7 +117,9 @@ class TestOutcome:
                             "aspect_measured": t.aspect if t.aspect_source in ("pins", "spec") else None,
                             "aspect_source": t.aspect_source, "aspect_model": sp.aspect,
                             "gauge": sp.gauge, "pitch_width": sp.pitch_width,
-                            "width": self.width, "width_clamps": t.width_clamps},
+                            "width": self.width, "width_clamps": t.width_clamps,
+                            **({"bending_reference": sp.reference} if sp.kind == "periodic"
+                               else {})},
                "checks": self.checks, "check": self.check,
                "runs": len(t.measured.runs), "max_force_measured": t.measured.max_force,
                "max_force_model": float(self.curve.force[-1]) if len(self.curve.force) else 0.0}

@@ -33,6 +33,7 @@ FITTABLE = MATERIAL
 # the law's form and are held (`knit-nlp calibrate --breaks` moves them one at a time: breaks.py).
 YARN_VALUES = ("radius", "core_radius", "contact_rigidity", "contact_exponent")
 SPATIAL_FITTABLE = ("R_f", "contact_rigidity")
+REFERENCES = ("natural", "straight")    # [calibrate] bending_reference of a periodic cell
 # Values the yarn's own tests measure (stitch-by-stitch, Singal et al. 2024: the acrylic's
 # bending modulus from cantilever tests, data/Yarn_bending/; its radius,
 # code/fabric_simulations/stockinetteconfig.dat): held unless the spec fits them, and a fitted
@@ -123,6 +124,7 @@ class CalibrationSpec:
     specimen: str = "clamped"              # SPECIMENS: clamped specimens or a periodic cell
     scan: bool = False                     # a single fitted value's start scanned (fit.py)
     cell_samples: int = CELL_SAMPLES       # a periodic cell's other-contact samples per loop
+    bending_reference: str = "natural"     # a periodic cell's: "natural" or "straight"
 
     @property
     def spatial(self) -> bool:
@@ -200,6 +202,11 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
     if cal.has("cell_samples") and specimen != "periodic":
         raise cal.error("cell_samples", "samples a periodic cell's contacts: remove it, or "
                         "write specimen = \"periodic\"")
+    reference = cal.string("bending_reference", "natural", choices=REFERENCES)
+    if cal.has("bending_reference") and specimen != "periodic":
+        raise cal.error("bending_reference", "chooses a periodic cell's bending reference (a "
+                        "finite specimen bent from a straight yarn does not relax, "
+                        "docs/weft3d.md): remove it, or write specimen = \"periodic\"")
     beside = _beside(cal, source)
     breaks = cal.boolean("breaks", False)
     scan = cal.boolean("scan", False)
@@ -225,7 +232,7 @@ def parse_spec(doc: dict[str, Any], source: Path | str) -> CalibrationSpec:
     name = top.stem("name")
     return CalibrationSpec(name, top.string("description", ""), source, shared, base, tests,
                            fit, values, clamp_width, forces, strains, min_loops, sens, targets,
-                           beside, breaks, specimen, scan, cell_samples)
+                           beside, breaks, specimen, scan, cell_samples, reference)
 
 
 def spec_values(base: WeftProblem) -> dict[str, float]:
