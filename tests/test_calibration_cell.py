@@ -223,3 +223,33 @@ def test_a_curve_past_its_goal_stops_where_the_model_jams():
     assert c.complete and "jams" in c.reason
     assert JAMMED < c.force[-1] and c.u[-1] < 0.3
     assert len(c.u) < 60 and c.solves < 200
+
+
+def test_a_curve_whose_unloaded_state_does_not_solve_says_so_and_records_nothing():
+    """``CurveModel.pull_to`` (as ``curve``): a straight yarn's cell that does not relax, or
+    any specimen whose unloaded solve fails, gives an incomplete curve with the solver's
+    status, not a first node read off a failed solve."""
+    from types import SimpleNamespace
+
+    from knit_nlp.weft.inverse.calibration.curve import Curve, CurveModel
+
+    class Unsolved(CurveModel):
+        specimen = SimpleNamespace(gauge=1.0)
+
+        def params(self, material, u):
+            return u
+
+        def _solve(self, p, x0, curve: Curve, p0=None):
+            curve.solves += 1
+            return SimpleNamespace(success=p > 0, status="Infeasible_Problem_Detected",
+                                   x=np.array([p]), iterations=1)
+
+        def read(self, rep):
+            return float(rep.x[0]), 0.0
+
+        def multipliers(self, rep):
+            return np.zeros(1)
+
+    for c in (Unsolved().pull_to({}, np.array([0.1, 0.2])), Unsolved().curve({}, goal=1.0)):
+        assert not c.complete and "unloaded" in c.reason and "Infeasible" in c.reason
+        assert c.u.size == 0 and c.solves == 1

@@ -15,9 +15,13 @@ specimen (``CellSpecimen``, the same reading as ``specimen.Specimen``):
 * the lateral strain is the change of the spacing across the pull over its natural value.
 
 A curve is the same warm-started stepping as a clamped specimen's (``curve.CurveModel``); the
-first node starts from the natural loop. The contact rigidity is a parameter of the cell's NLP
-(``takes_rigidity``), not the clamped specimens' energy scale: the cell's equilibria are not
-unique, and the scaled NLP's IPOPT path found another (``model.spatial.periodic``). Each node's check is the
+first node starts from the natural loop. Bent from a straight yarn (``[calibrate]
+bending_reference = "straight"``, as the source's simulation) the loop is prestressed: the
+first node is then the cell relaxed at zero force with both spacings free, and strains, force
+per width and lateral strain are read from that relaxed lattice (``CellModel.lattice``).
+The contact rigidity is a parameter of the cell's NLP (``takes_rigidity``), not the clamped
+specimens' energy scale: the cell's equilibria are not unique, and the scaled NLP's IPOPT path
+found another (``model.spatial.periodic``). Each node's check is the
 model's own all-pairs check of 4 × 4 loops of the periodic fabric (``periodic.check_cell``).
 """
 from __future__ import annotations
@@ -66,12 +70,10 @@ class CellSpecimen(PullReading):
 
 @dataclass(frozen=True)
 class CellNode:
-    """One solve of a curve's cell and the unloaded cell's lattice it is read from: its
-    spacings along and across the pull (the natural lattice, or the straight yarn's relaxed
-    one)."""
+    """One solve of a curve's cell and the unloaded cell's spacing across the pull that it is
+    read per (the natural lattice's, or the straight yarn's relaxed one)."""
 
     solution: CellSolution
-    along: float
     across: float
 
     @property
@@ -158,7 +160,7 @@ class CellModel(CurveModel):
             rep = solve_cell(self.cell, p[0], p[1], start, rigidity=p[2])
         curve.solves += 1
         curve.iterations += rep.iterations
-        return CellNode(rep, *self.lattice(p[1], p[2]))
+        return CellNode(rep, self.lattice(p[1], p[2])[1])
 
     def read(self, rep: CellNode) -> tuple[float, float]:
         """(force through one cell, spacing across), both per the unloaded cell's spacing

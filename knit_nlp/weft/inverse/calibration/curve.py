@@ -173,6 +173,9 @@ class CurveModel:
         L0 = self.specimen.gauge
         c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
         rep = self._solve(self.params(material, 0.0), None, c)
+        if not rep.success:
+            c.complete, c.reason = False, f"the unloaded specimen did not solve ({rep.status})"
+            return c
         us, fs, lats = [], [], []
         self._record(c, us, fs, lats, 0.0, rep)
         fs[0] = 0.0
