@@ -176,14 +176,17 @@ def test_a_straight_yarn_s_cell_is_read_from_its_relaxed_lattice():
 def test_the_shipped_cell_specs_hold_every_measured_value_and_fit_only_k():
     """``acrylic_3d_cell_x`` fits the contact rigidity on the course pull and predicts the wale
     pull; ``acrylic_3d_cell_xy`` fits it on both (issue 40 item 3); ``acrylic_3d_cell_straight_x``
-    is ``_x`` bent from a straight yarn: all as a periodic cell at the source's clamp width,
-    with the yarn's measured values held."""
+    and ``_straight_xy`` are the two bent from a straight yarn: all as a periodic cell at the
+    source's clamp width, with the yarn's measured values held."""
     x, xy = load_spec("real_fabric/acrylic_3d_cell_x"), load_spec("real_fabric/acrylic_3d_cell_xy")
     straight = load_spec("real_fabric/acrylic_3d_cell_straight_x")
-    assert [s.bending_reference for s in (x, xy, straight)] == ["natural", "natural", "straight"]
-    assert [(t.file, t.direction, t.use) for t in straight.tests] == [
-        (t.file, t.direction, t.use) for t in x.tests] and straight.values == x.values
-    for spec in (x, xy, straight):
+    straight_xy = load_spec("real_fabric/acrylic_3d_cell_straight_xy")
+    assert [s.bending_reference for s in (x, xy, straight, straight_xy)] == [
+        "natural", "natural", "straight", "straight"]
+    for bent, natural in ((straight, x), (straight_xy, xy)):
+        assert [(t.file, t.direction, t.use) for t in bent.tests] == [
+            (t.file, t.direction, t.use) for t in natural.tests] and bent.values == natural.values
+    for spec in (x, xy, straight, straight_xy):
         assert spec.specimen == "periodic" and spec.scan and spec.fit == ("contact_rigidity",)
         assert spec.clamp_width == 35.5 and spec.values["R_f"] == 0.045
         assert spec.values["radius"] == 0.74 and spec.base.L == 11.28
