@@ -120,7 +120,10 @@ def test_a_scanned_fit_recovers_the_contact_rigidity_of_the_cell_that_made_the_d
     assert len(doc["scan"]) == 10
     best = min(doc["scan"], key=lambda s: s["rms_strain_residual"])
     assert best["value"] == pytest.approx(K_TRUE)       # 16 = 2⁴ is on the scan's grid
-    assert doc["tests"][0]["specimen"]["kind"] == "periodic"
+    specimen = doc["tests"][0]["specimen"]
+    assert specimen["kind"] == "periodic" and specimen["bending_reference"] == "natural"
+    assert specimen["lattice_unloaded"] == pytest.approx(          # the natural lattice (w, c)
+        [specimen["gauge"], specimen["pitch_width"]], abs=1e-3)
     assert doc["tests"][0]["check"]["ok"] is True
 
 

@@ -263,9 +263,11 @@ class Calibration:
                                         f"{tm.measured.max_force:.4g} N measured")
         checks = outcome_checks((curve.axial, curve.force),
                                 [(r.axial, r.force) for r in tm.measured.runs], tm.width())
+        lattice = (tuple(float(v) for v in c.xs[0][-2:])
+                   if tm.specimen.kind == "periodic" and c.xs else None)
         return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
                            c.complete, dict(self.spec.targets.get(tm.test.use, {})), reason,
-                           checks, final_check(tm, c, curve))
+                           checks, final_check(tm, c, curve), lattice)
 
 
 def final_check(tm: TestModel, c: Curve, curve: ModelCurve) -> dict:

@@ -61,6 +61,8 @@ class TestOutcome:
     checks: dict[str, Any] = field(default_factory=dict)   # checks.outcome_checks
     check: dict[str, Any] = field(default_factory=dict)    # calibrate.final_check: the answer
     #                                                        at the curve's largest load
+    lattice: tuple[float, float] | None = None   # a periodic cell's unloaded (w, c): the
+    #                                              curve's first node
 
     def check_line(self) -> str:
         """``check at 12.3 N (axial strain 0.475): clean: ...``: the own check of the model's
@@ -105,6 +107,12 @@ class TestOutcome:
         return f"{head} ({self.test.file}): {', '.join(parts) or 'no target'}: " \
                f"{good if self.success else bad}{tail}"
 
+    def _cell_lattice(self) -> dict[str, Any]:
+        """A periodic cell's bending reference and the unloaded lattice (w, c) its strains are
+        read from (the natural lattice, or a straight yarn's relaxed one)."""
+        return {"bending_reference": self.specimen.reference,
+                "lattice_unloaded": None if self.lattice is None else list(self.lattice)}
+
     def to_json(self) -> dict[str, Any]:
         t, sp = self.test, self.specimen
         out = {"file": t.file, "format": t.format, "direction": t.direction, "use": t.use,
@@ -118,8 +126,7 @@ class TestOutcome:
                             "aspect_source": t.aspect_source, "aspect_model": sp.aspect,
                             "gauge": sp.gauge, "pitch_width": sp.pitch_width,
                             "width": self.width, "width_clamps": t.width_clamps,
-                            **({"bending_reference": sp.reference} if sp.kind == "periodic"
-                               else {})},
+                            **(self._cell_lattice() if sp.kind == "periodic" else {})},
                "checks": self.checks, "check": self.check,
                "runs": len(t.measured.runs), "max_force_measured": t.measured.max_force,
                "max_force_model": float(self.curve.force[-1]) if len(self.curve.force) else 0.0}
