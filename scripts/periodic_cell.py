@@ -11,8 +11,9 @@ calibration does not offer (a straight yarn's bending reference, k and R_f times
 and checks every node.
 With ``--held`` the spacing across the pull is held at its natural value (plane strain, the
 limit of clamps that keep a specimen's width) instead of free (uniaxial stress, the cell's
-reading in ``calibrate``). ``--friction-estimate MU`` prints what Coulomb friction μ at the
-wraps would add to the force (the cell has none): μ × each step's normal forces × its slides.
+reading in ``calibrate``). ``--friction-estimate MU`` prints what Coulomb friction μ would
+add to the force (the cell has none), at the two wraps and at the other pairs: μ × each step's
+normal forces × its slides.
 With ``--straight`` the cell is first relaxed at zero force (w and c free) and the pull starts
 there, its force relative to that state's.
 
@@ -48,8 +49,9 @@ from knit_nlp.weft.inverse.calibration.spec import CLAMP_WIDTH_MM  # noqa: E402
 from knit_nlp.weft.model.compression import SoftShell  # noqa: E402
 from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.model.spatial.periodic import (PeriodicCell, build_cell,  # noqa: E402
-                                                  check_cell, contact_state, natural_state,
-                                                  relaxed, solve_cell)
+                                                  cell_pairs, check_cell, contact_state,
+                                                  natural_state, pair_state, relaxed,
+                                                  solve_cell)
 
 TESTS = {"courses": "acrylic_stockinette_x.csv", "wales": "acrylic_stockinette_y.csv"}
 
@@ -64,29 +66,41 @@ def pull(cell: PeriodicCell, R_f: float, strains: np.ndarray, x0: np.ndarray,
         if not sol.success:
             say(f"  {cell.direction} {e:+.3f}: {sol.status} ({sol.iterations} it): stop")
             break
-        rub = coulomb_per_pull(cell, x, sol.x, (e - last) * cell.spacing0)
+        rub = coulomb_per_pull(cell, x, sol.x, (e - last) * cell.spacing0)   # (wraps, others)
         x, last = sol.x, e
         rep = {"x": x, "U": sol.U, "F": sol.F, "iterations": sol.iterations, "rub": rub}
         across = x[-1] if cell.direction == "courses" else x[-2]
         verdict = check_cell(cell, x)
         rep.update(strain=float(e), lateral=float(across / cell.across0 - 1), clean=verdict.ok)
         out.append(rep)
+        bending = float(cell.energy(x, [0.0, R_f, 0.0]))
+        others = float(np.sum(pair_state(cell, x)[1]))
         say(f"  {cell.direction} {e:+.3f}: F {rep['F']:.5g} N per cell, lateral "
-            f"{rep['lateral']:+.4f}, U {rep['U']:.6g} N mm ({rep['iterations']} it); "
-            f"{verdict.verdict()}")
+            f"{rep['lateral']:+.4f}, U {rep['U']:.6g} N mm (bending {bending:.4g}, wraps "
+            f"{rep['U'] - bending - others:.4g}, other pairs {others:.4g}; "
+            f"{rep['iterations']} it); {verdict.verdict()}")
     return out
 
 
 def coulomb_per_pull(cell: PeriodicCell, before: np.ndarray, after: np.ndarray,
-                     du: float) -> float:
-    """Σ_c N̄_c |Δ_c| / Δu of a frictionless step (friction.py F1, F4 with μ = 1, N̄ the
-    step's start's): the force along the pull that Coulomb friction of μ = 1 at the wraps would
-    add if the yarns slid as they do without it (with friction they slide less; on the clamped
-    specimens this estimate overstated the friction measured, docs/weft3d.md "Friction")."""
+                     du: float) -> tuple[float, float]:
+    """What Coulomb friction of μ = 1 would add to the force along the pull over a frictionless
+    step from ``before`` to ``after`` (travel du), if the yarns slid as they do without it:
+    (at the two designed wraps, Σ N̄|Δ| / du with friction.py's F1, F4; at the other pairs,
+    Σ N̄ |Δr_t| / du, Δr_t the tangential part of the change of the vector between a pair's two
+    material samples), N̄ the step's start's (``periodic.contact_state``, ``pair_state``).
+    With friction the yarns slide less; on the clamped specimens the wraps' estimate overstated
+    the friction measured (docs/weft3d.md "Friction")."""
     lag = contact_state(cell, before)
     n = lag.normal.size
     sig = after[-2 - 2 * n:-2]
-    return float(np.sum(lag.normal * lag.slides(sig[:n], sig[n:])) / du)
+    wraps = float(np.sum(lag.normal * lag.slides(sig[:n], sig[n:])))
+    r0, _, push = pair_state(cell, before)
+    dr = np.asarray(cell.pair_vectors(after)) - r0
+    normal = r0 / np.linalg.norm(r0, axis=0)
+    slide = np.linalg.norm(dr - normal * np.einsum("ip,ip->p", dr, normal), axis=0)
+    others = float(np.sum(np.where(push > 0, push, 0.0) * slide))
+    return wraps / du, others / du
 
 
 def measured(direction: str) -> MeasuredTest:
@@ -153,17 +167,37 @@ def summary(direction: str, seconds: float, nodes: list[dict], spacing0: float, 
             f"{_show(c['rms_lateral'], '.4f')}")
 
 
+def offset_shares(cell: PeriodicCell, nodes: list[dict], reach: float, strain: float = 0.1
+                  ) -> str:
+    """The other pairs' energy at the node at ``strain`` by the lattice offset between the two
+    loops (courses up, wales across; (0, 0): the loop with itself), largest first."""
+    near = [n for n in nodes if abs(n["strain"] - strain) < 1e-6]
+    if not near:
+        return f"{cell.direction}: no node at {100 * strain:g} %"
+    energy = pair_state(cell, near[0]["x"])[1]
+    _, _, _, di, dj, _ = cell_pairs(cell.natural, cell.law, cell.samples, reach)
+    shares: dict[tuple[int, int], float] = {}
+    for key, v in zip(zip(di.tolist(), dj.tolist()), energy):
+        shares[key] = shares.get(key, 0.0) + float(v)
+    total = sum(shares.values())
+    top = sorted(shares.items(), key=lambda kv: -kv[1])[:4]
+    return (f"{cell.direction}: the other pairs' energy at {100 * strain:g} % ({total:.4g} N mm) "
+            f"by offset (courses, wales): "
+            + ", ".join(f"({a}, {b}) {100 * v / total:.0f} %" for (a, b), v in top))
+
+
 def friction_line(direction: str, nodes: list[dict], mu: float) -> str:
-    """What Coulomb friction μ at the wraps would add to the force (``coulomb_per_pull``), as
-    a share of the frictionless force, at the nodes nearest 5, 10, 30 and 45 % strain."""
+    """What Coulomb friction μ would add to the force (``coulomb_per_pull``), as a share of the
+    frictionless force, at the wraps and at the other pairs, at the nodes at 5, 10, 30 and
+    45 % strain."""
     parts = []
     for e in (0.05, 0.1, 0.3, 0.45):
         near = [n for n in nodes if abs(n["strain"] - e) < 1e-6]
         if near and near[0]["F"] > 0:
-            parts.append(f"+{100 * mu * near[0]['rub'] / near[0]['F']:.1f} % at {100 * e:g} %")
-    return (f"{direction}: Coulomb friction mu = {mu:g} at the wraps would add about "
-            f"(estimated from the frictionless slides and normal forces): "
-            f"{', '.join(parts) or 'n/a'} of the force")
+            wraps, others = (100 * mu * v / near[0]["F"] for v in near[0]["rub"])
+            parts.append(f"at {100 * e:g} %: wraps +{wraps:.1f} %, other pairs +{others:.1f} %")
+    return (f"{direction}: Coulomb friction mu = {mu:g} would add about (estimated from the "
+            f"frictionless slides and normal forces) {'; '.join(parts) or 'n/a'} of the force")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -182,8 +216,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reach", type=float, default=2.5,
                     help="the other pairs listed: naturally closer than REACH x 2r")
     ap.add_argument("--friction-estimate", type=float, default=0.0, metavar="MU",
-                    help="estimate what Coulomb friction mu at the wraps would add (the cell "
-                         "has none): mu x the lagged normal force x the frictionless slide")
+                    help="estimate what Coulomb friction mu at the wraps and the other pairs "
+                         "would add (the cell has none): mu x normal force x frictionless slide")
     ap.add_argument("--held", action="store_true",
                     help="hold the spacing across the pull (plane strain: clamps that keep the "
                          "width) instead of leaving it free (uniaxial stress)")
@@ -221,6 +255,7 @@ def main(argv: list[str] | None = None) -> int:
         print(summary(direction, time.perf_counter() - t0, nodes, spacing0, c))
         if args.friction_estimate > 0:
             print(friction_line(direction, nodes, args.friction_estimate))
+            print(offset_shares(cell, nodes, args.reach))
     return 0
 
 

@@ -126,6 +126,38 @@ def test_a_contact_s_normal_force_is_its_energy_s_derivative_along_the_separatio
                                2 * state.normal, rtol=1e-12)
 
 
+def test_the_cell_s_energy_is_its_bending_its_wraps_and_its_other_pairs_read_back(
+        course_cell) -> None:
+    """What the friction estimate reads (``contact_state``, ``pair_state``) is the cell's own
+    energy (S4, S7, R1): at a pulled state, the bending (U at k = 0) plus the wraps' energy
+    (C1 at their separations) plus the other pairs' sum to U; each pair's push is minus its
+    energy's derivative along the distance (central differences)."""
+    from knit_nlp.weft.model.spatial.crossing_contact import separation
+    cell, law = course_cell, course_cell.law
+    x = pc.solve_cell(cell, 1.2 * cell.spacing0, R_F, pc.natural_state(cell.shape)).x
+    r, E, N = pc.pair_state(cell, x)
+    cp = np.asarray(cell.closest(x))
+    h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T,
+                          cell.shape.crossing_signs())
+    wraps = float(np.sum(law.crossing_energy(law.seen(h, law.thinning(cell.shape.h0)), sin_a)))
+    bending = float(cell.energy(x, [0.0, R_F, 0.0]))
+    assert np.sum(E) > 0.1 * wraps > 0 and np.sum(N > 0) > 10          # the pull presses both
+    assert bending + wraps + np.sum(E) == pytest.approx(
+        float(cell.energy(x, [0.0, R_F, law.rigidity])), rel=1e-10)
+    E2 = pc.pair_state(cell, x, 2 * law.rigidity)[1]                  # at twice the rigidity
+    assert bending + 2 * wraps + np.sum(E2) == pytest.approx(
+        float(cell.energy(x, [0.0, R_F, 2 * law.rigidity])), rel=1e-10)
+    d, step = np.linalg.norm(r, axis=0), 1e-7
+    weight = (cell.shape.length / cell.samples) ** 2
+
+    def energy(dd):
+        with np.errstate(all="ignore"):
+            return weight * law.energy(law.seen(dd, cell.pair_scales))
+    on = N > 0
+    np.testing.assert_allclose(N[on], -(energy(d + step) - energy(d - step))[on] / (2 * step),
+                               rtol=1e-5)
+
+
 def test_a_straight_bending_reference_relaxes_to_a_prestressed_cell(yarn) -> None:
     cell = pc.build_cell(*yarn, "courses", samples=48, straight=True)
     rest = pc.solve_cell(cell, cell.spacing0, R_F, pc.natural_state(cell.shape), free=True)

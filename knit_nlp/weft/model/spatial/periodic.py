@@ -76,6 +76,9 @@ class PeriodicCell:
     rigidity: float              # the law's k the cell was built with (the default k)
     law: SoftShell
     closest: ca.Function         # x -> the contacts' points and tangents (p_u, t_u, p_l, t_l)
+    pair_vectors: ca.Function    # x -> each other pair's vector between its samples (3 × P)
+    pair_scales: np.ndarray      # each other pair's thinning a (C3)
+    samples: int                 # other-contact samples per loop
 
     @property
     def spacing0(self) -> float:
@@ -169,7 +172,8 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
     solver = ca.nlpsol("periodic_cell", "ipopt", {"x": xs, "p": p, "f": energy, "g": g}, opts)
     return PeriodicCell(shape, shape, law.core_radius, direction, solver,
                         ca.Function("U", [xs, p], [energy]), g.numel(), int(K.size),
-                        law.rigidity, law, ca.Function("closest", [xs], [ca.horzcat(*closest)]))
+                        law.rigidity, law, ca.Function("closest", [xs], [ca.horzcat(*closest)]),
+                        ca.Function("pair_vectors", [xs], [diff]), np.asarray(scale), samples)
 
 
 def natural_state(shape: Natural3D) -> np.ndarray:
@@ -193,6 +197,20 @@ def contact_state(cell: PeriodicCell, x: np.ndarray, rigidity: float | None = No
     sig = x[-2 - 2 * n:-2]
     return Lagged(np.abs(force) * k / cell.rigidity, sig[:n].copy(), sig[n:].copy(),
                   np.einsum("ik,ik->k", cp[3:6], cp[9:12]))
+
+
+def pair_state(cell: PeriodicCell, x: np.ndarray, rigidity: float | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The other pairs at state x (R1, C3): each pair's vector between its two samples (3 × P),
+    its energy (L/S)²·v(d′)·k/k₀ and the push between the two, its derivative along the
+    distance, (L/S)²·a·f(d′)·k/k₀ (``SoftShell.force``), at rigidity k (default the built
+    law's). What ``scripts/periodic_cell.py --friction-estimate`` reads."""
+    k = cell.rigidity if rigidity is None else rigidity
+    r = np.asarray(cell.pair_vectors(x))
+    d = np.linalg.norm(r, axis=0)
+    weight = (cell.shape.length / cell.samples) ** 2 * k / cell.rigidity
+    seen = cell.law.seen(d, cell.pair_scales)
+    return r, weight * cell.law.energy(seen), weight * cell.pair_scales * cell.law.force(seen)
 
 
 def solve_cell(cell: PeriodicCell, spacing: float, R_f: float, x0: np.ndarray,
