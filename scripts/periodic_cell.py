@@ -254,8 +254,13 @@ def main(argv: list[str] | None = None) -> int:
         c = compare(cell, nodes, rest.F if args.straight else 0.0, measured(direction))
         print(summary(direction, time.perf_counter() - t0, nodes, spacing0, c))
         if args.friction_estimate > 0:
-            print(friction_line(direction, nodes, args.friction_estimate))
+            mu = args.friction_estimate
+            print(friction_line(direction, nodes, mu))
             print(offset_shares(cell, nodes, args.reach))
+            rubbed = [{**n, "F": n["F"] + mu * sum(n["rub"])} for n in nodes]
+            c = compare(cell, rubbed, rest.F if args.straight else 0.0, measured(direction))
+            print(summary(f"{direction} + the friction estimate", time.perf_counter() - t0,
+                          rubbed, spacing0, c))
     return 0
 
 
