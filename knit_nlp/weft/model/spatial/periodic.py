@@ -29,6 +29,9 @@ closer than ``reach``·2r. The force through one cell is the pull row's multipli
 F = dU/d(spacing) (the envelope theorem); per width it is F / c₀ (courses) or F / w₀ (wales).
 The check of a state is the model's own all-pairs check of 4 × 4 loops of the periodic
 fabric, the designed crossings read on the natural fabric (``natural_fit.natural_check``).
+A state's contacts are read back by ``contact_state`` (the wraps' normal forces) and
+``pair_state`` (the other pairs' energies and pushes); ``solve_cell(..., held=True)`` holds the
+spacing across the pull (plane strain) instead of leaving it free.
 """
 from __future__ import annotations
 
@@ -202,9 +205,9 @@ def contact_state(cell: PeriodicCell, x: np.ndarray, rigidity: float | None = No
 def pair_state(cell: PeriodicCell, x: np.ndarray, rigidity: float | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The other pairs at state x (R1, C3): each pair's vector between its two samples (3 × P),
-    its energy (L/S)²·v(d′)·k/k₀ and the push between the two, its derivative along the
-    distance, (L/S)²·a·f(d′)·k/k₀ (``SoftShell.force``), at rigidity k (default the built
-    law's). What ``scripts/periodic_cell.py --friction-estimate`` reads."""
+    its energy (L/S)²·v(d′)·k/k₀ and the push between the two, minus that energy's derivative
+    along the distance, (L/S)²·a·f(d′)·k/k₀ (``SoftShell.force``), at rigidity k (default the
+    built law's). What ``scripts/periodic_cell.py --friction-estimate`` reads."""
     k = cell.rigidity if rigidity is None else rigidity
     r = np.asarray(cell.pair_vectors(x))
     d = np.linalg.norm(r, axis=0)
