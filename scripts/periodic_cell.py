@@ -69,9 +69,8 @@ def pull(cell: PeriodicCell, R_f: float, strains: np.ndarray, x0: np.ndarray,
         rub = coulomb_per_pull(cell, x, sol.x, (e - last) * cell.spacing0)   # (wraps, others)
         x, last = sol.x, e
         rep = {"x": x, "U": sol.U, "F": sol.F, "iterations": sol.iterations, "rub": rub}
-        across = x[-1] if cell.direction == "courses" else x[-2]
         verdict = check_cell(cell, x)
-        rep.update(strain=float(e), lateral=float(across / cell.across0 - 1), clean=verdict.ok)
+        rep.update(strain=float(e), lateral=cell.across(x) / cell.across0 - 1, clean=verdict.ok)
         out.append(rep)
         bending = float(cell.energy(x, [0.0, R_f, 0.0]))
         others = float(np.sum(pair_state(cell, x)[1]))
@@ -245,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{direction}: the cell at rest did not converge ({rest.status})")
             continue
         x0 = rest.x
-        spacing0 = x0[-2] if direction == "courses" else x0[-1]
+        spacing0 = cell.along(x0)
         print(f"{direction}: {cell.pairs} other pairs; at rest F {rest.F:.3g} N, U "
               f"{rest.U:.6g} N mm, lattice ({x0[-2]:.4f}, {x0[-1]:.4f}) mm")
         if args.straight:

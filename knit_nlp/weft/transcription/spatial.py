@@ -51,8 +51,7 @@ from ..model.energy import spring_pair_energy
 from ..model.parametrisation import Full
 from ..model.params import WeftParams, param_layout
 from ..model.problem import WeftProblem
-from ..model.spatial.crossing_contact import (crossing_terms, natural_scales, normal_force,
-                                              separation)
+from ..model.spatial.crossing_contact import crossing_terms, natural_scales, read_crossings
 from ..model.spatial.friction import (EPSILON, LAGGED_ROWS, Friction, FrictionPath, Lagged,
                                       friction_potential)
 from ..model.spatial.curve3d import bending3d, loop_displacements3d, positions3d, segment
@@ -214,25 +213,24 @@ class SpatialNLP(Assembled):
 
     def crossing_state(self, x: np.ndarray) -> dict[str, np.ndarray]:
         """Per crossing (K): σ_u, σ_l, h, sin α, the compression h − d₀ (d₀ where its law starts:
-        touch 2r, or its natural separation h₀ if that is closer; eq. C3) and the contact force
-        a·F(h′, α) of eqs. (C2, C3) (``SoftShell.crossing_force``)."""
+        touch 2r, or its natural separation h₀ if that is closer; eq. C3), the contact force
+        a·F(h′, α) of eqs. (C2, C3) (``SoftShell.crossing_force``) and the cosine between the
+        yarns (``crossing_contact.read_crossings``)."""
         if "cp" not in self.x.blocks:
             return {}
         cp, sig = self.x.get(x, "cp"), self.x.get(x, "sigma")
-        h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T, self.signs)
         shell = self.problem.yarn.shell()
-        a = natural_scales(shell, self.shape.h0, h.size)
-        compression, force = normal_force(shell, h, sin_a, a)
-        return {"sigma_upper": sig[0], "sigma_lower": sig[1], "h": h, "sin_angle": sin_a,
-                "compression": compression, "force": force}
+        a = natural_scales(shell, self.shape.h0, cp.shape[1])
+        return {"sigma_upper": sig[0], "sigma_lower": sig[1],
+                **read_crossings(shell, cp, self.signs, a)}
 
     # -- lagged friction (model/spatial/friction.py) --------------------------------------
     def lagged_at(self, x: np.ndarray) -> Lagged:
         """The lagged values a load step takes from the accepted state x (F1, F3): each
         crossing's normal force, material coordinates and the cosine between its tangents."""
-        state, cp = self.crossing_state(x), self.x.get(x, "cp")
+        state = self.crossing_state(x)
         return Lagged(np.abs(state["force"]), np.array(state["sigma_upper"]),
-                      np.array(state["sigma_lower"]), np.einsum("ik,ik->k", cp[3:6], cp[9:12]))
+                      np.array(state["sigma_lower"]), state["cosine"])
 
     def step_dissipation(self, x: np.ndarray, lagged: Lagged) -> float:
         """μ Σ N̄|Δ| (F4) of the step that reached x with these lagged values."""

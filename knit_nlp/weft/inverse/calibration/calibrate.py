@@ -21,8 +21,8 @@ from ...model.params import MATERIAL
 from .breaks import where_it_breaks
 from .checks import HALF, STIFFENING, outcome_checks
 from .cell import CellModel, build_cell_specimen
-from .curve import (MAX_STRAIN, Curve, CurveModel, SpecimenModel, fd_derivatives, implicit_derivatives,
-                    strains_at)
+from .curve import (MAX_STRAIN, Curve, CurveModel, SpecimenModel, fd_derivatives,
+                    implicit_derivatives, strains_at)
 from .fit import MAX_EVALUATIONS, PENALTY, SCAN_FACTORS, FitOutcome, fit_log
 from .measured import MeasuredTest
 from .metric import levels, metric
@@ -263,8 +263,8 @@ class Calibration:
                                         f"{tm.measured.max_force:.4g} N measured")
         checks = outcome_checks((curve.axial, curve.force),
                                 [(r.axial, r.force) for r in tm.measured.runs], tm.width())
-        lattice = (tuple(float(v) for v in c.xs[0][-2:])
-                   if tm.specimen.kind == "periodic" and c.xs else None)
+        lattice = (tm.model.unloaded_lattice(c)
+                   if isinstance(tm.model, CellModel) and c.xs else None)
         return TestOutcome(tm.test, tm.specimen, tm.width(values), points, se_ax, se_lat, curve,
                            c.complete, dict(self.spec.targets.get(tm.test.use, {})), reason,
                            checks, final_check(tm, c, curve), lattice)

@@ -33,7 +33,7 @@ import numpy as np
 
 from ...model.problem import WeftProblem
 from ...model.spatial.periodic import (SAMPLES, CellSolution, PeriodicCell, build_cell,
-                                       check_cell, natural_state, solve_cell)
+                                       cell_shape, check_cell, natural_state, solve_cell)
 from .curve import Curve, CurveModel
 from .specimen import PullReading
 
@@ -140,8 +140,12 @@ class CellModel(CurveModel):
         if self.reference == "natural":
             return self.specimen.gauge, self.specimen.pitch_width
         x = self.rest(R_f, k).x
-        along = float(x[-2] if self.cell.direction == "courses" else x[-1])
-        return along, self.cell.across(x)
+        return self.cell.along(x), self.cell.across(x)
+
+    def unloaded_lattice(self, c: Curve) -> tuple[float, float]:
+        """The lattice (w, c) of curve ``c``'s first node, the unloaded cell."""
+        shape = cell_shape(self.cell, c.xs[0])
+        return shape.wale_spacing, shape.course_spacing
 
     def params(self, material: dict[str, float], u: float) -> tuple[float, float, float]:
         """(pulled spacing, R_f, k): the travel u is the gauge's share of the strain, u/gauge,

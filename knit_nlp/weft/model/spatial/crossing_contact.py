@@ -73,3 +73,14 @@ def normal_force(shell: SoftShell, h: np.ndarray, sin_a: np.ndarray, scale: np.n
     with np.errstate(invalid="ignore"):
         force = np.where(hc < 2 * shell.radius, scale * shell.crossing_force(hc, sin_a), 0.0)
     return (hc - 2 * shell.radius) / scale, force
+
+
+def read_crossings(shell: SoftShell, cp: np.ndarray, signs: np.ndarray, scales: np.ndarray
+                   ) -> dict[str, np.ndarray]:
+    """Crossings read back from their closest points ``cp`` (12 × K: p_u, t_u, p_l, t_l per
+    column): h, sin α (S6), the compression and the push (``normal_force``, C2, C3) and the
+    cosine t_u·t_l between the yarns (friction's c̄, F1)."""
+    h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T, signs)
+    compression, force = normal_force(shell, h, sin_a, scales)
+    return {"h": h, "sin_angle": sin_a, "compression": compression, "force": force,
+            "cosine": np.einsum("ik,ik->k", cp[3:6], cp[9:12])}

@@ -43,7 +43,7 @@ import numpy as np
 from ....ipopt import ipopt_options, succeeded
 from ..basis import continuity_rows, n_coeffs
 from ..compression import SoftShell
-from .crossing_contact import crossing_terms, normal_force, separation
+from .crossing_contact import crossing_terms, read_crossings
 from .curve3d import bending3d, loop_displacements3d, segment
 from .friction import Lagged
 from .natural3d import Natural3D
@@ -93,9 +93,18 @@ class PeriodicCell:
         """The reference spacing across the pull (the width one cell carries)."""
         return self.shape.course_spacing if self.direction == "courses" else self.shape.wale_spacing
 
+    @property
+    def across_index(self) -> int:
+        """Where x holds the spacing across the pull (x ends with w, c)."""
+        return -1 if self.direction == "courses" else -2
+
     def across(self, x: np.ndarray) -> float:
         """The spacing across the pull at state x."""
-        return float(x[-1] if self.direction == "courses" else x[-2])
+        return float(x[self.across_index])
+
+    def along(self, x: np.ndarray) -> float:
+        """The spacing along the pull at state x."""
+        return float(x[-2] if self.direction == "courses" else x[-1])
 
 
 @dataclass(frozen=True)
@@ -192,14 +201,12 @@ def contact_state(cell: PeriodicCell, x: np.ndarray, rigidity: float | None = No
     (calibration refuses it); this is what its estimate reads (``scripts/periodic_cell.py
     --friction-estimate``)."""
     k = cell.rigidity if rigidity is None else rigidity
-    cp = np.asarray(cell.closest(x))                          # (12, n): p_u, t_u, p_l, t_l
+    state = read_crossings(cell.law, np.asarray(cell.closest(x)), cell.shape.crossing_signs(),
+                           cell.law.thinning(cell.shape.h0))
     n = len(cell.shape.s_upper)
-    h, sin_a = separation(cp[0:3].T, cp[3:6].T, cp[6:9].T, cp[9:12].T,
-                          cell.shape.crossing_signs())
-    force = normal_force(cell.law, h, sin_a, cell.law.thinning(cell.shape.h0))[1]
     sig = x[-2 - 2 * n:-2]
-    return Lagged(np.abs(force) * k / cell.rigidity, sig[:n].copy(), sig[n:].copy(),
-                  np.einsum("ik,ik->k", cp[3:6], cp[9:12]))
+    return Lagged(np.abs(state["force"]) * k / cell.rigidity, sig[:n].copy(), sig[n:].copy(),
+                  state["cosine"])
 
 
 def pair_state(cell: PeriodicCell, x: np.ndarray, rigidity: float | None = None
@@ -230,8 +237,7 @@ def solve_cell(cell: PeriodicCell, spacing: float, R_f: float, x0: np.ndarray,
     lbx[sigmas], ubx[sigmas] = 0.0, cell.shape.length
     lbx[-2:] = MIN_SPACING * np.array([cell.natural.wale_spacing, cell.natural.course_spacing])
     if held:
-        across = -1 if cell.direction == "courses" else -2
-        lbx[across] = ubx[across] = cell.across0
+        lbx[cell.across_index] = ubx[cell.across_index] = cell.across0
     lbg, ubg = np.zeros(cell.rows), np.zeros(cell.rows)
     if free:
         lbg[-1], ubg[-1] = -np.inf, np.inf
