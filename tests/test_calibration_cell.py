@@ -7,6 +7,7 @@ its factors."""
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from knit_nlp.errors import ProblemError
 from knit_nlp.tomlio import toml_text
 from knit_nlp.weft.inverse.calibration.calibrate import TestModel as CellTest
 from knit_nlp.weft.inverse.calibration.cell import CellModel, build_cell_specimen
+from knit_nlp.weft.inverse.calibration.curve import JAMMED, Curve, CurveModel
 from knit_nlp.weft.inverse.calibration.fit import fit_log
 from knit_nlp.weft.inverse.calibration.spec import load_spec, parse_spec
 from knit_nlp.weft.model.problem import parse_problem
@@ -197,35 +199,38 @@ def test_the_shipped_cell_specs_hold_every_measured_value_and_fit_only_k():
     assert [t.use for t in xy.tests] == ["fit", "fit"]
 
 
+class Scalar(CurveModel):
+    """A curve model of one number (gauge 1): the travel u is the state; the solve succeeds
+    where ``ok(u)`` (else ``status``) and reads ``force(u)``, no lateral change."""
+
+    specimen = SimpleNamespace(gauge=1.0)
+
+    def __init__(self, ok, force, status: str) -> None:
+        self.ok, self.force, self.status = ok, force, status
+
+    def params(self, material, u):
+        return u
+
+    def _solve(self, p, x0, curve: Curve, p0=None):
+        curve.solves += 1
+        ok = bool(self.ok(p))
+        return SimpleNamespace(success=ok, status="ok" if ok else self.status,
+                               x=np.array([p]), iterations=1)
+
+    def read(self, rep):
+        return self.force(float(rep.x[0])), 0.0
+
+    def multipliers(self, rep):
+        return np.zeros(1)
+
+
 def test_a_curve_past_its_goal_stops_where_the_model_jams():
     """The stepper (``curve.CurveModel``) runs on past the goal force to the strain the checks
     read, but stops where the force passes ``JAMMED`` times the goal: here a model whose force
     u/(0.3 − u) diverges at u = 0.3 (gauge 1), goal 1, asked for strain 0.5. The curve ends
     past 100 N, below u = 0.3, complete, and says it jammed."""
-    from types import SimpleNamespace
-
-    from knit_nlp.weft.inverse.calibration.curve import JAMMED, Curve, CurveModel
-
-    class Jamming(CurveModel):
-        specimen = SimpleNamespace(gauge=1.0)
-
-        def params(self, material, u):
-            return u
-
-        def _solve(self, p, x0, curve: Curve, p0=None):
-            curve.solves += 1
-            ok = p < 0.3
-            return SimpleNamespace(success=ok, status="ok" if ok else "jammed",
-                                   x=np.array([p]), iterations=1)
-
-        def read(self, rep):
-            u = float(rep.x[0])
-            return u / (0.3 - u), 0.0
-
-        def multipliers(self, rep):
-            return np.zeros(1)
-
-    c = Jamming().curve({}, goal=1.0, strain_limit=0.6, min_strain=0.5)
+    jamming = Scalar(lambda u: u < 0.3, lambda u: u / (0.3 - u), "jammed")
+    c = jamming.curve({}, goal=1.0, strain_limit=0.6, min_strain=0.5)
     assert c.complete and "jams" in c.reason
     assert JAMMED < c.force[-1] and c.u[-1] < 0.3
     assert len(c.u) < 60 and c.solves < 200
@@ -235,27 +240,9 @@ def test_a_curve_whose_unloaded_state_does_not_solve_says_so_and_records_nothing
     """``CurveModel.pull_to`` (as ``curve``): a straight yarn's cell that does not relax, or
     any specimen whose unloaded solve fails, gives an incomplete curve with the solver's
     status, not a first node read off a failed solve."""
-    from types import SimpleNamespace
+    def unsolved():
+        return Scalar(lambda u: u > 0, lambda u: u, "Infeasible_Problem_Detected")
 
-    from knit_nlp.weft.inverse.calibration.curve import Curve, CurveModel
-
-    class Unsolved(CurveModel):
-        specimen = SimpleNamespace(gauge=1.0)
-
-        def params(self, material, u):
-            return u
-
-        def _solve(self, p, x0, curve: Curve, p0=None):
-            curve.solves += 1
-            return SimpleNamespace(success=p > 0, status="Infeasible_Problem_Detected",
-                                   x=np.array([p]), iterations=1)
-
-        def read(self, rep):
-            return float(rep.x[0]), 0.0
-
-        def multipliers(self, rep):
-            return np.zeros(1)
-
-    for c in (Unsolved().pull_to({}, np.array([0.1, 0.2])), Unsolved().curve({}, goal=1.0)):
+    for c in (unsolved().pull_to({}, np.array([0.1, 0.2])), unsolved().curve({}, goal=1.0)):
         assert not c.complete and "unloaded" in c.reason and "Infeasible" in c.reason
         assert c.u.size == 0 and c.solves == 1

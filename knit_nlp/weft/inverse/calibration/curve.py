@@ -111,19 +111,28 @@ class CurveModel:
         c.xs.append(rep.x)
         c.lams.append(self.multipliers(rep))
 
+    def _unloaded(self, material: dict[str, float], c: Curve) -> tuple[list, list, list] | None:
+        """A curve's first node, the unloaded specimen, recorded in ``c`` with no force by
+        definition: the travel, force and lateral lists that start there; None (and ``c``
+        incomplete, saying why) where its solve failed."""
+        rep = self._solve(self.params(material, 0.0), None, c)
+        if not rep.success:
+            c.complete, c.reason = False, f"the unloaded specimen did not solve ({rep.status})"
+            return None
+        us, fs, lats = [], [], []
+        self._record(c, us, fs, lats, 0.0, rep)
+        fs[0] = 0.0
+        return us, fs, lats
+
     def curve(self, material: dict[str, float], goal: float,
               strain_limit: float = MAX_STRAIN, min_strain: float = 0.0) -> Curve:
         """Pull until the force passes ``goal`` (model force units) and the axial strain
         ``min_strain``, or until the axial strain ``strain_limit``."""
         L0 = self.specimen.gauge
         c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
-        rep = self._solve(self.params(material, 0.0), None, c)
-        if not rep.success:
-            c.complete, c.reason = False, f"the unloaded specimen did not solve ({rep.status})"
+        if (started := self._unloaded(material, c)) is None:
             return c
-        us, fs, lats = [], [], []
-        self._record(c, us, fs, lats, 0.0, rep)
-        fs[0] = 0.0                         # the unloaded specimen: no force by definition
+        us, fs, lats = started
         step = FIRST_STRAIN * L0
         while fs[-1] < goal or us[-1] < min_strain * L0:
             remaining = strain_limit * L0 - us[-1]
@@ -172,13 +181,9 @@ class CurveModel:
         (``reason``). ``report(strain, solution)`` is called at every recorded node."""
         L0 = self.specimen.gauge
         c = Curve(np.zeros(0), np.zeros(0), np.zeros(0), material=dict(material))
-        rep = self._solve(self.params(material, 0.0), None, c)
-        if not rep.success:
-            c.complete, c.reason = False, f"the unloaded specimen did not solve ({rep.status})"
+        if (started := self._unloaded(material, c)) is None:
             return c
-        us, fs, lats = [], [], []
-        self._record(c, us, fs, lats, 0.0, rep)
-        fs[0] = 0.0
+        us, fs, lats = started
         for target in np.asarray(strains, dtype=float) * L0:
             u, x, step, halvings = us[-1], c.xs[-1], target - us[-1], 0
             while u != target and halvings <= MAX_HALVINGS:
