@@ -206,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
                          "[yarn] give the yarn")
     ap.add_argument("--straight", action="store_true")
     ap.add_argument("--to", type=float, default=0.6, help="the largest strain (the measured "
-                    "course pulls end near 60 %)")
+                    "course pulls end near 60 %%)")
     ap.add_argument("--step", type=float, default=0.025)
     ap.add_argument("--samples", type=int, default=80, help="repulsion samples per loop")
     ap.add_argument("--rigidity-factor", type=float, default=1.0,
