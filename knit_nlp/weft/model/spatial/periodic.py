@@ -16,6 +16,10 @@ lateral force). Its energy per cell (p = (pulled spacing, R_f, k)):
                                                       contacts with the loop one course up)
         + Σ over the other pairs w_s² v(d′)           (R1, C3)
 
+Bent from the natural loop the contacts pressed at rest see the law thinned (C3), so that the
+natural loop is stress-free; bent from a straight yarn the loop is prestressed anyway and every
+contact sees the yarn's own law (a = 1), as stitch-by-stitch's simulation does (its relaxed
+cell and course sweep are reproduced: docs/real_fabric.md, "The source's own cell").
 Both contact sums are linear in the law's rigidity k (compression.py), which is a parameter:
 the NLP at k is the NLP built at k, number for number. (Solved instead at R_f·k₀/k with
 the built k₀ and its forces times k/k₀, the same equilibrium in exact arithmetic, IPOPT took
@@ -80,7 +84,8 @@ class PeriodicCell:
     law: SoftShell
     closest: ca.Function         # x -> the contacts' points and tangents (p_u, t_u, p_l, t_l)
     pair_vectors: ca.Function    # x -> each other pair's vector between its samples (3 × P)
-    pair_scales: np.ndarray      # each other pair's thinning a (C3)
+    pair_scales: np.ndarray      # each other pair's thinning a (C3; 1 for a straight yarn's)
+    wrap_scales: np.ndarray      # each wrap's thinning a (C3; 1 for a straight yarn's)
     samples: int                 # other-contact samples per loop
 
     @property
@@ -137,9 +142,10 @@ def cell_pairs(shape: Natural3D, law: SoftShell, samples: int = SAMPLES,
 
 def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = SAMPLES,
                straight: bool = False, reach: float = REACH, max_iter: int = MAX_ITER,
-               max_time: float | None = None) -> PeriodicCell:
+               max_time: float | None = None, thinned: bool | None = None) -> PeriodicCell:
     """The cell's NLP (module docstring) pulled along ``direction``; ``max_iter`` and
-    ``max_time`` (s) bound each solve."""
+    ``max_time`` (s) bound each solve. ``thinned``: the contacts pressed at rest see the law
+    thinned (C3); by default only when bent from the natural loop (``wrap_thinning``)."""
     if direction not in DIRECTIONS:
         raise ValueError(f"direction must be one of {DIRECTIONS}, not {direction!r}")
     L, t, q = shape.length, shape.harmonics, shape.modes
@@ -160,7 +166,8 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
     for deg, coef in ((q, b), (t, a)):                                          # N2
         E, S = continuity_rows(L, deg)
         rows.append(ca.mtimes(ca.DM(E - S), coef))
-    signs, scales = shape.crossing_signs(), law.thinning(shape.h0)
+    thin = (not straight) if thinned is None else thinned
+    signs, scales = shape.crossing_signs(), wrap_thinning(shape, law, thin)
     closest = []
     for k in range(n):                                                          # S5-S7
         pu, tu = seg(a, b, 0.0, su[k])
@@ -170,6 +177,8 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
         rows.append(r)
         closest.append(ca.vertcat(pu + shift, tu, pl, tl))
     s, K, M, DI, DJ, scale = cell_pairs(shape, law, samples, reach)             # R1
+    if not thin:
+        scale = np.ones_like(scale)
     G = loop_displacements3d(L, t, q, s, 8)(a, b)
     off = ca.vertcat(ca.DM(DJ).T * w, ca.DM(DI).T * c, ca.DM.zeros(1, K.size))
     diff = G[:, M.tolist()] - G[:, K.tolist()] + off
@@ -185,7 +194,17 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
     return PeriodicCell(shape, shape, law.core_radius, direction, solver,
                         ca.Function("U", [xs, p], [energy]), g.numel(), int(K.size),
                         law.rigidity, law, ca.Function("closest", [xs], [ca.horzcat(*closest)]),
-                        ca.Function("pair_vectors", [xs], [diff]), np.asarray(scale), samples)
+                        ca.Function("pair_vectors", [xs], [diff]), np.asarray(scale), scales,
+                        samples)
+
+
+def wrap_thinning(shape: Natural3D, law: SoftShell, thinned: bool) -> np.ndarray:
+    """Each wrap's thinning a (C3): ``thinned``, the natural loop's, so that it is stress-free
+    at rest (the default bent from the natural loop), or 1, the yarn's own law (the default
+    for a cell bent from a straight yarn, which is prestressed anyway: as stitch-by-stitch's
+    simulation, whose relaxed cell and course sweep this cell then reproduces,
+    docs/real_fabric.md, "The source's own cell")."""
+    return law.thinning(shape.h0) if thinned else np.ones(len(shape.h0))
 
 
 def natural_state(shape: Natural3D) -> np.ndarray:
@@ -202,7 +221,7 @@ def contact_state(cell: PeriodicCell, x: np.ndarray, rigidity: float | None = No
     --friction-estimate``)."""
     k = cell.rigidity if rigidity is None else rigidity
     state = read_crossings(cell.law, np.asarray(cell.closest(x)), cell.shape.crossing_signs(),
-                           cell.law.thinning(cell.shape.h0))
+                           cell.wrap_scales)
     n = len(cell.shape.s_upper)
     sig = x[-2 - 2 * n:-2]
     return Lagged(np.abs(state["force"]) * k / cell.rigidity, sig[:n].copy(), sig[n:].copy(),
