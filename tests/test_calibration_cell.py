@@ -246,3 +246,35 @@ def test_a_curve_whose_unloaded_state_does_not_solve_says_so_and_records_nothing
     for c in (unsolved().pull_to({}, np.array([0.1, 0.2])), unsolved().curve({}, goal=1.0)):
         assert not c.complete and "unloaded" in c.reason and "Infeasible" in c.reason
         assert c.u.size == 0 and c.solves == 1
+
+
+class Branchy(Scalar):
+    """A Scalar whose solve lands on a lower branch (force less ``drop``) when a step longer
+    than ``jump`` ends inside ``region``: the periodic cell's non-unique equilibria."""
+
+    def __init__(self, force, jump: float, region: tuple[float, float], drop: float) -> None:
+        super().__init__(lambda u: True, force, "")
+        self.jump, self.region, self.drop = jump, region, drop
+
+    def _solve(self, p, x0, curve: Curve, p0=None):
+        rep = super()._solve(p, x0, curve, p0)
+        rep.lower = x0 is not None and p - x0[0] > self.jump and self.region[0] < p < self.region[1]
+        return rep
+
+    def read(self, rep):
+        return self.force(float(rep.x[0])) - (self.drop if rep.lower else 0.0), 0.0
+
+
+def test_a_step_that_lands_on_a_lower_branch_is_tried_again_shorter():
+    """``curve.CurveModel.curve``: a long step whose force falls (another equilibrium) is
+    retried at a quarter of its length (``BRANCH_RETRIES`` a curve) and the curve goes on to its
+    goal, every node's force rising; a force that truly peaks still ends the curve, saying so.
+    Red with ``BRANCH_RETRIES = 0`` (the curve stopped at the first fall, 0.18 of the way)."""
+    branchy = Branchy(lambda u: u, jump=0.05, region=(0.15, 0.3), drop=0.5)
+    c = branchy.curve({}, goal=1.0)
+    assert c.complete and c.force[-1] >= 1.0
+    assert np.all(np.diff(c.force) > 0)
+    peaked = Scalar(lambda u: True, lambda u: u * (0.6 - u), "")
+    p = peaked.curve({}, goal=1.0)
+    assert not p.complete and "stops rising" in p.reason
+    assert 0.25 < p.u[-1] < 0.35 and p.solves < 60       # the peak: 0.3
