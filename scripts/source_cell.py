@@ -20,10 +20,11 @@ the cell's; then the force through one cell, the source's by differences of its 
 (dE/dx between neighbouring x), the cell's the pull row's multiplier (averaged over the same
 two x); and both at the real course specimen's width (66.56 mm), strain from x = 2.8 mm.
 
-    python scripts/source_cell.py [--thinned] [--to 5.0] [--samples 80]
+    python scripts/source_cell.py [--thinned] [--to 5.35] [--samples 80] [--out DIR]
 
 ``--thinned`` builds the cell with the law thinned at the natural wraps (C3), the choice before
-the straight yarn's cell saw the yarn's own law, for comparison.
+the straight yarn's cell saw the yarn's own law, for comparison. ``--out DIR`` also sweeps the
+other choice and draws both beside the source (``DIR/source_cell.png``).
 """
 from __future__ import annotations
 
@@ -194,6 +195,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="the law thinned at the natural wraps (C3), for comparison")
     ap.add_argument("--to", type=float, default=5.35, help="the largest width x (mm)")
     ap.add_argument("--samples", type=int, default=periodic.SAMPLES)
+    ap.add_argument("--out", type=Path, help="also draw both choices of the law here")
     args = ap.parse_args(argv)
     config, src = read_sweep()
     src = [p for p in src if p.x <= args.to + 1e-9]
@@ -207,8 +209,55 @@ def main(argv: list[str] | None = None) -> int:
     rest, cell = sweep_cell(config, [p.x for p in src], args.samples,
                             args.thinned or None)
     print(report(src, rest, cell))
+    if args.out is not None:
+        other = sweep_cell(config, [p.x for p in src], args.samples, not args.thinned or None,
+                           say=lambda *_: None)[1]
+        own, thin = (other, cell) if args.thinned else (cell, other)
+        args.out.mkdir(parents=True, exist_ok=True)
+        path = draw(src, own, thin, args.out / "source_cell.png")
+        print(f"wrote {path}")
     print(f"{time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def draw(src: list[SourcePoint], own: list[CellPoint], thin: list[CellPoint],
+         path: Path) -> Path:
+    """The source's free height and force beside the cell's, with the yarn's own law and
+    thinned, over the source's widths; the force axis stops at twice the source's largest
+    (the cell's jam beyond it is said in the legend)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    xs = np.array([p.x for p in src])
+    xm, Fs = midpoint_forces(xs, np.array([p.total for p in src]))
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.4))
+    a.plot(xs, [p.y for p in src], "o", color="k", ms=4, label="source (stitch-by-stitch "
+           "core300x: its lowest energy of 4 starts)")
+    b.plot(xm, Fs, "o", color="k", ms=4, label="source: dE/dx of its energy")
+    top = 2 * float(np.max(Fs))
+    for pts, style, name in ((own, "-", "this cell, the yarn's own law"),
+                             (thin, "--", "this cell, the law thinned at the wraps (C3)")):
+        ok = [c for c in pts if c.success]
+        a.plot([c.x for c in ok], [c.y for c in ok], style, label=name)
+        over = [c.x for c in ok if c.F > top]
+        note = f" (jammed: off the axis from {over[0]:.2f} mm)" if over else ""
+        b.plot([c.x for c in ok if c.F <= top], [c.F for c in ok if c.F <= top], style,
+               label=name + note)
+    a.set_xlabel("cell width x along the courses (mm)")
+    a.set_ylabel("free cell height y (mm)")
+    b.set_xlabel("cell width x along the courses (mm)")
+    b.set_ylabel("force through one cell (N)")
+    b.set_ylim(0, top)
+    a.grid(alpha=0.3)
+    a.legend(fontsize=7.5, loc="upper right")
+    b.grid(alpha=0.3)
+    b.legend(fontsize=7.5, loc="upper left", framealpha=1)
+    fig.suptitle("The periodic cell with the source's energy (R_f = 2B = 0.09 N mm², k = 2k_s "
+                 "= 0.0012 N/mm³, core 0.3 mm) against the source's own simulation", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 if __name__ == "__main__":
