@@ -182,7 +182,8 @@ def test_the_shipped_cell_specs_hold_every_measured_value_and_fit_only_k():
     """``acrylic_3d_cell_x`` fits the contact rigidity on the course pull and predicts the wale
     pull; ``acrylic_3d_cell_xy`` fits it on both (issue 40 item 3); ``acrylic_3d_cell_straight_x``
     and ``_straight_xy`` are the two bent from a straight yarn: all as a periodic cell at the
-    source's clamp width, with the yarn's measured values held."""
+    source's clamp width, with the yarn's measured values held; ``_straight_source_x`` reads the
+    bending modulus as the source's simulation does (R_f = 2B), nothing else changed."""
     x, xy = load_spec("real_fabric/acrylic_3d_cell_x"), load_spec("real_fabric/acrylic_3d_cell_xy")
     straight = load_spec("real_fabric/acrylic_3d_cell_straight_x")
     straight_xy = load_spec("real_fabric/acrylic_3d_cell_straight_xy")
@@ -197,6 +198,12 @@ def test_the_shipped_cell_specs_hold_every_measured_value_and_fit_only_k():
         assert spec.values["radius"] == 0.74 and spec.base.L == 11.28
     assert [(t.direction, t.use) for t in x.tests] == [("courses", "fit"), ("wales", "predict")]
     assert [t.use for t in xy.tests] == ["fit", "fit"]
+    source = load_spec("real_fabric/acrylic_3d_cell_straight_source_x")   # the other reading
+    assert source.values == {**straight.values, "R_f": 2 * 0.045}        # of B: B∫κ² = ½(2B)∫κ²
+    assert (source.bending_reference, source.fit, source.specimen) == (
+        "straight", ("contact_rigidity",), "periodic")
+    assert [(t.file, t.direction, t.use) for t in source.tests] == [
+        (t.file, t.direction, t.use) for t in straight.tests]
 
 
 class Scalar(CurveModel):
