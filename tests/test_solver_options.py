@@ -24,3 +24,14 @@ def test_options_override_the_solvers_defaults() -> None:
     assert plain.success and scaled.success
     assert scaled.objective == pytest.approx(plain.objective, rel=1e-9)
     np.testing.assert_allclose(scaled.x, plain.x, atol=1e-7)
+
+
+def test_the_iteration_limit_tolerance_and_print_level_may_be_overridden_too() -> None:
+    """``max_iter``, ``tol`` and ``print_level`` among a caller's options (``bench_weft3d.py
+    --ipopt max_iter=3``) override the solver's own instead of raising "got multiple values
+    for argument 'max_iter'" (measured before the fix)."""
+    nlp = transcribe(parse_problem(PULL, "pull.toml"), Full())
+    p = WeftParams.of(nlp.problem).vector()
+    cut = WeftSolver(nlp, verbose=None, ipopt={"max_iter": 1, "tol": 1e-6,
+                                               "print_level": 0}).once(p, nlp.x0)
+    assert not cut.success and cut.status == "Maximum_Iterations_Exceeded"

@@ -159,11 +159,11 @@ class WeftSolver(OnClock):
         # measured on the 100 x 100 pull: MUMPS's scaling passes cost a third of IPOPT's own
         # time and the KKT systems here are well scaled without them
         # (the model's and the caller's options may override these)
-        options = {**ipopt_options(tol or opts.tol, max_iter or opts.max_iter, print_level,
-                                   **{"max_wall_time": opts.max_time, "mumps_scaling": 0,
-                                      "mumps_permuting_scaling": 0,
-                                      **MODEL_IPOPT.get(wnlp.model, {}), **(ipopt or {})}),
-                   **wnlp.nlpsol_options}
+        extra = {"max_wall_time": opts.max_time, "mumps_scaling": 0,
+                 "mumps_permuting_scaling": 0, **MODEL_IPOPT.get(wnlp.model, {}), **(ipopt or {})}
+        base = (extra.pop("tol", tol or opts.tol), extra.pop("max_iter", max_iter or opts.max_iter),
+                extra.pop("print_level", print_level))     # these three may be overridden too
+        options = {**ipopt_options(*base, **extra), **wnlp.nlpsol_options}
         # verbose: every iterate; False: a progress line once a solve outlasts QUIET_FOR;
         # None: never (a study's workers, whose runner keeps its own progress line). Always
         # there: it ends a solve at the shared deadline (IterationLine.deadline)
