@@ -18,7 +18,8 @@ over the four initialisations at each x. The cell is relaxed (x and y free), the
 each x with y free, each from the last. Printed per x: the source's y and energies beside
 the cell's; then the force through one cell, the source's by differences of its energy
 (dE/dx between neighbouring x), the cell's the pull row's multiplier (averaged over the same
-two x); and both at the real course specimen's width (66.56 mm), strain from x = 2.8 mm.
+two x); and both at the real course specimen's width (``course_width``: 66.56 mm), strain
+from x = 2.8 mm.
 
     python scripts/source_cell.py [--thinned] [--to 5.35] [--samples 80] [--out DIR]
 
@@ -40,11 +41,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from knit_nlp.weft.inverse.calibration.measured import read_stitch_by_stitch  # noqa: E402
+from knit_nlp.weft.inverse.calibration.spec import CLAMP_WIDTH_MM  # noqa: E402
 from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
 from knit_nlp.weft.model.spatial import periodic  # noqa: E402
 
 SWEEP = ROOT / "problems" / "real_fabric" / "source_simulation" / "core300x.csv"
-WIDTH_MM = 66.56          # the course specimen's width (1.87 clamp widths of 35.5 mm)
+COURSE_TEST = ROOT / "problems" / "real_fabric" / "acrylic_stockinette_x.csv"
 MEASURED_STRAIN = 0.6     # the measured course pulls end near 60 % strain
 
 
@@ -152,6 +155,12 @@ def at_strain(x0: float, xs: np.ndarray, F: np.ndarray, strain: float) -> float:
     return float(np.interp((1 + strain) * x0, xs, F, left=np.nan, right=np.nan))
 
 
+def course_width() -> float:
+    """The measured course specimen's width (mm): its file's width in clamps times the source's
+    clamp width, as ``calibrate`` and ``scripts/periodic_cell.py`` read it."""
+    return read_stitch_by_stitch(COURSE_TEST, COURSE_TEST.name).width_clamps * CLAMP_WIDTH_MM
+
+
 def report(src: list[SourcePoint], rest: CellPoint, cell: list[CellPoint]) -> str:
     """The table and its summary (module docstring)."""
     ok = [c for c in cell if c.success]
@@ -181,11 +190,11 @@ def report(src: list[SourcePoint], rest: CellPoint, cell: list[CellPoint]) -> st
     lines.append(f"to {MEASURED_STRAIN:.0%} strain (x {src[0].x:.2f}-{src[m - 1].x:.2f} mm): "
                  f"free height within {np.max(np.abs(dy)):.2%}; energy rise source "
                  f"{rise_s:.4f}, cell {rise_c:.4f} N mm ({rise_c / rise_s:.2f}x)")
-    y0 = src[0].y
+    y0, width = src[0].y, course_width()
     for e in (0.1, 0.3):
         fs, fc = at_strain(src[0].x, xm, Fs, e), at_strain(src[0].x, xm, Fc, e)
-        lines.append(f"at {e:.0%} strain from x = {src[0].x:.2f} mm, per width x {WIDTH_MM} mm: "
-                     f"source {fs / y0 * WIDTH_MM:.3f} N, cell {fc / y0 * WIDTH_MM:.3f} N")
+        lines.append(f"at {e:.0%} strain from x = {src[0].x:.2f} mm, per width x {width:.2f} mm:"
+                     f" source {fs / y0 * width:.3f} N, cell {fc / y0 * width:.3f} N")
     return "\n".join(lines)
 
 
