@@ -47,7 +47,7 @@ from knit_nlp.weft.inverse.calibration.measured import (MeasuredTest,  # noqa: E
 from knit_nlp.weft.inverse.calibration.metric import METRIC_FORCES, metric  # noqa: E402
 from knit_nlp.weft.inverse.calibration.spec import CLAMP_WIDTH_MM  # noqa: E402
 from knit_nlp.weft.model.compression import SoftShell  # noqa: E402
-from knit_nlp.weft.model.problem import parse_problem  # noqa: E402
+from knit_nlp.weft.model.problem import WeftProblem, parse_problem  # noqa: E402
 from knit_nlp.weft.model.spatial.periodic import (PeriodicCell, build_cell,  # noqa: E402
                                                   cell_pairs, check_cell, contact_state,
                                                   natural_state, pair_state, relaxed,
@@ -102,6 +102,15 @@ def coulomb_per_pull(cell: PeriodicCell, before: np.ndarray, after: np.ndarray,
     return wraps / du, others / du
 
 
+def spec_problem(name: str) -> WeftProblem:
+    """The weft problem of calibration spec ``name``'s yarn (its [loop], [material], [yarn] and
+    [units], on a 2 × 2 fabric): the yarn's natural loop and law."""
+    spec = load_toml(ROOT / "problems" / f"{name}.toml")
+    doc = {k: spec[k] for k in ("loop", "material", "yarn", "units") if k in spec}
+    doc["fabric"] = {"courses": 2, "wales": 2}
+    return parse_problem(doc, f"{name}.toml")
+
+
 def measured(direction: str) -> MeasuredTest:
     """The measured pull along ``direction`` (problems/real_fabric, stitch-by-stitch's data)."""
     name = TESTS[direction]
@@ -147,23 +156,27 @@ def _show(v: float | None, fmt: str = ".3g") -> str:
     return "n/a" if v is None else f"{v:{fmt}}"
 
 
+def checks_line(c: dict) -> str:
+    """The checks, model (measured), and the metric of a comparison (:func:`compare`)."""
+    mo, me = c["checks"]["model"], c["checks"]["measured"]
+
+    def pair(key: str, sub: str | None = None) -> str:
+        a, b = (d[key] if sub is None else d[key][sub] for d in (mo, me))
+        return f"{_show(a)} ({_show(b)})"
+    return (f"model (measured): F(10 %) {pair('force_N', '0.1')} N, F(30 %) "
+            f"{pair('force_N', '0.3')} N, K/W(10 %) {pair('stiffness_per_width')} N/mm, "
+            f"stiffening 5 -> 45 % {pair('stiffening')}; RMS strain error axial "
+            f"{_show(c['rms_axial'], '.4f')}, lateral {_show(c['rms_lateral'], '.4f')}")
+
+
 def summary(direction: str, seconds: float, nodes: list[dict], spacing0: float, c: dict) -> str:
     """One line: how far and how clean the pull went, the checks model (measured) and the
     metric."""
     dirty = next((n["strain"] for n in nodes if not n["clean"]), None)
     reached = nodes[-1]["strain"] if nodes else 0.0
     clean = "every node clean" if dirty is None else f"not clean from {dirty:.3f}"
-    mo, me = c["checks"]["model"], c["checks"]["measured"]
-
-    def pair(key: str, sub: str | None = None) -> str:
-        a, b = (d[key] if sub is None else d[key][sub] for d in (mo, me))
-        return f"{_show(a)} ({_show(b)})"
     return (f"{direction} ({seconds:.0f} s, reached {reached:.3f} from {spacing0:.4f} mm, {clean}"
-            f"; at {c['width_mm']:.1f} mm, up to {c['top_N']:.3g} N), model (measured): "
-            f"F(10 %) {pair('force_N', '0.1')} N, F(30 %) {pair('force_N', '0.3')} N, K/W(10 %) "
-            f"{pair('stiffness_per_width')} N/mm, stiffening 5 -> 45 % {pair('stiffening')}; "
-            f"RMS strain error axial {_show(c['rms_axial'], '.4f')}, lateral "
-            f"{_show(c['rms_lateral'], '.4f')}")
+            f"; at {c['width_mm']:.1f} mm, up to {c['top_N']:.3g} N), {checks_line(c)}")
 
 
 def offset_shares(cell: PeriodicCell, nodes: list[dict], reach: float, strain: float = 0.1
@@ -222,10 +235,7 @@ def main(argv: list[str] | None = None) -> int:
                          "width) instead of leaving it free (uniaxial stress)")
     ap.add_argument("--directions", default="courses,wales")
     args = ap.parse_args(argv)
-    spec = load_toml(ROOT / "problems" / f"{args.spec}.toml")
-    doc = {k: spec[k] for k in ("loop", "material", "yarn", "units") if k in spec}
-    doc["fabric"] = {"courses": 2, "wales": 2}
-    pr = parse_problem(doc, f"{args.spec}.toml")
+    pr = spec_problem(args.spec)
     shape, law = pr.yarn.natural3d, pr.yarn.shell()
     law = SoftShell(law.radius, law.core_radius, law.rigidity * args.rigidity_factor,
                     law.exponent)

@@ -40,6 +40,7 @@ spacing across the pull (plane strain) instead of leaving it free.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -148,43 +149,15 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
     thinned (C3); by default only when bent from the natural loop (``wrap_thinning``)."""
     if direction not in DIRECTIONS:
         raise ValueError(f"direction must be one of {DIRECTIONS}, not {direction!r}")
-    L, t, q = shape.length, shape.harmonics, shape.modes
-    nc, nq = n_coeffs(t), n_coeffs(q)
+    nc, nq = n_coeffs(shape.harmonics), n_coeffs(shape.modes)
     n = len(shape.s_upper)
     xs = ca.MX.sym("x", nc + nq + 2 * n + 2)
     p = ca.MX.sym("p", 3)                       # (pulled spacing, R_f, k)
-    contact = 0.0
-    a, b = xs[:nc], xs[nc:nc + nq]
-    su, sl = xs[nc + nq:nc + nq + n], xs[nc + nq + n:nc + nq + 2 * n]
     w, c = xs[-2], xs[-1]
-    a0 = np.zeros(nc) if straight else shape.coeffs
-    b0 = np.zeros(nq) if straight else shape.elevation
-    energy = bending3d(L, t, q, 8)(a, b, ca.DM(a0), ca.DM(b0), p[1])
-    seg, terms = segment(L, t, q, GAUSS), crossing_terms(law)
-    shift = ca.vertcat(0, c, 0)
-    rows = [seg(a, b, 0.0, L)[0] - ca.vertcat(w, 0, 0)]                         # closure
-    for deg, coef in ((q, b), (t, a)):                                          # N2
-        E, S = continuity_rows(L, deg)
-        rows.append(ca.mtimes(ca.DM(E - S), coef))
     thin = (not straight) if thinned is None else thinned
-    signs, scales = shape.crossing_signs(), wrap_thinning(shape, law, thin)
-    closest = []
-    for k in range(n):                                                          # S5-S7
-        pu, tu = seg(a, b, 0.0, su[k])
-        pl, tl = seg(a, b, 0.0, sl[k])
-        e, r, *_ = terms(pu + shift, tu, pl, tl, signs[k], scales[k])
-        contact += e
-        rows.append(r)
-        closest.append(ca.vertcat(pu + shift, tu, pl, tl))
-    s, K, M, DI, DJ, scale = cell_pairs(shape, law, samples, reach)             # R1
-    if not thin:
-        scale = np.ones_like(scale)
-    G = loop_displacements3d(L, t, q, s, 8)(a, b)
-    off = ca.vertcat(ca.DM(DJ).T * w, ca.DM(DI).T * c, ca.DM.zeros(1, K.size))
-    diff = G[:, M.tolist()] - G[:, K.tolist()] + off
-    d = ca.sqrt(ca.sum1(diff ** 2)).T
-    contact += (L / samples) ** 2 * ca.sum1(law.casadi_energy(law.seen(d, ca.DM(scale))))
-    energy += p[2] / law.rigidity * contact                       # linear in k
+    ex = cell_expressions(shape, law, xs[:-2], (w, c, 0.0), p[1], p[2], samples, straight,
+                          reach, thin)
+    energy, rows = ex.energy, list(ex.rows)
     rows.append((w if direction == "courses" else c) - p[0])                    # the pull
     g = ca.vertcat(*rows)
     opts = ipopt_options(TOL, max_iter, **({} if max_time is None else
@@ -192,10 +165,77 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
     opts["show_eval_warnings"] = False                         # NaN: a step into a core
     solver = ca.nlpsol("periodic_cell", "ipopt", {"x": xs, "p": p, "f": energy, "g": g}, opts)
     return PeriodicCell(shape, shape, law.core_radius, direction, solver,
-                        ca.Function("U", [xs, p], [energy]), g.numel(), int(K.size),
-                        law.rigidity, law, ca.Function("closest", [xs], [ca.horzcat(*closest)]),
-                        ca.Function("pair_vectors", [xs], [diff]), np.asarray(scale), scales,
-                        samples)
+                        ca.Function("U", [xs, p], [energy]), g.numel(), ex.pairs,
+                        law.rigidity, law, ca.Function("closest", [xs], [ex.closest]),
+                        ca.Function("pair_vectors", [xs], [ex.pair_vectors]), ex.pair_scales,
+                        ex.wrap_scales, samples)
+
+
+@dataclass(frozen=True)
+class CellExpressions:
+    """The cell's energy and rows at a lattice (``cell_expressions``): ``energy`` R_f·B +
+    (k/k₀)·contact, ``rows`` the closure, N2 and the wraps' closest-point rows, ``closest`` the
+    wraps' points and tangents (12 × n), ``pair_vectors`` the other pairs' vectors (3 × P)."""
+
+    energy: Any
+    rows: tuple[Any, ...]
+    closest: Any
+    pair_vectors: Any
+    pair_scales: np.ndarray
+    wrap_scales: np.ndarray
+
+    @property
+    def pairs(self) -> int:
+        return int(self.pair_scales.size)
+
+
+def cell_expressions(shape: Natural3D, law: SoftShell, y: Any, lattice: tuple[Any, Any, Any],
+                     R_f: Any, k: Any, samples: int = SAMPLES, straight: bool = False,
+                     reach: float = REACH, thin: bool = True) -> CellExpressions:
+    """The cell's energy and rows (module docstring) in its loop's unknowns y = (a, b, σ_u,
+    σ_l) on the lattice (w, c, s): the course period (w, 0, 0) and the course above shifted by
+    (s, c, 0), s the lattice's shear (0 in the uniaxial cell; the clamped specimen of cells,
+    ``cell_fabric``, shears it). An image at lattice offset (dj, di) sits at
+    (dj·w + di·s, di·c, 0)."""
+    w, c, s = lattice
+    L, t, q = shape.length, shape.harmonics, shape.modes
+    nc, nq = n_coeffs(t), n_coeffs(q)
+    n = len(shape.s_upper)
+    contact = 0.0
+    a, b = y[:nc], y[nc:nc + nq]
+    su, sl = y[nc + nq:nc + nq + n], y[nc + nq + n:nc + nq + 2 * n]
+    a0 = np.zeros(nc) if straight else shape.coeffs
+    b0 = np.zeros(nq) if straight else shape.elevation
+    energy = bending3d(L, t, q, 8)(a, b, ca.DM(a0), ca.DM(b0), R_f)
+    seg, terms = segment(L, t, q, GAUSS), crossing_terms(law)
+    shift = ca.vertcat(s, c, 0)
+    rows = [seg(a, b, 0.0, L)[0] - ca.vertcat(w, 0, 0)]                         # closure
+    for deg, coef in ((q, b), (t, a)):                                          # N2
+        E, S = continuity_rows(L, deg)
+        rows.append(ca.mtimes(ca.DM(E - S), coef))
+    signs, scales = shape.crossing_signs(), wrap_thinning(shape, law, thin)
+    closest = []
+    for j in range(n):                                                          # S5-S7
+        pu, tu = seg(a, b, 0.0, su[j])
+        pl, tl = seg(a, b, 0.0, sl[j])
+        e, r, *_ = terms(pu + shift, tu, pl, tl, signs[j], scales[j])
+        contact += e
+        rows.append(r)
+        closest.append(ca.vertcat(pu + shift, tu, pl, tl))
+    sv, K, M, DI, DJ, scale = cell_pairs(shape, law, samples, reach)            # R1
+    if not thin:
+        scale = np.ones_like(scale)
+    G = loop_displacements3d(L, t, q, sv, 8)(a, b)
+    along = ca.DM(DJ).T * w
+    if not (isinstance(s, float) and s == 0.0):
+        along = along + ca.DM(DI).T * s
+    off = ca.vertcat(along, ca.DM(DI).T * c, ca.DM.zeros(1, K.size))
+    diff = G[:, M.tolist()] - G[:, K.tolist()] + off
+    d = ca.sqrt(ca.sum1(diff ** 2)).T
+    contact += (L / samples) ** 2 * ca.sum1(law.casadi_energy(law.seen(d, ca.DM(scale))))
+    energy += k / law.rigidity * contact                          # linear in k
+    return CellExpressions(energy, tuple(rows), ca.horzcat(*closest), diff,
+                           np.asarray(scale, dtype=float), scales)
 
 
 def wrap_thinning(shape: Natural3D, law: SoftShell, thinned: bool) -> np.ndarray:
