@@ -13,7 +13,7 @@ strains are read between the pins' places, as the tracking reads them, and compa
     python scripts/cell_fabric.py --rigidity 0.00465 [--spec real_fabric/acrylic_3d_cell_straight_x]
         [--directions wales,courses] [--mesh wales=6x3,courses=4x4] [--grading 1]
         [--to 0.6] [--step 0.0125]
-        [--threads 1] [--max-time 300] [--out DIR]
+        [--max-time 300] [--out DIR]
 
 ``--rigidity`` is the contact law's k (N/mm³): e.g. what ``knit-nlp calibrate`` fits for the
 spec's uniaxial cell. Prints one line per node and per direction the checks, model beside
@@ -33,7 +33,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from knit_nlp.weft.inverse.calibration.checks import outcome_checks  # noqa: E402
-from knit_nlp.weft.inverse.calibration.measured import read_stitch_by_stitch  # noqa: E402
+from knit_nlp.weft.inverse.calibration.measured import (_GEOMETRY,  # noqa: E402
+                                                        MeasuredTest, read_stitch_by_stitch)
 from knit_nlp.weft.inverse.calibration.metric import METRIC_FORCES, metric  # noqa: E402
 from knit_nlp.weft.inverse.calibration.spec import CLAMP_WIDTH_MM  # noqa: E402
 from knit_nlp.weft.model.compression import SoftShell  # noqa: E402
@@ -52,13 +53,11 @@ def first_frames(path: Path) -> dict[str, float]:
     run's first frame (the mean over runs): ``gap`` the clamps' distance, ``bottom``/``top``
     the axial pins' distances from their clamps over the gap, ``span`` the lateral pins'
     distance over the fabric's width, ``height`` their height over the gap from the bottom
-    clamp. Image y grows downwards; the bottom clamp has the larger y."""
+    clamp. Image y grows downwards; the bottom clamp has the larger y. (The specimen's width
+    in clamp widths is the reader's, ``MeasuredTest.width_clamps``.)"""
     lines = path.read_text().splitlines()
-    width_px = clamp_px = None
-    for line in lines:
-        if line.startswith("#") and "clamp_size_px" in line:
-            parts = dict(p.strip().split(" = ") for p in line[1:].split(";"))
-            clamp_px, width_px = float(parts["clamp_size_px"]), float(parts["fabric_width_px"])
+    clamp_px, width_px = next(tuple(float(v) for v in m.groups()) for m in
+                              map(_GEOMETRY.search, lines) if m and m.string.startswith("#"))
     first: dict[str, dict[str, float]] = {}
     for row in csv.DictReader(line for line in lines if not line.startswith("#")):
         first.setdefault(row["run"], {k: float(v) for k, v in row.items() if k != "run"})
@@ -71,9 +70,7 @@ def first_frames(path: Path) -> dict[str, float]:
         vals["span"].append(abs(r["right_pin_x"] - r["left_pin_x"]) / width_px)
         vals["height"].append((r["bottom_clamp_y"] - 0.5 * (r["left_pin_y"] + r["right_pin_y"]))
                               / gap)
-    out = {k: float(np.mean(v)) for k, v in vals.items()}
-    out["width"] = width_px / clamp_px
-    return out
+    return {k: float(np.mean(v)) for k, v in vals.items()}
 
 
 def pins(width: float, height: float, f: dict[str, float]) -> np.ndarray:
@@ -122,10 +119,8 @@ def pull(fab, y_rest: np.ndarray, R_f: float, k: float, height: float, ref: np.n
     return out
 
 
-def compare(nodes: list[dict], direction: str, width: float) -> dict:
+def compare(nodes: list[dict], test: MeasuredTest, width: float) -> dict:
     """calibrate's checks and metric of the specimen's curve (the strains the pins read)."""
-    test = read_stitch_by_stitch(ROOT / "problems" / "real_fabric" / TESTS[direction],
-                                 TESTS[direction])
     e = np.array([0.0] + [n["axial"] for n in nodes])
     F = np.array([0.0] + [n["F"] for n in nodes])
     lat = np.array([0.0] + [n["lateral"] for n in nodes])
@@ -187,7 +182,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--top-force", type=float, default=30.0, help="stop above this force, N")
     ap.add_argument("--samples", type=int, default=SAMPLES)
     ap.add_argument("--reach", type=float, default=REACH)
-    ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--max-time", type=float, default=300.0,
                     help="seconds per step's solve (a step near the lock-up may not converge)")
     ap.add_argument("--out", type=Path, default=None)
@@ -209,13 +203,14 @@ def main(argv: list[str] | None = None) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
     for direction in args.directions.split(","):
         t0 = time.perf_counter()
-        f = first_frames(ROOT / "problems" / "real_fabric" / TESTS[direction])
-        width, height = f["width"] * CLAMP_WIDTH_MM, f["gap"] * CLAMP_WIDTH_MM
+        path = ROOT / "problems" / "real_fabric" / TESTS[direction]
+        test, f = read_stitch_by_stitch(path, TESTS[direction]), first_frames(path)
+        width, height = test.width_clamps * CLAMP_WIDTH_MM, f["gap"] * CLAMP_WIDTH_MM
         nx, ny = (int(v) for v in meshes[direction].split("x"))
         mesh = specimen_mesh(width, height, nx, ny, args.grading)
         ref = pins(width, height, f)
         fab = build_cell_fabric(shape, law, direction, mesh, (w0, c0), args.samples,
-                                straight=True, reach=args.reach, threads=args.threads,
+                                straight=True, reach=args.reach,
                                 max_iter=150, max_time=args.max_time)
         print(f"{direction}: {width:.1f} mm wide, clamps {height:.1f} mm apart, {nx} x {ny} "
               f"rectangles (grading {args.grading:g}, the rows at the clamps "
@@ -227,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
                      args.top_force)
         if not nodes:
             continue
-        c = compare(nodes, direction, width)
+        c = compare(nodes, test, width)
         print(report(direction, c, time.perf_counter() - t0), flush=True)
         if args.out:
             with open(args.out / f"cell_fabric_{direction}.csv", "w", newline="") as fh:

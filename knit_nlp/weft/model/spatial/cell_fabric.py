@@ -35,10 +35,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ....ipopt import ipopt_options, succeeded
+from ....ipopt import succeeded
 from ..compression import SoftShell
 from .natural3d import Natural3D
-from .periodic import DIRECTIONS, cell_expressions
+from .periodic import DIRECTIONS, cell_expressions, cell_solver_options
 
 SAMPLES = 48                    # other-contact samples per loop (the uniaxial cell's 80: its
                                 # held wale pull 2 % stiffer at 10 %; docs/real_fabric.md)
@@ -129,7 +129,6 @@ class CellFabric:
     lattices: ca.Function              # z -> (E, 3) each cell's (w, c, s)
     lbz: np.ndarray
     ubz: np.ndarray
-    rows: int
 
     def start(self, y_rest: np.ndarray) -> np.ndarray:
         """z at the reference: nodes unmoved, every cell the reference cell ``y_rest``."""
@@ -147,11 +146,10 @@ class CellFabric:
 def build_cell_fabric(shape: Natural3D, law: SoftShell, direction: str, mesh: Mesh,
                       spacings: tuple[float, float], samples: int = SAMPLES,
                       straight: bool = False, thin: bool = False, reach: float = REACH,
-                      max_iter: int = 300, max_time: float | None = None,
-                      threads: int = 1) -> CellFabric:
+                      max_iter: int = 300, max_time: float | None = None) -> CellFabric:
     """The NLP of ``mesh`` clamped at its bottom and top, pulled along ``direction``, its
     cells the periodic cell of ``shape`` and ``law`` (``periodic.cell_expressions``) at the
-    reference lattice ``spacings`` = (w₀, c₀); the cells evaluated on ``threads`` threads."""
+    reference lattice ``spacings`` = (w₀, c₀)."""
     n = len(shape.s_upper)
     ny = len(shape.coeffs) + len(shape.elevation) + 2 * n
     y, lat = ca.MX.sym("y", ny), ca.MX.sym("lattice", 3)
@@ -185,24 +183,19 @@ def build_cell_fabric(shape: Natural3D, law: SoftShell, direction: str, mesh: Me
         F = ca.mtimes(ca.horzcat(pos[j] - pos[i], pos[m] - pos[i]), ca.DM(np.linalg.inv(ref)))
         lats.append(ca.vertcat(*cell_lattice(F, A1, A2)))
     Y = ca.reshape(z[base:base + ny * E], ny, E)
-    how = ("thread", threads) if threads > 1 else ("serial",)
     LAT = ca.horzcat(*lats)
-    U, G = cell_U.map(E, *how)(Y, LAT, p[1], p[2]), cell_g.map(E, *how)(Y, LAT)
+    U, G = cell_U.map(E)(Y, LAT, p[1], p[2]), cell_g.map(E)(Y, LAT)
     energy = ca.mtimes(U, ca.DM(weight))
-    rows = [ca.vec(G)]
-    rows.append(delta - p[0])                               # the travel
-    g = ca.vertcat(*rows)
+    g = ca.vertcat(ca.vec(G), delta - p[0])                 # the cells' rows, the travel
     lbz, ubz = np.full(z.numel(), -np.inf), np.full(z.numel(), np.inf)
     sig = np.arange(ny - 2 * n, ny)                          # each cell's σ_u, σ_l
     for e in range(E):
         lbz[base + ny * e + sig], ubz[base + ny * e + sig] = 0.0, shape.length
-    opts = ipopt_options(TOL, max_iter, **({} if max_time is None else
-                                           {"max_wall_time": float(max_time)}))
-    opts["show_eval_warnings"] = False                      # NaN: a step into a core
-    solver = ca.nlpsol("cell_fabric", "ipopt", {"x": z, "p": p, "f": energy, "g": g}, opts)
+    solver = ca.nlpsol("cell_fabric", "ipopt", {"x": z, "p": p, "f": energy, "g": g},
+                       cell_solver_options(TOL, max_iter, max_time))
     positions = ca.Function("positions", [z], [ca.horzcat(*pos).T])
     return CellFabric(mesh, direction, tuple(spacings), ny, free, solver, positions,
-                      ca.Function("lattices", [z], [ca.horzcat(*lats).T]), lbz, ubz, g.numel())
+                      ca.Function("lattices", [z], [LAT.T]), lbz, ubz)
 
 
 @dataclass(frozen=True)

@@ -160,15 +160,22 @@ def build_cell(shape: Natural3D, law: SoftShell, direction: str, samples: int = 
     energy, rows = ex.energy, list(ex.rows)
     rows.append((w if direction == "courses" else c) - p[0])                    # the pull
     g = ca.vertcat(*rows)
-    opts = ipopt_options(TOL, max_iter, **({} if max_time is None else
-                                           {"max_wall_time": float(max_time)}))
-    opts["show_eval_warnings"] = False                         # NaN: a step into a core
-    solver = ca.nlpsol("periodic_cell", "ipopt", {"x": xs, "p": p, "f": energy, "g": g}, opts)
+    solver = ca.nlpsol("periodic_cell", "ipopt", {"x": xs, "p": p, "f": energy, "g": g},
+                       cell_solver_options(TOL, max_iter, max_time))
     return PeriodicCell(shape, shape, law.core_radius, direction, solver,
                         ca.Function("U", [xs, p], [energy]), g.numel(), ex.pairs,
                         law.rigidity, law, ca.Function("closest", [xs], [ex.closest]),
                         ca.Function("pair_vectors", [xs], [ex.pair_vectors]), ex.pair_scales,
                         ex.wrap_scales, samples)
+
+
+def cell_solver_options(tol: float, max_iter: int, max_time: float | None) -> dict:
+    """IPOPT's options for a cell's NLP (or a specimen of cells): ``max_iter`` and
+    ``max_time`` (s) bound each solve; NaN warnings silenced (a step into a core)."""
+    opts = ipopt_options(tol, max_iter, **({} if max_time is None else
+                                           {"max_wall_time": float(max_time)}))
+    opts["show_eval_warnings"] = False
+    return opts
 
 
 @dataclass(frozen=True)
